@@ -1,0 +1,39 @@
+"""jaxbelt: a differentiable JAX simulator of conveyor-belt systems with model order reduction.
+
+float64 is switched on at import (``jax_enable_x64``); set the environment variable
+``JAXBELT_X64=0`` before importing to keep JAX's float32 default.
+"""
+
+import os as _os
+
+import jax as _jax
+
+if _os.environ.get("JAXBELT_X64", "1") != "0":
+    _jax.config.update("jax_enable_x64", True)
+
+from .integrators import DirectBackwardEuler as DirectBackwardEuler
+from .integrators import EliminatedBackwardEuler as EliminatedBackwardEuler
+from .integrators import NaiveBackwardEuler as NaiveBackwardEuler
+from .integrators import make_integrator as make_integrator
+from .mesh import Mesh as Mesh
+from .mesh import build_mesh as build_mesh
+from .model import BeltModel as BeltModel
+from .model import compile_scene as compile_scene
+from .scene import Scene as Scene
+from .scene import SceneError as SceneError
+from .scene import builtin_scene_names as builtin_scene_names
+from .scene import load_scene as load_scene
+from .scene import scene_from_dict as scene_from_dict
+from .simulate import Trajectory as Trajectory
+from .simulate import simulate as simulate
+from .simulate import simulate_with_progress as simulate_with_progress
+from .state import BeltState as BeltState
+from .state import initial_state as initial_state
+from .transport import transport_step as transport_step
+
+__version__ = "0.1.0"
+
+
+def load_model(source) -> BeltModel:
+    """Load a scene (path or built-in name) and compile it."""
+    return compile_scene(load_scene(source))

@@ -1,0 +1,90 @@
+"""Assembly of the DAE ``K x + M ẍ = F`` for one time step (§3.3, §4.3, MODEL.md §2–§4).
+
+Rows, in the unknowns' order:
+
+* free-belt DOF: ``K_f u + M_f ü = -f₀`` (eq. 3.36; ``f₀`` = pre-tension);
+* belt DOF on a roller: the Backward-Euler no-slip row (eq. 3.35)
+  ``u(t) - R_r χ(t) = u(t-Δt) - R_r χ(t-Δt)``;
+* dynamic roller DOF: ``M_r χ̈ + Σ_k R_rᵀ f_k = Q_ext`` with ``f_k = m_k ü_k + (K_f u + f₀)_k``,
+  the force the belt needs at roller node ``k``: lumped inertia, plus on contact lines the
+  stiffness terms of the adjacent free elements (eq. 3.38–3.39, 4.29–4.30);
+* prescribed roller DOF: ``χ = value`` (translation/tilt; drive: ``α_z(t) = α_z(t-Δt) + ωΔt``).
+
+Everything is produced directly in the bordered block format (no dense N × N matrix).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from .linalg import BorderedBlockCyclic
+from .model import BeltModel
+
+
+def nodal_masses(model: BeltModel, m_e) -> jnp.ndarray:
+    """Lumped nodal masses (n, b): half of each adjacent element's mass (eq. 3.25–3.26)."""
+    m = 0.5 * (m_e + jnp.roll(m_e, 1))
+    return jnp.broadcast_to(m[:, None], (m.shape[0], model.block))
+
+
+def generalised_belt_force(R, f) -> jnp.ndarray:
+    """``Σ_k R_rᵀ f_k`` for nodal forces ``f`` (n, b): the belt's load on the roller DOFs (q,)."""
+    return jnp.einsum("nbq,nb->q", R, f)
+
+
+def roller_stiffness_rows(R, Kd, Kl, Ku) -> jnp.ndarray:
+    """Belt-column blocks (n, q, b) of ``Rᵀ K_f``: column ``i`` gets ``Σ_j R[j]ᵀ K_f[j, i]``."""
+    tr = lambda a: jnp.swapaxes(a, 1, 2)
+    return (
+        tr(R) @ Kd
+        + tr(jnp.roll(R, 1, axis=0)) @ jnp.roll(Ku, 1, axis=0)
+        + tr(jnp.roll(R, -1, axis=0)) @ jnp.roll(Kl, -1, axis=0)
+    )
+
+
+def dae_matrices(model: BeltModel, m_e, R=None):
+    """``(K, M)`` of the DAE in bordered block format for element masses ``m_e``."""
+    R = model.R if R is None else R
+    n, b, q = R.shape
+    con = model.is_constraint
+    dyn = model.dynamic
+    eye = jnp.eye(b)[None]
+    zero = jnp.zeros((n, b, b))
+    K = BorderedBlockCyclic(
+        diag=jnp.where(con[:, :, None], eye, model.K_diag),
+        lower=jnp.where(con[:, :, None], zero, model.K_lower),
+        upper=jnp.where(con[:, :, None], zero, model.K_upper),
+        C=jnp.where(con[:, :, None], -R, 0.0),
+        D=jnp.where(dyn[None, :, None], roller_stiffness_rows(R, model.K_diag, model.K_lower, model.K_upper), 0.0),
+        E=jnp.diag(jnp.where(dyn, 0.0, 1.0)),
+    )
+    m = nodal_masses(model, m_e)
+    Rm = jnp.swapaxes(R * m[:, :, None], 1, 2)  # (n, q, b) = R[i]ᵀ diag(m[i])
+    M = BorderedBlockCyclic(
+        diag=jnp.where(con[:, :, None], 0.0, m[:, :, None] * eye),
+        lower=zero,
+        upper=zero,
+        C=jnp.zeros((n, b, q)),
+        D=jnp.where(dyn[None, :, None], Rm, 0.0),
+        E=jnp.diag(jnp.where(dyn, model.M_roller, 0.0)),
+    )
+    return K, M
+
+
+def dae_rhs(model: BeltModel, u_prev, chi_prev, R=None):
+    """Right-hand side ``F`` for the step from the (transported, reset) state ``(u_prev, χ_prev)``."""
+    R = model.R if R is None else R
+    con = model.is_constraint
+    F_belt = jnp.where(con, u_prev - jnp.einsum("nbq,q->nb", R, chi_prev), -model.f0)
+    target = model.chi_static + jnp.where(model.is_az, chi_prev, 0.0) + model.omega * model.dt
+    F_roll = jnp.where(model.dynamic, model.Q_ext - generalised_belt_force(R, model.f0), target)
+    return F_belt, F_roll
+
+
+def static_rhs(model: BeltModel, R=None):
+    """Right-hand side of the initial static problem ``K x = F`` (§3.4, §4.4.1): belt at rest on
+    the misaligned rollers, drive angle 0."""
+    R = model.R if R is None else R
+    F_belt = jnp.where(model.is_constraint, 0.0, -model.f0)
+    F_roll = jnp.where(model.dynamic, model.Q_ext - generalised_belt_force(R, model.f0), model.chi_static)
+    return F_belt, F_roll

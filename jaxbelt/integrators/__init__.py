@@ -1,0 +1,21 @@
+"""Time integrators: naive 3N system, direct Backward Euler (default), eliminated ODE (§3.4)."""
+
+from ._base import AbstractIntegrator as AbstractIntegrator
+from .direct import DirectBackwardEuler as DirectBackwardEuler
+from .eliminated import EliminatedBackwardEuler as EliminatedBackwardEuler
+from .eliminated import algebraic_partition as algebraic_partition
+from .eliminated import eliminated_system as eliminated_system
+from .naive import NaiveBackwardEuler as NaiveBackwardEuler
+
+INTEGRATORS = ("naive", "direct", "eliminated")
+
+
+def make_integrator(name: str, model, linear_solver: str | None = None) -> AbstractIntegrator:
+    """Integrator by name: ``"naive"``, ``"direct"`` or ``"eliminated"``."""
+    if name == "direct":
+        return DirectBackwardEuler(linear_solver or model.linear_solver)
+    if name == "naive":
+        return NaiveBackwardEuler()
+    if name == "eliminated":
+        return EliminatedBackwardEuler.for_model(model)
+    raise ValueError(f"unknown integrator {name!r} (one of {', '.join(INTEGRATORS)})")

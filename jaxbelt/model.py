@@ -1,0 +1,166 @@
+"""The compiled belt model: a frozen, jit-friendly pytree holding only what a scene needs.
+
+:func:`compile_scene` turns a validated :class:`~jaxbelt.scene.Scene` into a
+:class:`BeltModel`. Array fields are pytree leaves (so ``jax.grad``/``vmap`` reach e.g. the
+misalignment ``chi_static``); sizes and settings are static fields.
+
+Unknowns (MODEL.md §2, §4): ``x = [belt DOFs column by column (n_xi, b); roller DOFs (q,)]``
+with ``b = 1`` (1D: ``u``) and per roller ``(d_x, α_z)`` in 1D, so ``N = n_xi + 2p``.
+*Algebraic* unknowns are the belt DOFs on roller arcs (no-slip constraint rows) and the
+prescribed roller DOFs (trivial rows); the others (free-belt nodes, force/torque-loaded
+roller DOFs such as an idle roller's ``α_z``) are *dynamic*.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import elements, rollers
+from .mesh import Mesh, build_mesh
+from .scene import Scene, SceneError
+
+
+class BeltModel(eqx.Module):
+    """Compiled scene. Shapes: ``n = n_xi`` node columns, ``b`` DOFs per column, ``q`` roller DOFs."""
+
+    x: jax.Array  # (n,) node positions along the path, m
+    ell: jax.Array  # (n,) element-column lengths, m
+    K_diag: jax.Array  # (n, b, b) free-belt stiffness blocks
+    K_lower: jax.Array
+    K_upper: jax.Array
+    f0: jax.Array  # (n, b) internal force of the pre-tension on free elements, N
+    R: jax.Array  # (n, b, q) roller kinematics R_r (zero on free nodes)
+    is_constraint: jax.Array  # (n, b) bool: row is a no-slip constraint
+    node_roller: jax.Array  # (n,) roller of a node column, -1 on free spans
+    m_e0: jax.Array  # (n,) initial element masses, kg
+    M_roller: jax.Array  # (q,) roller inertia (m or I)
+    dynamic: jax.Array  # (q,) bool: force/torque-loaded roller DOF
+    chi_static: jax.Array  # (q,) prescribed values: translations (m), tilts (rad); 0 for α_z
+    omega: jax.Array  # (q,) prescribed rate of α_z (drive rollers), rad/s
+    is_az: jax.Array  # (q,) bool: rotation about the roller axis (reset by the transport step)
+    Q_ext: jax.Array  # (q,) external force/torque on dynamic roller DOFs
+    tracer_col: jax.Array  # (n_tr,) element column of each tracer
+    tracer_xi: jax.Array  # (n_tr,) local coordinate in [0, 1)
+
+    dt: float = eqx.field(static=True)
+    n_steps: int = eqx.field(static=True)
+    kind: str = eqx.field(static=True)
+    roller_names: tuple = eqx.field(static=True)
+    dofs: tuple = eqx.field(static=True)
+    every: int = eqx.field(static=True)
+    full_fields: bool = eqx.field(static=True)
+    integrator: str = eqx.field(static=True)
+    linear_solver: str = eqx.field(static=True)
+
+    @property
+    def n_xi(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def block(self) -> int:
+        return self.R.shape[1]
+
+    @property
+    def n_rollers(self) -> int:
+        return len(self.roller_names)
+
+    @property
+    def n_roller_dofs(self) -> int:
+        return self.R.shape[2]
+
+    @property
+    def n_unknowns(self) -> int:
+        return self.n_xi * self.block + self.n_roller_dofs
+
+    @property
+    def n_algebraic(self) -> int:
+        return int(np.sum(np.asarray(self.is_constraint))) + int(np.sum(~np.asarray(self.dynamic)))
+
+    @property
+    def n_tracers(self) -> int:
+        return self.tracer_col.shape[0]
+
+    def with_misalignment(self, translation=None, rotation=None) -> "BeltModel":
+        """Copy with new static roller misalignments (traceable, for ``grad``/``vmap``).
+
+        **Arguments:** ``translation``: (p,) x translations in 1D or (p, 3), m;
+        ``rotation``: (p, 3) tilts, rad (2D only). ``None`` keeps the current value.
+        """
+        chi = self.chi_static.reshape(self.n_rollers, len(self.dofs))
+        if translation is not None:
+            t = jnp.asarray(translation)
+            if t.ndim == 1:
+                t = jnp.stack([t, jnp.zeros_like(t), jnp.zeros_like(t)], axis=1)
+            for k, ax in enumerate("xyz"):
+                if f"d{ax}" in self.dofs:
+                    chi = chi.at[:, self.dofs.index(f"d{ax}")].set(t[:, k])
+                else:
+                    _require_zero(t[:, k], f"translation along {ax}", self.kind)
+        if rotation is not None:
+            a = jnp.asarray(rotation)
+            for k, ax in enumerate("xy"):
+                if f"a{ax}" in self.dofs:
+                    chi = chi.at[:, self.dofs.index(f"a{ax}")].set(a[:, k])
+                else:
+                    _require_zero(a[:, k], f"rotation about {ax}", self.kind)
+        return eqx.tree_at(lambda m: m.chi_static, self, chi.reshape(-1))
+
+
+def _require_zero(v, what, kind):
+    if not isinstance(v, jax.core.Tracer) and np.any(np.asarray(v) != 0):
+        raise ValueError(f"the {kind} model has no {what}")
+
+
+def compile_scene(scene: Scene, mesh: Mesh | None = None) -> BeltModel:
+    """Build the model for a validated scene (1D: MODEL.md §2; 2D: MODEL.md §4)."""
+    if scene.kind != "1d":
+        raise SceneError("model.kind = '2d': the 2D plane-stress model is not available in this "
+                         "version of jaxbelt yet; use kind = '1d'")
+    mesh = build_mesh(scene) if mesh is None else mesh
+    return _compile_1d(scene, mesh)
+
+
+def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
+    belt, rl = scene.belt, scene.rollers
+    p = len(rl)
+    EA = belt.youngs_modulus * belt.area
+    rhoA = belt.density * belt.area
+    ell = jnp.asarray(mesh.ell)
+    free = jnp.asarray(mesh.elem_free, float)
+    Kd, Kl, Ku = elements.free_belt_stiffness_1d(ell, free, EA)
+    L_belt = mesh.length if belt.length is None else belt.length
+    eps0 = mesh.length / L_belt - 1.0  # uniform pre-strain of a belt shorter than its path
+    f0 = elements.prestress_force_1d(free, EA, eps0)
+    radii = np.array([r.radius for r in rl])
+    R = rollers.roller_constraint_rows_1d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii)
+    is_con = (mesh.node_roller >= 0)[:, None]
+
+    dofs = rollers.DOFS_1D
+    dynamic = np.zeros((p, 2), bool)
+    chi = np.zeros((p, 2))
+    omega = np.zeros((p, 2))
+    Q = np.zeros((p, 2))
+    for j, r in enumerate(rl):
+        chi[j, 0] = r.translation[0]
+        dynamic[j, 0] = r.force[0] != 0.0
+        Q[j, 0] = r.force[0]
+        dynamic[j, 1] = r.role != "drive"
+        if r.role == "drive":
+            omega[j, 1] = mesh.path.senses[j] * r.speed / r.radius  # belt moves forward at V
+    is_az = np.zeros((p, 2), bool)
+    is_az[:, 1] = True
+    col, xi = mesh.tracer_location()
+    return BeltModel(
+        x=jnp.asarray(mesh.x), ell=ell, K_diag=Kd, K_lower=Kl, K_upper=Ku, f0=f0,
+        R=jnp.asarray(R), is_constraint=jnp.asarray(is_con), node_roller=jnp.asarray(mesh.node_roller),
+        m_e0=rhoA * ell, M_roller=jnp.asarray(rollers.roller_inertia_1d([r.mass for r in rl], radii)),
+        dynamic=jnp.asarray(dynamic.reshape(-1)), chi_static=jnp.asarray(chi.reshape(-1)),
+        omega=jnp.asarray(omega.reshape(-1)), is_az=jnp.asarray(is_az.reshape(-1)),
+        Q_ext=jnp.asarray(Q.reshape(-1)), tracer_col=jnp.asarray(col), tracer_xi=jnp.asarray(xi),
+        dt=scene.time.dt, n_steps=scene.time.n_steps, kind="1d", roller_names=tuple(r.name for r in rl),
+        dofs=dofs, every=scene.output.every, full_fields=scene.output.fields == "full",
+        integrator=scene.solver.integrator, linear_solver=scene.solver.linear_solver,
+    )

@@ -1,0 +1,413 @@
+"""Scene files (TOML): loading, unit conversion and validation (MODEL.md §1).
+
+A scene is read into plain frozen dataclasses in SI units. Every rejection raises
+:class:`SceneError`, whose message names the offending key and value; nothing is compiled or
+run for a scene that fails. Geometry- and mesh-dependent checks (belt path, CFL, elements on
+an arc) happen in :func:`jaxbelt.mesh.build_mesh`, which raises the same error type.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+class SceneError(ValueError):
+    """A scene that cannot be simulated; the message names the key and the value."""
+
+
+# ---------------------------------------------------------------------------- specs (SI units)
+
+
+@dataclasses.dataclass(frozen=True)
+class BeltSpec:
+    width: float  # m
+    thickness: float  # m
+    youngs_modulus: float  # Pa
+    poisson_ratio: float
+    density: float  # kg/m³
+    length: float | None = None  # m; None = path length
+
+    @property
+    def area(self) -> float:
+        return self.width * self.thickness
+
+
+@dataclasses.dataclass(frozen=True)
+class RollerSpec:
+    name: str
+    center: tuple[float, float]  # m
+    radius: float  # m
+    width: float  # m
+    mass: float  # kg
+    external: bool
+    role: str  # drive | idle | tension
+    speed: float  # belt surface speed for a drive roller, m/s
+    translation: tuple[float, float, float]  # m
+    rotation: tuple[float, float, float]  # rad, applied x → y → z
+    force: tuple[float, float, float]  # N; non-zero components are force-loaded (dynamic) DOFs
+    torque: tuple[float, float, float]  # N·m about x, y (z: idle/tension rollers are torque free)
+
+
+@dataclasses.dataclass(frozen=True)
+class MeshSpec:
+    n_eta: int = 1
+    n_xi: int | None = None
+    element_length: float | None = None  # m
+    roller_elements: tuple[int, ...] | None = None
+    free_elements: tuple[int, ...] | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class TimeSpec:
+    dt: float  # s
+    t_end: float  # s
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.t_end / self.dt))
+
+
+@dataclasses.dataclass(frozen=True)
+class OutputSpec:
+    tracers_per_segment: int = 5
+    fields: str = "tracers"  # tracers | full
+    every: int = 1  # keep every k-th step
+    tracers: tuple[tuple[float, float], ...] = ()  # extra tracers (x along the path, z), m
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverSpec:
+    integrator: str = "direct"  # naive | direct | eliminated
+    linear_solver: str = "structured"  # structured | dense
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    name: str
+    kind: str  # "1d" | "2d"
+    belt: BeltSpec
+    rollers: tuple[RollerSpec, ...]
+    mesh: MeshSpec
+    time: TimeSpec
+    output: OutputSpec
+    solver: SolverSpec
+    direction: int | None = None  # +1 ccw / -1 cw loop; None: from the layout
+    description: str = ""
+
+    def replace(self, **kw) -> "Scene":
+        return dataclasses.replace(self, **kw)
+
+
+# ---------------------------------------------------------------------------- schema
+
+_ROLES = ("drive", "idle", "tension")
+_SIDES = ("internal", "external")
+_INTEGRATORS = ("naive", "direct", "eliminated")
+_LINEAR = ("structured", "dense")
+
+_TABLES = {
+    "model": {"kind", "name", "description", "direction"},
+    "belt": {"width_mm", "thickness_mm", "youngs_modulus_pa", "poisson_ratio", "density_kg_m3", "length_mm"},
+    "roller": {
+        "name", "center_mm", "radius_mm", "width_mm", "mass_kg", "side", "role", "speed_m_s",
+        "translation_mm", "rotation_mrad", "force_n", "torque_nm",
+    },
+    "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements"},
+    "time": {"dt_s", "t_end_s"},
+    "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
+    "solver": {"integrator", "linear_solver"},
+}
+
+
+def _err(key: str, value: Any, why: str) -> SceneError:
+    return SceneError(f"{key} = {value!r}: {why}")
+
+
+def _check_keys(table: dict, allowed: set, where: str):
+    for k in table:
+        if k not in allowed:
+            raise _err(f"{where}.{k}", table[k], f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+
+def _number(d: dict, key: str, where: str, *, required=True, default=None, positive=False, nonneg=False,
+            integer=False, lo=None, hi=None):
+    if key not in d:
+        if required:
+            raise _err(f"{where}.{key}", None, "required key is missing")
+        return default
+    v = d[key]
+    name = f"{where}.{key}"
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _err(name, v, "must be a number")
+    if integer and not isinstance(v, int):
+        raise _err(name, v, "must be an integer")
+    if not math.isfinite(v):
+        raise _err(name, v, "must be finite (no NaN or inf)")
+    if positive and not v > 0:
+        raise _err(name, v, "must be positive")
+    if nonneg and v < 0:
+        raise _err(name, v, "must not be negative")
+    if lo is not None and v < lo:
+        raise _err(name, v, f"must be >= {lo}")
+    if hi is not None and v >= hi:
+        raise _err(name, v, f"must be < {hi}")
+    return v
+
+
+def _vector(d: dict, key: str, where: str, n: int, default=None):
+    if key not in d:
+        if default is None:
+            raise _err(f"{where}.{key}", None, "required key is missing")
+        return tuple(default)
+    v = d[key]
+    name = f"{where}.{key}"
+    if not isinstance(v, list) or len(v) != n:
+        raise _err(name, v, f"must be a list of {n} numbers")
+    for x in v:
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise _err(name, v, "must be a list of numbers")
+        if not math.isfinite(x):
+            raise _err(name, v, "must be finite (no NaN or inf)")
+    return tuple(float(x) for x in v)
+
+
+def _choice(d: dict, key: str, where: str, choices, default=None):
+    if key not in d:
+        if default is None:
+            raise _err(f"{where}.{key}", None, f"required key is missing (one of {', '.join(choices)})")
+        return default
+    v = d[key]
+    if v not in choices:
+        raise _err(f"{where}.{key}", v, f"must be one of {', '.join(choices)}")
+    return v
+
+
+def _int_list(d: dict, key: str, where: str, n: int):
+    if key not in d:
+        return None
+    v = d[key]
+    if not isinstance(v, list) or len(v) != n or not all(isinstance(x, int) and not isinstance(x, bool) for x in v):
+        raise _err(f"{where}.{key}", v, f"must be a list of {n} integers (one per roller)")
+    return tuple(v)
+
+
+# ---------------------------------------------------------------------------- parsing
+
+
+def scene_from_dict(data: dict, name: str = "scene") -> Scene:
+    """Validate a parsed TOML document and convert it to a :class:`Scene` in SI units."""
+    for k in data:
+        if k not in _TABLES:
+            raise _err(k, "…", f"unknown table (allowed: {', '.join(sorted(_TABLES))})")
+    model = data.get("model", {})
+    _check_keys(model, _TABLES["model"], "model")
+    kind = _choice(model, "kind", "model", ("1d", "2d"))
+    direction = None
+    if "direction" in model:
+        direction = {"ccw": 1, "cw": -1}.get(model["direction"])
+        if direction is None:
+            raise _err("model.direction", model["direction"], "must be 'ccw' or 'cw'")
+
+    belt = data.get("belt")
+    if belt is None:
+        raise _err("belt", None, "required table is missing")
+    _check_keys(belt, _TABLES["belt"], "belt")
+    nu = _number(belt, "poisson_ratio", "belt", nonneg=True, hi=0.5)
+    length = _number(belt, "length_mm", "belt", required=False, positive=True)
+    belt_spec = BeltSpec(
+        width=_number(belt, "width_mm", "belt", positive=True) * 1e-3,
+        thickness=_number(belt, "thickness_mm", "belt", positive=True) * 1e-3,
+        youngs_modulus=_number(belt, "youngs_modulus_pa", "belt", positive=True),
+        poisson_ratio=float(nu),
+        density=_number(belt, "density_kg_m3", "belt", positive=True),
+        length=None if length is None else length * 1e-3,
+    )
+
+    raw_rollers = data.get("roller")
+    if not isinstance(raw_rollers, list):
+        raise _err("roller", raw_rollers, "scene needs [[roller]] tables (2 to 6)")
+    if not 2 <= len(raw_rollers) <= 6:
+        raise _err("roller", f"{len(raw_rollers)} rollers", "a belt system has 2 to 6 rollers")
+    rollers = tuple(_roller(r, j, kind) for j, r in enumerate(raw_rollers))
+    _check_rollers(rollers, belt_spec)
+
+    mesh = data.get("mesh", {})
+    _check_keys(mesh, _TABLES["mesh"], "mesh")
+    p = len(rollers)
+    n_eta = _number(mesh, "n_eta", "mesh", required=False, default=1 if kind == "1d" else 9, integer=True, lo=1)
+    if kind == "1d" and n_eta != 1:
+        raise _err("mesh.n_eta", n_eta, "the 1D model has one node across the width (n_eta = 1)")
+    if kind == "2d" and n_eta < 2:
+        raise _err("mesh.n_eta", n_eta, "the 2D model needs at least 2 nodes across the width")
+    el = _number(mesh, "element_length_mm", "mesh", required=False, positive=True)
+    mesh_spec = MeshSpec(
+        n_eta=int(n_eta),
+        n_xi=_number(mesh, "n_xi", "mesh", required=False, integer=True, lo=2 * p),
+        element_length=None if el is None else el * 1e-3,
+        roller_elements=_int_list(mesh, "roller_elements", "mesh", p),
+        free_elements=_int_list(mesh, "free_elements", "mesh", p),
+    )
+    if (mesh_spec.roller_elements is None) != (mesh_spec.free_elements is None):
+        raise _err("mesh.roller_elements", mesh.get("roller_elements"),
+                   "give roller_elements and free_elements together")
+    if mesh_spec.free_elements is not None and min(mesh_spec.free_elements) < 1:
+        raise _err("mesh.free_elements", list(mesh_spec.free_elements), "every free span needs >= 1 element")
+
+    time = data.get("time")
+    if time is None:
+        raise _err("time", None, "required table is missing")
+    _check_keys(time, _TABLES["time"], "time")
+    dt = _number(time, "dt_s", "time", positive=True)
+    t_end = _number(time, "t_end_s", "time", positive=True)
+    if t_end < dt:
+        raise _err("time.t_end_s", t_end, f"shorter than one step (dt_s = {dt})")
+    time_spec = TimeSpec(float(dt), float(t_end))
+
+    out = data.get("output", {})
+    _check_keys(out, _TABLES["output"], "output")
+    tracers = ()
+    if "tracers_mm" in out:
+        v = out["tracers_mm"]
+        ok = isinstance(v, list) and all(
+            isinstance(t, list) and len(t) == 2 and all(isinstance(c, (int, float)) and not isinstance(c, bool)
+                                                         and math.isfinite(c) for c in t) for t in v)
+        if not ok:
+            raise _err("output.tracers_mm", v, "must be a list of [x_mm, z_mm] pairs of finite numbers")
+        tracers = tuple((t[0] * 1e-3, t[1] * 1e-3) for t in v)
+    out_spec = OutputSpec(
+        tracers_per_segment=_number(out, "tracers_per_segment", "output", required=False, default=5,
+                                    integer=True, lo=0),
+        fields=_choice(out, "fields", "output", ("tracers", "full"), default="tracers"),
+        every=_number(out, "every", "output", required=False, default=1, integer=True, lo=1),
+        tracers=tracers,
+    )
+
+    solver = data.get("solver", {})
+    _check_keys(solver, _TABLES["solver"], "solver")
+    solver_spec = SolverSpec(
+        integrator=_choice(solver, "integrator", "solver", _INTEGRATORS, default="direct"),
+        linear_solver=_choice(solver, "linear_solver", "solver", _LINEAR, default="structured"),
+    )
+    return Scene(
+        name=str(model.get("name", name)), kind=kind, belt=belt_spec, rollers=rollers, mesh=mesh_spec,
+        time=time_spec, output=out_spec, solver=solver_spec, direction=direction,
+        description=str(model.get("description", "")),
+    )
+
+
+def _roller(r: dict, j: int, kind: str) -> RollerSpec:
+    where = f"roller[{j}]"
+    if not isinstance(r, dict):
+        raise _err(where, r, "must be a table")
+    _check_keys(r, _TABLES["roller"], where)
+    name = str(r.get("name", f"roller {j + 1}"))
+    role = _choice(r, "role", where, _ROLES)
+    side = _choice(r, "side", where, _SIDES, default="internal")
+    speed = _number(r, "speed_m_s", where, required=role == "drive", default=0.0, positive=role == "drive")
+    if role != "drive" and "speed_m_s" in r:
+        raise _err(f"{where}.speed_m_s", r["speed_m_s"], f"only a drive roller has a speed (role = {role!r})")
+    translation = tuple(x * 1e-3 for x in _vector(r, "translation_mm", where, 3, (0.0, 0.0, 0.0)))
+    rotation = tuple(x * 1e-3 for x in _vector(r, "rotation_mrad", where, 3, (0.0, 0.0, 0.0)))
+    force = _vector(r, "force_n", where, 3, (0.0, 0.0, 0.0))
+    torque = _vector(r, "torque_nm", where, 3, (0.0, 0.0, 0.0))
+    if torque[2] != 0.0:
+        raise _err(f"{where}.torque_nm", list(torque),
+                   "the torque about the roller axis is fixed by the role (drive: speed, idle/tension: 0)")
+    loaded = [f != 0.0 for f in force] + [t != 0.0 for t in torque[:2]]
+    if role == "tension" and not any(loaded):
+        raise _err(f"{where}.force_n", list(force), "a tension roller needs a non-zero force component")
+    if role != "tension" and any(loaded):
+        raise _err(f"{where}.force_n", list(force), f"only a tension roller is force-loaded (role = {role!r})")
+    for i, ax in enumerate("xyz"):
+        if force[i] != 0.0 and translation[i] != 0.0:
+            raise _err(f"{where}.translation_mm", [t * 1e3 for t in translation],
+                       f"the {ax} translation is force-loaded (force_n[{i}] != 0) and cannot also be prescribed")
+    for i, ax in enumerate("xy"):
+        if torque[i] != 0.0 and rotation[i] != 0.0:
+            raise _err(f"{where}.rotation_mrad", [a * 1e3 for a in rotation],
+                       f"the {ax} rotation is torque-loaded and cannot also be prescribed")
+    if rotation[2] != 0.0:
+        raise _err(f"{where}.rotation_mrad", [a * 1e3 for a in rotation],
+                   "a static rotation about the roller axis (z) is meaningless; it is the drive/idle DOF")
+    if kind == "1d":
+        # The 1D model (MODEL.md §2) carries per roller only the x translation and the z rotation.
+        if translation[1] != 0.0 or translation[2] != 0.0:
+            raise _err(f"{where}.translation_mm", [t * 1e3 for t in translation],
+                       "the 1D model has only the x translation; use [model] kind = '2d'")
+        if any(a != 0.0 for a in rotation):
+            raise _err(f"{where}.rotation_mrad", [a * 1e3 for a in rotation],
+                       "the 1D model has no roller tilt; use [model] kind = '2d'")
+        if force[1] != 0.0 or force[2] != 0.0 or any(t != 0.0 for t in torque):
+            raise _err(f"{where}.force_n", list(force), "the 1D model takes a force along x only")
+    return RollerSpec(
+        name=name,
+        center=tuple(x * 1e-3 for x in _vector(r, "center_mm", where, 2)),
+        radius=_number(r, "radius_mm", where, positive=True) * 1e-3,
+        width=_number(r, "width_mm", where, positive=True) * 1e-3,
+        mass=float(_number(r, "mass_kg", where, positive=True)),
+        external=side == "external",
+        role=role,
+        speed=float(speed),
+        translation=translation,
+        rotation=rotation,
+        force=force,
+        torque=torque,
+    )
+
+
+def _check_rollers(rollers, belt: BeltSpec):
+    names = [r.name for r in rollers]
+    if len(set(names)) != len(names):
+        raise _err("roller.name", names, "roller names must be unique")
+    if not any(r.role == "drive" for r in rollers):
+        raise _err("roller.role", [r.role for r in rollers], "at least one roller must be the drive")
+    for j, r in enumerate(rollers):
+        if belt.width > r.width * (1 + 1e-12):
+            raise _err(f"roller[{j}].width_mm", r.width * 1e3,
+                       f"narrower than the belt (belt.width_mm = {belt.width * 1e3:g}); the belt must fit on every roller")
+    for a in range(len(rollers)):
+        for b in range(a + 1, len(rollers)):
+            ra, rb = rollers[a], rollers[b]
+            dist = float(np.hypot(ra.center[0] - rb.center[0], ra.center[1] - rb.center[1]))
+            if dist < ra.radius + rb.radius:
+                raise _err(f"roller[{b}].center_mm", [c * 1e3 for c in rb.center],
+                           f"{rb.name!r} overlaps {ra.name!r} (centre distance {dist * 1e3:.3f} mm < "
+                           f"sum of radii {(ra.radius + rb.radius) * 1e3:.3f} mm)")
+
+
+# ---------------------------------------------------------------------------- loading
+
+
+def builtin_scene_names() -> list[str]:
+    files = resources.files("jaxbelt") / "scenes"
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
+
+
+def load_scene(source: str | Path) -> Scene:
+    """Load a scene from a TOML file path or a built-in scene name (see ``jaxbelt scenes``)."""
+    s = str(source)
+    path = Path(s)
+    if path.suffix == ".toml" or path.exists():
+        if not path.exists():
+            raise SceneError(f"scene file {s!r} does not exist")
+        text = path.read_text()
+        name = path.stem
+    else:
+        res = resources.files("jaxbelt") / "scenes" / f"{s}.toml"
+        if not res.is_file():
+            raise SceneError(f"unknown scene {s!r}: not a file and not a built-in scene "
+                             f"({', '.join(builtin_scene_names())})")
+        text = res.read_text()
+        name = s
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(f"{s}: not valid TOML: {e}") from None
+    return scene_from_dict(data, name=name)

@@ -1,0 +1,83 @@
+"""The transport (interpolation) step that keeps the grid fixed in space (§3.5, MODEL.md §3).
+
+After a solve the belt material has moved by ``ũ`` while the grid stays put. Each grid point
+takes the value of the material that now sits on it, by exact linear interpolation between the
+displaced positions of its two neighbouring material points (eq. 3.55–3.56): with the upwind
+neighbour ``i-1`` (``ũ_i >= 0``) the weight is ``a_i = ũ_i / (ℓ_{i-1} - ũ_{i-1} + ũ_i)``, with the
+neighbour ``i+1`` (``ũ_i < 0``) it is ``a_i = -ũ_i / (ℓ_i + ũ_{i+1} - ũ_i)``, and
+``f_i ← a_i f_src + (1 - a_i) f_i``. The CFL condition ``V Δt < ℓ_min`` (checked when the
+scene is loaded) keeps ``0 <= a < 1``.
+
+Decisions where the source is silent (documented here, tested in ``tests/``):
+
+* **Mean.** ``ū`` is the plain mean over all belt nodes of the interpolated ``u``; subtracting it
+  makes the post-transport mean exactly zero, and removes a rigid shift of the belt exactly.
+* **Velocities** are material quantities and are interpolated with the same weights, without
+  mean subtraction (the moving reference only relabels material points).
+* **Mass** is transported as element masses in flux form (eq. 3.57): the mass crossing grid
+  point ``i`` is ``a_i m_{i-1}`` (forward) or ``-a_i m_i`` (backward), and every element gains
+  what crosses its left node and loses what crosses its right node. On the closed loop this
+  telescopes, so the total mass is conserved to round-off.
+* **Roller arcs.** On a roller the material keeps its displacement *relative to the roller
+  surface*, ``w = u - R_r χ`` (no slip). Interpolating ``u`` itself would smear the geometric
+  part ``R_r χ`` of a translated/tilted roller along the arc and, over a revolution, erase the
+  misalignment from the free spans. So between two nodes of the same roller ``w`` is
+  interpolated and ``R_r χ`` of the node added back; across a contact line (upwind node on a
+  free span) the plain value is used. Without misalignment (or in the source's variant) this
+  changes nothing, since ``R_r χ`` is then the same rigid rotation at every node of a roller.
+* **Rotations** about the roller axes (``α_z``) are reset to zero (the roller's 'mean').
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from .model import BeltModel
+
+
+def upwind_weights(u, ell):
+    """Interpolation weights ``a`` (n, k) and flow direction ``fwd`` for displacements ``u`` (n, k)."""
+    ell = ell[:, None]
+    fwd = u >= 0
+    a_fwd = u / (jnp.roll(ell, 1, axis=0) - jnp.roll(u, 1, axis=0) + u)
+    a_bwd = -u / (ell + jnp.roll(u, -1, axis=0) - u)
+    return jnp.where(fwd, a_fwd, a_bwd), fwd
+
+
+def upwind_values(f, fwd):
+    """The upwind neighbour's value of a nodal field ``f`` (n, ...)."""
+    return jnp.where(fwd, jnp.roll(f, 1, axis=0), jnp.roll(f, -1, axis=0))
+
+
+def interpolate(f, a, fwd):
+    """``a f_src + (1 - a) f`` (eq. 3.55 without the mean)."""
+    return a * upwind_values(f, fwd) + (1.0 - a) * f
+
+
+def transport_masses(m_e, a, fwd):
+    """Element masses after transport (eq. 3.57, flux form; conserves ``Σ m_e`` exactly)."""
+    flux = jnp.where(fwd, a * jnp.roll(m_e, 1, axis=0), -a * m_e)
+    return m_e + flux - jnp.roll(flux, -1, axis=0)
+
+
+def roller_relative_correction(model: BeltModel, a, fwd, chi):
+    """``a_i (R_i χ - R_src χ)`` where the upwind node lies on the same roller, else 0."""
+    r = jnp.einsum("nbq,q->nb", model.R, chi)
+    same = (upwind_values(model.node_roller, fwd[:, 0]) == model.node_roller) & (model.node_roller >= 0)
+    return jnp.where(same[:, None], a * (r - upwind_values(r, fwd)), 0.0)
+
+
+def transport_step(model: BeltModel, u, u_dot, chi, m_e):
+    """Interpolate the solved state back onto the grid (1D: every belt DOF is longitudinal).
+
+    **Arguments:** ``u``, ``u_dot`` (n, b) after the solve; ``chi`` (q,) roller DOFs;
+    ``m_e`` (n,) element masses.
+    **Returns:** ``(u, u_dot, chi, m_e)`` on the grid, mean-free ``u``, ``α_z`` reset to 0.
+    """
+    a, fwd = upwind_weights(u, model.ell)
+    u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, chi)
+    u_new = u_new - jnp.mean(u_new)
+    u_dot_new = interpolate(u_dot, a, fwd)
+    m_new = transport_masses(m_e, a[:, 0], fwd[:, 0])
+    chi_new = jnp.where(model.is_az, 0.0, chi)
+    return u_new, u_dot_new, chi_new, m_new
