@@ -24,9 +24,9 @@ from .scene import SceneError as SceneError
 from .scene import builtin_scene_names as builtin_scene_names
 from .scene import load_scene as load_scene
 from .scene import scene_from_dict as scene_from_dict
-from .simulate import Trajectory as Trajectory
-from .simulate import simulate as simulate
-from .simulate import simulate_with_progress as simulate_with_progress
+from .timeloop import Trajectory as Trajectory
+from .timeloop import simulate as simulate
+from .timeloop import simulate_with_progress as simulate_with_progress
 from .state import BeltState as BeltState
 from .state import initial_state as initial_state
 from .transport import transport_step as transport_step

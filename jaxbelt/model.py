@@ -54,6 +54,7 @@ class BeltModel(eqx.Module):
     full_fields: bool = eqx.field(static=True)
     integrator: str = eqx.field(static=True)
     linear_solver: str = eqx.field(static=True)
+    transport: str = eqx.field(static=True, default="source")
 
     @property
     def n_xi(self) -> int:
@@ -163,4 +164,5 @@ def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
         dt=scene.time.dt, n_steps=scene.time.n_steps, kind="1d", roller_names=tuple(r.name for r in rl),
         dofs=dofs, every=scene.output.every, full_fields=scene.output.fields == "full",
         integrator=scene.solver.integrator, linear_solver=scene.solver.linear_solver,
+        transport=scene.solver.transport,
     )

@@ -86,6 +86,7 @@ class OutputSpec:
 class SolverSpec:
     integrator: str = "direct"  # naive | direct | eliminated
     linear_solver: str = "structured"  # structured | dense
+    transport: str = "source"  # source (eq. 3.56) | shift (moving-reference relabelling)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,7 +123,7 @@ _TABLES = {
     "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements"},
     "time": {"dt_s", "t_end_s"},
     "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
-    "solver": {"integrator", "linear_solver"},
+    "solver": {"integrator", "linear_solver", "transport"},
 }
 
 
@@ -294,6 +295,7 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
     solver_spec = SolverSpec(
         integrator=_choice(solver, "integrator", "solver", _INTEGRATORS, default="direct"),
         linear_solver=_choice(solver, "linear_solver", "solver", _LINEAR, default="structured"),
+        transport=_choice(solver, "transport", "solver", ("source", "shift"), default="source"),
     )
     return Scene(
         name=str(model.get("name", name)), kind=kind, belt=belt_spec, rollers=rollers, mesh=mesh_spec,

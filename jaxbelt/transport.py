@@ -26,6 +26,22 @@ Decisions where the source is silent (documented here, tested in ``tests/``):
   free span) the plain value is used. Without misalignment (or in the source's variant) this
   changes nothing, since ``R_r χ`` is then the same rigid rotation at every node of a roller.
 * **Rotations** about the roller axes (``α_z``) are reset to zero (the roller's 'mean').
+
+Two relabelling rules (``[solver] transport``):
+
+* ``"source"`` (default, eq. 3.56 as MODEL.md fixes it): each grid point takes the material
+  whose *displaced position* ``X + ũ`` lies on it, then ``ū`` is subtracted. This treats the
+  whole displacement ``ũ`` (not only the motion during the step) as the distance travelled, so
+  wherever ``u ≠ ū`` and the belt is strained it shifts material by ``≈ (ũ - ū) ε`` per step. The
+  per-step error does not shrink with ``Δt``: in a steady run it is relative to ``V Δt`` and
+  grows as ``Δt → 0``. Measured on ``two-roller-1d`` with the idle roller 1 mm out
+  (``tests/test_transport.py``): steady span strain 0.002185 at Δt = 5 ms, 0.001965 at 2.5 ms,
+  against the exact 0.0023144 = d / (D + πr).
+* ``"shift"``: the reference frame moves by ``s = mean(ũ)``; grid point ``X_i`` takes the
+  material labelled ``X_i - s``, i.e. uniform weights ``a = s / ℓ`` and ``u ← ũ(X_i - s) - s``.
+  This is the consistent relabelling of a moving reference; it gives d / (D + πr) to round-off
+  for every Δt and mesh, and equal drive/idle speeds. Rigid shifts, mass conservation and the
+  CFL condition are the same for both.
 """
 
 from __future__ import annotations
@@ -71,12 +87,16 @@ def transport_step(model: BeltModel, u, u_dot, chi, m_e):
     """Interpolate the solved state back onto the grid (1D: every belt DOF is longitudinal).
 
     **Arguments:** ``u``, ``u_dot`` (n, b) after the solve; ``chi`` (q,) roller DOFs;
-    ``m_e`` (n,) element masses.
-    **Returns:** ``(u, u_dot, chi, m_e)`` on the grid, mean-free ``u``, ``α_z`` reset to 0.
+    ``m_e`` (n,) element masses. The rule is ``model.transport`` (module docstring).
+    **Returns:** ``(u, u_dot, chi, m_e)`` on the grid, ``α_z`` reset to 0.
     """
-    a, fwd = upwind_weights(u, model.ell)
+    if model.transport == "shift":
+        s = jnp.mean(u)
+        a, fwd = upwind_weights(jnp.full_like(u, s), model.ell)
+    else:
+        a, fwd = upwind_weights(u, model.ell)
     u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, chi)
-    u_new = u_new - jnp.mean(u_new)
+    u_new = u_new - (s if model.transport == "shift" else jnp.mean(u_new))
     u_dot_new = interpolate(u_dot, a, fwd)
     m_new = transport_masses(m_e, a[:, 0], fwd[:, 0])
     chi_new = jnp.where(model.is_az, 0.0, chi)

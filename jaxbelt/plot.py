@@ -1,0 +1,61 @@
+"""Figures (matplotlib, imported lazily: nothing else in jaxbelt imports this module).
+
+Displacements are drawn in mm and times in s, as in the source's figures.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_run(traj, mesh, path, times=None, title: str = ""):
+    """Tracer trajectories over time and the displacement along the belt at chosen times.
+
+    **Arguments:** ``traj``: a :class:`~jaxbelt.Trajectory`; ``mesh``: the scene's
+    :class:`~jaxbelt.Mesh`; ``path``: output PNG; ``times``: times (s) for the profile panel
+    (default: four evenly spaced). With ``fields = "full"`` the profile is the whole grid,
+    otherwise the tracers.
+    """
+    plt = _plt()
+    t = np.asarray(traj.t)
+    tu = np.asarray(traj.tracer_u) * 1e3
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5), constrained_layout=True)
+    for k in range(tu.shape[1]):
+        ax1.plot(t, tu[:, k], lw=0.8)
+    ax1.set_xlabel("t [s]")
+    ax1.set_ylabel("tracer displacement u [mm]")
+    ax1.set_title(title or "tracer trajectories (longitudinal)")
+    ax1.grid(alpha=0.3)
+
+    if times is None:
+        times = t[np.linspace(0, len(t) - 1, 4).astype(int)]
+    idx = [int(np.argmin(np.abs(t - tt))) for tt in times]
+    seg_x = np.asarray(mesh.x)[np.asarray(mesh.segment_starts)] * 1e3
+    if traj.u is not None:
+        x = np.asarray(mesh.x) * 1e3
+        prof = np.asarray(traj.u)[:, :, 0] * 1e3
+        for i in idx:
+            ax2.plot(x, prof[i], lw=1, label=f"t = {t[i]:.3g} s")
+    else:
+        order = np.argsort(mesh.tracer_x)
+        x = np.asarray(mesh.tracer_x)[order] * 1e3
+        for i in idx:
+            ax2.plot(x, tu[i, order], "o-", ms=3, lw=1, label=f"t = {t[i]:.3g} s")
+    for k, xs in enumerate(seg_x):
+        ax2.axvline(xs, color="0.6", lw=0.7, ls="--" if k % 2 == 0 else ":")
+    ax2.set_xlabel("position along the belt x [mm] (dashed: roller arc starts, dotted: free spans)")
+    ax2.set_ylabel("u [mm]")
+    ax2.legend(fontsize=8)
+    ax2.grid(alpha=0.3)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
