@@ -21,6 +21,10 @@ class UsageError(Exception):
     pass
 
 
+class SimulationError(Exception):
+    pass
+
+
 def _load(scene_arg, t_end=None, dt=None, integrator=None, transport=None):
     from .scene import load_scene
 
@@ -117,6 +121,7 @@ def _summary(scene, model, traj, wall, compile_s):
     tu = np.asarray(traj.tracer_u)
     rv = np.asarray(traj.roller_velocity)
     mass = np.asarray(traj.belt_mass)
+    tw = np.asarray(traj.transport_weights)
     az = model.dofs.index("az")
     return dict(
         scene=scene.name, integrator=model.integrator, n_steps=int(round(t[-1] / model.dt)), t_end_s=float(t[-1]),
@@ -124,6 +129,7 @@ def _summary(scene, model, traj, wall, compile_s):
         tracer_u_max_abs_mm=float(np.max(np.abs(tu)) * 1e3), tracer_u_final_mm=(tu[-1] * 1e3).round(6).tolist(),
         roller_speed_m_s={r.name: float(abs(rv[-1, j, az]) * r.radius) for j, r in enumerate(scene.rollers)},
         belt_mass_kg=float(mass[-1]), belt_mass_rel_drift=float(np.max(np.abs(mass - mass[0])) / mass[0]),
+        transport=model.transport, transport_weight_range=[float(np.min(tw[:, 0])), float(np.max(tw[:, 1]))],
     )
 
 
@@ -140,10 +146,14 @@ def cmd_simulate(args, demo=False):
     _, traj, timing = simulate_with_progress(model, integrator, progress=progress)
     wall, compile_s = timing["run_s"], timing["compile_s"]
     s = _summary(scene, model, traj, wall, compile_s)
+    if not np.all(np.isfinite(np.asarray(traj.tracer_u))):
+        k = int(np.argmax(~np.all(np.isfinite(np.asarray(traj.tracer_u)), axis=1)))
+        raise SimulationError(f"the simulation diverged (non-finite displacement at t = {float(traj.t[k]):g} s); "
+                              f"check the transport weights {s['transport_weight_range']} and the time step")
     if args.out:
         out = Path(args.out)
         np.savez(
-            out, t=np.asarray(traj.t), tracer_u=np.asarray(traj.tracer_u),
+            out, t=np.asarray(traj.t), transport_weights=np.asarray(traj.transport_weights), tracer_u=np.asarray(traj.tracer_u),
             tracer_u_solved=np.asarray(traj.tracer_u_solved), roller_state=np.asarray(traj.roller_state),
             roller_velocity=np.asarray(traj.roller_velocity), belt_mass=np.asarray(traj.belt_mass),
             tracer_x=mesh.tracer_x, tracer_z=mesh.tracer_z, roller_names=np.array(model.roller_names),
@@ -164,6 +174,10 @@ def cmd_simulate(args, demo=False):
         print(f"  max |tracer u| = {s['tracer_u_max_abs_mm']:.6g} mm; roller surface speeds "
               + ", ".join(f"{k}: {v:.6g} m/s" for k, v in s["roller_speed_m_s"].items()))
         print(f"  belt mass {s['belt_mass_kg']:.9g} kg, max relative drift {s['belt_mass_rel_drift']:.2e}")
+    lo, hi = s["transport_weight_range"]
+    if lo < 0 or hi >= 1:
+        print(f"jaxbelt: warning: the {model.transport!r} transport step extrapolated (weights in [{lo:.3g}, {hi:.3g}], "
+              "outside [0, 1)); the results are not reliable. Use a smaller dt or --transport shift.", file=sys.stderr)
         for k in ("out", "plot"):
             if k in s:
                 print(f"  wrote {s[k]}")
@@ -235,6 +249,9 @@ def main(argv=None) -> int:
     except (SceneError, UsageError) as e:
         print(f"jaxbelt: error: {e}", file=sys.stderr)
         return 2
+    except SimulationError as e:
+        print(f"jaxbelt: error: {e}", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

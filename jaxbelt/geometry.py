@@ -139,6 +139,12 @@ def belt_path(centers, radii, external, direction: int | None = None, names=None
         )
         pa, pb, _, L = spans[j]
         segments.append(Segment("free", j, L, pa, pb, name=f"{names[j]} → {names[(j + 1) % p]}"))
+    turning = sum(seg.sense * seg.wrap for seg in segments if seg.kind == "roller")
+    o = loop_orientation(centers) if direction is None else int(direction)
+    if abs(turning - 2 * np.pi * o) > 1e-6:
+        wraps = ", ".join(f"{n}: {np.degrees(s.wrap):.1f}°" for n, s in zip(names, segments[::2]))
+        raise PathError(f"the belt does not form a simple loop (total turning {np.degrees(turning):.1f}°, "
+                        f"expected {360 * o}°; wraps {wraps}); a roller inside a concave bend must be external")
     _check_spans_clear(segments, centers, radii, names)
     return BeltPath(tuple(segments), centers, radii, senses)
 

@@ -93,7 +93,7 @@ def build_mesh(scene: Scene) -> Mesh:
             direction=scene.direction, names=[r.name for r in rollers],
         )
     except PathError as e:
-        raise SceneError(f"roller.center_mm = {[list(np.round(np.array(r.center) * 1e3, 3)) for r in rollers]}: "
+        raise SceneError(f"roller.center_mm = {[[round(float(c) * 1e3, 3) for c in r.center] for r in rollers]}: "
                          f"impossible belt path: {e}") from None
     if scene.belt.length is not None and scene.belt.length > path.length * (1 + 1e-12):
         raise SceneError(f"belt.length_mm = {scene.belt.length * 1e3:g}: longer than the belt path "

@@ -13,6 +13,8 @@ roller DOFs such as an idle roller's ``α_z``) are *dynamic*.
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -54,7 +56,7 @@ class BeltModel(eqx.Module):
     full_fields: bool = eqx.field(static=True)
     integrator: str = eqx.field(static=True)
     linear_solver: str = eqx.field(static=True)
-    transport: str = eqx.field(static=True, default="source")
+    transport: str = eqx.field(static=True, default="shift")
 
     @property
     def n_xi(self) -> int:
@@ -83,6 +85,10 @@ class BeltModel(eqx.Module):
     @property
     def n_tracers(self) -> int:
         return self.tracer_col.shape[0]
+
+    def replace(self, **changes) -> "BeltModel":
+        """Copy with fields replaced (static settings too, e.g. ``transport="source"``)."""
+        return dataclasses.replace(self, **changes)
 
     def with_misalignment(self, translation=None, rotation=None) -> "BeltModel":
         """Copy with new static roller misalignments (traceable, for ``grad``/``vmap``).

@@ -86,7 +86,7 @@ class OutputSpec:
 class SolverSpec:
     integrator: str = "direct"  # naive | direct | eliminated
     linear_solver: str = "structured"  # structured | dense
-    transport: str = "source"  # source (eq. 3.56) | shift (moving-reference relabelling)
+    transport: str = "shift"  # shift (moving-reference relabelling) | source (eq. 3.56)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -295,7 +295,7 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
     solver_spec = SolverSpec(
         integrator=_choice(solver, "integrator", "solver", _INTEGRATORS, default="direct"),
         linear_solver=_choice(solver, "linear_solver", "solver", _LINEAR, default="structured"),
-        transport=_choice(solver, "transport", "solver", ("source", "shift"), default="source"),
+        transport=_choice(solver, "transport", "solver", ("shift", "source"), default="shift"),
     )
     return Scene(
         name=str(model.get("name", name)), kind=kind, belt=belt_spec, rollers=rollers, mesh=mesh_spec,

@@ -16,7 +16,7 @@ from jax import lax
 from .integrators import AbstractIntegrator, make_integrator
 from .model import BeltModel
 from .state import BeltState, initial_state
-from .transport import transport_step
+from .transport import transport_step_with_weights
 
 
 class Trajectory(eqx.Module):
@@ -25,7 +25,9 @@ class Trajectory(eqx.Module):
     ``t`` (k,); ``tracer_u`` (k, n_tr) longitudinal tracer displacement after transport;
     ``tracer_u_solved`` (k, n_tr) the same before transport (the solve's result);
     ``roller_state`` (k, p, d) roller DOFs as solved (``α_z`` = rotation during the step);
-    ``roller_velocity`` (k, p, d); ``belt_mass`` (k,); ``u`` (k, n_xi, b) or ``None``.
+    ``roller_velocity`` (k, p, d); ``belt_mass`` (k,); ``transport_weights`` (k, 2) min/max
+    interpolation weight of the transport step (outside [0, 1) = extrapolation);
+    ``u`` (k, n_xi, b) or ``None``.
     """
 
     t: jax.Array
@@ -34,6 +36,7 @@ class Trajectory(eqx.Module):
     roller_state: jax.Array
     roller_velocity: jax.Array
     belt_mass: jax.Array
+    transport_weights: jax.Array
     u: jax.Array | None
 
 
@@ -50,7 +53,7 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator):
 
     def step(state: BeltState):
         solved = integrator.solve_step(model, state)
-        u, ud, chi, m_e = transport_step(model, solved.u, solved.u_dot, solved.chi, state.m_e)
+        u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e)
         new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=state.step + 1)
         rec = dict(
             t=(state.step + 1) * model.dt,
@@ -59,6 +62,7 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator):
             roller_state=solved.chi.reshape(p, d),
             roller_velocity=solved.chi_dot.reshape(p, d),
             belt_mass=jnp.sum(m_e),
+            transport_weights=weights,
         )
         if model.full_fields:
             rec["u"] = u

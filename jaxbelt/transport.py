@@ -5,19 +5,23 @@ takes the value of the material that now sits on it, by exact linear interpolati
 displaced positions of its two neighbouring material points (eq. 3.55–3.56): with the upwind
 neighbour ``i-1`` (``ũ_i >= 0``) the weight is ``a_i = ũ_i / (ℓ_{i-1} - ũ_{i-1} + ũ_i)``, with the
 neighbour ``i+1`` (``ũ_i < 0``) it is ``a_i = -ũ_i / (ℓ_i + ũ_{i+1} - ũ_i)``, and
-``f_i ← a_i f_src + (1 - a_i) f_i``. The CFL condition ``V Δt < ℓ_min`` (checked when the
-scene is loaded) keeps ``0 <= a < 1``.
+``f_i ← a_i f_src + (1 - a_i) f_i``. Which displacement enters the weights is the choice of
+relabelling rule below; the CFL condition ``V Δt < ℓ_min`` is checked when a scene is loaded.
 
 Decisions where the source is silent (documented here, tested in ``tests/``):
 
-* **Mean.** ``ū`` is the plain mean over all belt nodes of the interpolated ``u``; subtracting it
-  makes the post-transport mean exactly zero, and removes a rigid shift of the belt exactly.
+* **Mean.** ``ū`` is the plain mean over all belt nodes (of ``ũ`` for the shift rule, of the
+  interpolated ``u`` for the source rule); either way a rigid shift of the belt is removed
+  exactly.
 * **Velocities** are material quantities and are interpolated with the same weights, without
   mean subtraction (the moving reference only relabels material points).
 * **Mass** is transported as element masses in flux form (eq. 3.57): the mass crossing grid
   point ``i`` is ``a_i m_{i-1}`` (forward) or ``-a_i m_i`` (backward), and every element gains
   what crosses its left node and loses what crosses its right node. On the closed loop this
-  telescopes, so the total mass is conserved to round-off.
+  telescopes, so the total mass is conserved to round-off. (Under the shift rule below the
+  flux is ``s`` times the line density, so a uniform belt keeps ``ρAℓ`` in every element: mass
+  per material length does not change with strain. Under the source rule mass moves between
+  elements as the belt is strained.)
 * **Roller arcs.** On a roller the material keeps its displacement *relative to the roller
   surface*, ``w = u - R_r χ`` (no slip). Interpolating ``u`` itself would smear the geometric
   part ``R_r χ`` of a translated/tilted roller along the arc and, over a revolution, erase the
@@ -29,19 +33,25 @@ Decisions where the source is silent (documented here, tested in ``tests/``):
 
 Two relabelling rules (``[solver] transport``):
 
-* ``"source"`` (default, eq. 3.56 as MODEL.md fixes it): each grid point takes the material
-  whose *displaced position* ``X + ũ`` lies on it, then ``ū`` is subtracted. This treats the
-  whole displacement ``ũ`` (not only the motion during the step) as the distance travelled, so
-  wherever ``u ≠ ū`` and the belt is strained it shifts material by ``≈ (ũ - ū) ε`` per step. The
-  per-step error does not shrink with ``Δt``: in a steady run it is relative to ``V Δt`` and
-  grows as ``Δt → 0``. Measured on ``two-roller-1d`` with the idle roller 1 mm out
-  (``tests/test_transport.py``): steady span strain 0.002185 at Δt = 5 ms, 0.001965 at 2.5 ms,
-  against the exact 0.0023144 = d / (D + πr).
-* ``"shift"``: the reference frame moves by ``s = mean(ũ)``; grid point ``X_i`` takes the
-  material labelled ``X_i - s``, i.e. uniform weights ``a = s / ℓ`` and ``u ← ũ(X_i - s) - s``.
-  This is the consistent relabelling of a moving reference; it gives d / (D + πr) to round-off
-  for every Δt and mesh, and equal drive/idle speeds. Rigid shifts, mass conservation and the
-  CFL condition are the same for both.
+* ``"shift"`` (default): the reference frame moves by ``s = mean(ũ)``; grid point ``X_i`` takes
+  the material labelled ``X_i - s``, i.e. uniform weights ``a = s / ℓ`` (upwind) and
+  ``u ← ũ(X_i - s) - s``. This is the consistent relabelling of a moving reference: the weights
+  only see the belt's motion during the step, so the CFL condition ``V Δt < ℓ_min`` is exactly
+  what keeps ``0 <= a < 1``. On ``two-roller-1d`` with the idle roller 1 mm out it gives the
+  analytic steady strain d / (D + π r) to round-off for every Δt and mesh, and equal drive and
+  idle speeds (``tests/test_transport.py``).
+* ``"source"``: eq. 3.55–3.56 literally, as MODEL.md §3 writes it: each grid point takes the
+  material whose *displaced position* ``X + ũ`` lies on it, then the mean is subtracted. The
+  weights see the whole displacement ``ũ`` (static misalignment response included), not only
+  the step's motion. Two consequences, both measured in ``tests/test_transport.py``:
+  (1) with the idle roller 1 mm out the steady span strain is 0.002185 at Δt = 5 ms and 0.001965
+  at 2.5 ms instead of 0.0023144: an error that does not vanish as Δt → 0 but grows; (2) once
+  ``|ũ|`` exceeds an element length the weights leave [0, 1) and the step extrapolates: on
+  ``two-roller-1d-train1`` (10 mm translation, 3.9 mm elements) they reach 3–40 during the
+  start-up, and round-off differences grow 10⁸-fold. Kept for comparison with the source.
+
+Because the source rule fails silently, every run records the range of the weights
+(``Trajectory.transport_weights``); the CLI warns when it leaves [0, 1).
 """
 
 from __future__ import annotations
@@ -90,6 +100,12 @@ def transport_step(model: BeltModel, u, u_dot, chi, m_e):
     ``m_e`` (n,) element masses. The rule is ``model.transport`` (module docstring).
     **Returns:** ``(u, u_dot, chi, m_e)`` on the grid, ``α_z`` reset to 0.
     """
+    u_new, u_dot_new, chi_new, m_new, _ = transport_step_with_weights(model, u, u_dot, chi, m_e)
+    return u_new, u_dot_new, chi_new, m_new
+
+
+def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e):
+    """:func:`transport_step` plus the ``(min, max)`` of the interpolation weights (diagnostic)."""
     if model.transport == "shift":
         s = jnp.mean(u)
         a, fwd = upwind_weights(jnp.full_like(u, s), model.ell)
@@ -100,4 +116,4 @@ def transport_step(model: BeltModel, u, u_dot, chi, m_e):
     u_dot_new = interpolate(u_dot, a, fwd)
     m_new = transport_masses(m_e, a[:, 0], fwd[:, 0])
     chi_new = jnp.where(model.is_az, 0.0, chi)
-    return u_new, u_dot_new, chi_new, m_new
+    return u_new, u_dot_new, chi_new, m_new, jnp.stack([jnp.min(a), jnp.max(a)])

@@ -19,6 +19,11 @@ class NaiveBackwardEuler(AbstractIntegrator):
 
     with a dense solve of size 3N, as the source's simulator did. Kept as the reference for
     what the direct formulation saves; it agrees with it to round-off.
+
+    The 3N matrix mixes stiffness (~EA/ℓ), mass and unit rows; unscaled its condition number
+    on ``two-roller-1d-train1`` is ~1e13. Rows and then columns are equilibrated by their largest
+    entry before the solve (condition ~1e7), which is what makes it agree with the direct
+    integrator to round-off.
     """
 
     def solve_step(self, model, state):
@@ -30,7 +35,10 @@ class NaiveBackwardEuler(AbstractIntegrator):
         A = jnp.block([[Kd, Z, Md], [I, -dt * I, Z], [Z, I, -dt * I]])
         F = join(*dae_rhs(model, state.u, state.chi))
         rhs = jnp.concatenate([F, join(state.u, state.chi), join(state.u_dot, state.chi_dot)])
-        sol = jnp.linalg.solve(A, rhs)
+        r = 1.0 / jnp.max(jnp.abs(A), axis=1)
+        A = A * r[:, None]
+        c = 1.0 / jnp.max(jnp.abs(A), axis=0)
+        sol = c * jnp.linalg.solve(A * c[None, :], rhs * r)
         n, b = state.u.shape
         u, chi = split(sol[:N], n, b)
         ud, chid = split(sol[N:2 * N], n, b)
