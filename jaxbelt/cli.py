@@ -163,7 +163,13 @@ def cmd_simulate(args, demo=False):
     if args.plot:
         from .plot import plot_run
 
-        plot_run(traj, mesh, args.plot, title=f"{scene.name}: tracer trajectories")
+        times = None
+        if getattr(args, "plot_times", None):
+            try:
+                times = [float(v) for v in args.plot_times.split(",")]
+            except ValueError:
+                raise UsageError(f"--plot-times = {args.plot_times!r}: expected comma-separated times in s") from None
+        plot_run(traj, mesh, args.plot, times=times, title=f"{scene.name}: tracer trajectories")
         s["plot"] = str(args.plot)
     if args.json:
         print(json.dumps(s, indent=2))
@@ -235,6 +241,7 @@ def build_parser():
                    help="relabelling rule of the transport step (see jaxbelt.transport)")
     s.add_argument("--out", default=None, help="write the trajectory to this .npz")
     s.add_argument("--plot", default=None, help="write tracer/profile plots to this .png")
+    s.add_argument("--plot-times", default=None, help="times (s, comma-separated) of the profiles along the belt")
     s.add_argument("--json", action="store_true", help="print a JSON summary")
     s.add_argument("--progress", action="store_true", help="progress bar even when not on a terminal")
     return p
