@@ -19,12 +19,43 @@ import jax.numpy as jnp
 
 from .linalg import BorderedBlockCyclic
 from .model import BeltModel
+from .rollers import exact_static_displacement
+
+
+def roller_R(model: BeltModel, u) -> jnp.ndarray:
+    """``R_r`` (n, b, q) at the current state: in 2D the lever arm of the tilts is the node's
+    current lateral position ``z + v`` (§4.2, weak nonlinearity), lagged by one step."""
+    if model.kind == "1d":
+        return model.R
+    lever = jnp.zeros_like(u).at[:, 0::2].set(u[:, 1::2])
+    return model.R + model.R_dz * lever[:, :, None]
+
+
+def roller_surface_displacement(model: BeltModel, chi, R) -> jnp.ndarray:
+    """Displacement (n, b) of the roller surface under each roller node for roller DOFs ``chi``.
+
+    Linear ``R_r χ`` plus, in 2D, the difference between the exact finite static motion
+    (rotations x → y → z, §4.2) and its linearisation at the reference lever arm, so the
+    static misalignment enters exactly and its increments linearly."""
+    lin = jnp.einsum("nbq,q->nb", R, chi)
+    if model.kind == "1d":
+        return lin
+    cs = model.chi_static
+    g = exact_static_displacement(cs.reshape(model.n_rollers, 6), model.node_roller, model.node_theta,
+                                  model.node_radius, model.node_sense, model.z0)
+    return lin + g - jnp.einsum("nbq,q->nb", model.R, cs)
 
 
 def nodal_masses(model: BeltModel, m_e) -> jnp.ndarray:
-    """Lumped nodal masses (n, b): half of each adjacent element's mass (eq. 3.25–3.26)."""
-    m = 0.5 * (m_e + jnp.roll(m_e, 1))
-    return jnp.broadcast_to(m[:, None], (m.shape[0], model.block))
+    """Lumped nodal masses (n, b): half of each adjacent element's mass in 1D (eq. 3.25–3.26), a
+    quarter of each adjacent quad's in 2D (eq. 4.24), on both the u and the v DOF."""
+    if m_e.ndim == 1:
+        m = 0.5 * (m_e + jnp.roll(m_e, 1))
+        return jnp.broadcast_to(m[:, None], (m.shape[0], model.block))
+    col = m_e + jnp.roll(m_e, 1, axis=0)  # (n, n_eta-1): both element columns touching node column i
+    zero = jnp.zeros((m_e.shape[0], 1))
+    m = 0.25 * (jnp.concatenate([col, zero], axis=1) + jnp.concatenate([zero, col], axis=1))
+    return jnp.repeat(m, 2, axis=1)
 
 
 def generalised_belt_force(R, f) -> jnp.ndarray:
@@ -83,8 +114,9 @@ def dae_rhs(model: BeltModel, u_prev, chi_prev, R=None):
 
 def static_rhs(model: BeltModel, R=None):
     """Right-hand side of the initial static problem ``K x = F`` (§3.4, §4.4.1): belt at rest on
-    the misaligned rollers, drive angle 0."""
+    the misaligned rollers (``u_r = `` exact surface displacement), drive angle 0."""
     R = model.R if R is None else R
-    F_belt = jnp.where(model.is_constraint, 0.0, -model.f0)
+    offset = roller_surface_displacement(model, model.chi_static, R) - jnp.einsum("nbq,q->nb", R, model.chi_static)
+    F_belt = jnp.where(model.is_constraint, offset, -model.f0)
     F_roll = jnp.where(model.dynamic, model.Q_ext - generalised_belt_force(R, model.f0), model.chi_static)
     return F_belt, F_roll

@@ -34,10 +34,15 @@ class BeltModel(eqx.Module):
     K_lower: jax.Array
     K_upper: jax.Array
     f0: jax.Array  # (n, b) internal force of the pre-tension on free elements, N
-    R: jax.Array  # (n, b, q) roller kinematics R_r (zero on free nodes)
+    R: jax.Array  # (n, b, q) roller kinematics R_r at the reference lever arm (zero on free nodes)
+    R_dz: jax.Array  # (n, b, q) d R_r / d(lever arm) on u-rows (2D weak nonlinearity; 0 in 1D)
     is_constraint: jax.Array  # (n, b) bool: row is a no-slip constraint
     node_roller: jax.Array  # (n,) roller of a node column, -1 on free spans
-    m_e0: jax.Array  # (n,) initial element masses, kg
+    node_theta: jax.Array  # (n,) wrap angle of roller columns
+    node_radius: jax.Array  # (n,) radius of the roller under a column (0 on free spans)
+    node_sense: jax.Array  # (n,) wrap sense s of that roller
+    z0: jax.Array  # (n_eta,) lateral node positions, m
+    m_e0: jax.Array  # (n,) 1D / (n, n_eta-1) 2D initial element masses, kg
     M_roller: jax.Array  # (q,) roller inertia (m or I)
     dynamic: jax.Array  # (q,) bool: force/torque-loaded roller DOF
     chi_static: jax.Array  # (q,) prescribed values: translations (m), tilts (rad); 0 for α_z
@@ -46,6 +51,8 @@ class BeltModel(eqx.Module):
     Q_ext: jax.Array  # (q,) external force/torque on dynamic roller DOFs
     tracer_col: jax.Array  # (n_tr,) element column of each tracer
     tracer_xi: jax.Array  # (n_tr,) local coordinate in [0, 1)
+    tracer_row: jax.Array  # (n_tr,) element row (2D; 0 in 1D)
+    tracer_eta: jax.Array  # (n_tr,) local lateral coordinate in [0, 1]
 
     dt: float = eqx.field(static=True)
     n_steps: int = eqx.field(static=True)
@@ -57,6 +64,11 @@ class BeltModel(eqx.Module):
     integrator: str = eqx.field(static=True)
     linear_solver: str = eqx.field(static=True)
     transport: str = eqx.field(static=True, default="shift")
+    lateral_transport: bool = eqx.field(static=True, default=False)
+
+    @property
+    def n_eta(self) -> int:
+        return self.z0.shape[0]
 
     @property
     def n_xi(self) -> int:
@@ -123,11 +135,82 @@ def _require_zero(v, what, kind):
 
 def compile_scene(scene: Scene, mesh: Mesh | None = None) -> BeltModel:
     """Build the model for a validated scene (1D: MODEL.md §2; 2D: MODEL.md §4)."""
-    if scene.kind != "1d":
-        raise SceneError("model.kind = '2d': the 2D plane-stress model is not available in this "
-                         "version of jaxbelt yet; use kind = '1d'")
     mesh = build_mesh(scene) if mesh is None else mesh
-    return _compile_1d(scene, mesh)
+    return _compile_1d(scene, mesh) if scene.kind == "1d" else _compile_2d(scene, mesh)
+
+
+def _node_geometry(mesh):
+    on = mesh.node_roller >= 0
+    j = np.maximum(mesh.node_roller, 0)
+    radius = np.where(on, mesh.path.radii[j], 0.0)
+    sense = np.where(on, mesh.path.senses[j], 0).astype(float)
+    return dict(node_roller=jnp.asarray(mesh.node_roller), node_theta=jnp.asarray(mesh.node_theta),
+                node_radius=jnp.asarray(radius), node_sense=jnp.asarray(sense), z0=jnp.asarray(mesh.z))
+
+
+def _tracers(mesh):
+    col, xi = mesh.tracer_location()
+    if mesh.n_eta == 1:
+        row, eta = np.zeros_like(col), np.zeros_like(xi)
+    else:
+        row = np.clip(np.searchsorted(mesh.z, mesh.tracer_z, side="right") - 1, 0, mesh.n_eta - 2)
+        eta = (mesh.tracer_z - mesh.z[row]) / (mesh.z[row + 1] - mesh.z[row])
+    return dict(tracer_col=jnp.asarray(col), tracer_xi=jnp.asarray(xi), tracer_row=jnp.asarray(row.astype(np.int32)),
+                tracer_eta=jnp.asarray(eta))
+
+
+def _roller_dofs(scene, mesh, dofs):
+    """Prescribed values, dynamic mask, drive rates and external loads per roller DOF."""
+    p, d = len(scene.rollers), len(dofs)
+    dynamic, chi, omega, Q = np.zeros((p, d), bool), np.zeros((p, d)), np.zeros((p, d)), np.zeros((p, d))
+    for j, r in enumerate(scene.rollers):
+        for k, ax in enumerate("xyz"):
+            if f"d{ax}" in dofs:
+                c = dofs.index(f"d{ax}")
+                chi[j, c], dynamic[j, c], Q[j, c] = r.translation[k], r.force[k] != 0.0, r.force[k]
+        for k, ax in enumerate("xy"):
+            if f"a{ax}" in dofs:
+                c = dofs.index(f"a{ax}")
+                chi[j, c], dynamic[j, c], Q[j, c] = r.rotation[k], r.torque[k] != 0.0, r.torque[k]
+        c = dofs.index("az")
+        dynamic[j, c] = r.role != "drive"
+        if r.role == "drive":
+            omega[j, c] = mesh.path.senses[j] * r.speed / r.radius  # belt moves forward at V
+    is_az = np.zeros((p, d), bool)
+    is_az[:, dofs.index("az")] = True
+    return dict(dynamic=jnp.asarray(dynamic.reshape(-1)), chi_static=jnp.asarray(chi.reshape(-1)),
+                omega=jnp.asarray(omega.reshape(-1)), is_az=jnp.asarray(is_az.reshape(-1)),
+                Q_ext=jnp.asarray(Q.reshape(-1)))
+
+
+def _settings(scene, dofs, kind):
+    return dict(dt=scene.time.dt, n_steps=scene.time.n_steps, kind=kind,
+                roller_names=tuple(r.name for r in scene.rollers), dofs=dofs, every=scene.output.every,
+                full_fields=scene.output.fields == "full", integrator=scene.solver.integrator,
+                linear_solver=scene.solver.linear_solver, transport=scene.solver.transport,
+                lateral_transport=scene.solver.lateral_transport)
+
+
+def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
+    belt, rl = scene.belt, scene.rollers
+    E, nu, t = belt.youngs_modulus, belt.poisson_ratio, belt.thickness
+    ell = jnp.asarray(mesh.ell)
+    w_rows = jnp.asarray(np.diff(mesh.z))
+    free = jnp.asarray(mesh.elem_free, float)
+    Kd, Kl, Ku = elements.free_belt_stiffness_2d(ell, w_rows, free, E, nu, t)
+    L_belt = mesh.length if belt.length is None else belt.length
+    f0 = elements.prestress_force_2d(ell, w_rows, free, E, mesh.length / L_belt - 1.0, t)
+    radii = np.array([r.radius for r in rl])
+    R0, Rdz = rollers.roller_constraint_rows_2d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii, mesh.z)
+    is_con = np.repeat((mesh.node_roller >= 0)[:, None], 2 * mesh.n_eta, axis=1)
+    M_r = rollers.roller_inertia_2d([r.mass for r in rl], radii, [r.width for r in rl])
+    return BeltModel(
+        x=jnp.asarray(mesh.x), ell=ell, K_diag=Kd, K_lower=Kl, K_upper=Ku, f0=f0,
+        R=jnp.asarray(R0), R_dz=jnp.asarray(Rdz), is_constraint=jnp.asarray(is_con),
+        m_e0=elements.quad_masses(ell, w_rows, belt.density, t), M_roller=jnp.asarray(M_r),
+        **_node_geometry(mesh), **_roller_dofs(scene, mesh, rollers.DOFS_2D), **_tracers(mesh),
+        **_settings(scene, rollers.DOFS_2D, "2d"),
+    )
 
 
 def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
@@ -144,31 +227,10 @@ def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
     radii = np.array([r.radius for r in rl])
     R = rollers.roller_constraint_rows_1d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii)
     is_con = (mesh.node_roller >= 0)[:, None]
-
-    dofs = rollers.DOFS_1D
-    dynamic = np.zeros((p, 2), bool)
-    chi = np.zeros((p, 2))
-    omega = np.zeros((p, 2))
-    Q = np.zeros((p, 2))
-    for j, r in enumerate(rl):
-        chi[j, 0] = r.translation[0]
-        dynamic[j, 0] = r.force[0] != 0.0
-        Q[j, 0] = r.force[0]
-        dynamic[j, 1] = r.role != "drive"
-        if r.role == "drive":
-            omega[j, 1] = mesh.path.senses[j] * r.speed / r.radius  # belt moves forward at V
-    is_az = np.zeros((p, 2), bool)
-    is_az[:, 1] = True
-    col, xi = mesh.tracer_location()
     return BeltModel(
         x=jnp.asarray(mesh.x), ell=ell, K_diag=Kd, K_lower=Kl, K_upper=Ku, f0=f0,
-        R=jnp.asarray(R), is_constraint=jnp.asarray(is_con), node_roller=jnp.asarray(mesh.node_roller),
+        R=jnp.asarray(R), R_dz=jnp.zeros(R.shape), is_constraint=jnp.asarray(is_con),
         m_e0=rhoA * ell, M_roller=jnp.asarray(rollers.roller_inertia_1d([r.mass for r in rl], radii)),
-        dynamic=jnp.asarray(dynamic.reshape(-1)), chi_static=jnp.asarray(chi.reshape(-1)),
-        omega=jnp.asarray(omega.reshape(-1)), is_az=jnp.asarray(is_az.reshape(-1)),
-        Q_ext=jnp.asarray(Q.reshape(-1)), tracer_col=jnp.asarray(col), tracer_xi=jnp.asarray(xi),
-        dt=scene.time.dt, n_steps=scene.time.n_steps, kind="1d", roller_names=tuple(r.name for r in rl),
-        dofs=dofs, every=scene.output.every, full_fields=scene.output.fields == "full",
-        integrator=scene.solver.integrator, linear_solver=scene.solver.linear_solver,
-        transport=scene.solver.transport,
+        **_node_geometry(mesh), **_roller_dofs(scene, mesh, rollers.DOFS_1D), **_tracers(mesh),
+        **_settings(scene, rollers.DOFS_1D, "1d"),
     )

@@ -87,6 +87,7 @@ class SolverSpec:
     integrator: str = "direct"  # naive | direct | eliminated
     linear_solver: str = "structured"  # structured | dense
     transport: str = "shift"  # shift (moving-reference relabelling) | source (eq. 3.56)
+    lateral_transport: bool = False  # 2D: also transport v (lets a skewed roller steer the belt)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,7 +124,7 @@ _TABLES = {
     "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements"},
     "time": {"dt_s", "t_end_s"},
     "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
-    "solver": {"integrator", "linear_solver", "transport"},
+    "solver": {"integrator", "linear_solver", "transport", "lateral_transport"},
 }
 
 
@@ -296,7 +297,10 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
         integrator=_choice(solver, "integrator", "solver", _INTEGRATORS, default="direct"),
         linear_solver=_choice(solver, "linear_solver", "solver", _LINEAR, default="structured"),
         transport=_choice(solver, "transport", "solver", ("shift", "source"), default="shift"),
+        lateral_transport=_choice(solver, "lateral_transport", "solver", (True, False), default=False),
     )
+    if solver_spec.lateral_transport and kind == "1d":
+        raise _err("solver.lateral_transport", True, "the 1D model has no lateral displacement")
     return Scene(
         name=str(model.get("name", name)), kind=kind, belt=belt_spec, rollers=rollers, mesh=mesh_spec,
         time=time_spec, output=out_spec, solver=solver_spec, direction=direction,
@@ -412,4 +416,30 @@ def load_scene(source: str | Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{s}: not valid TOML: {e}") from None
+    if "extends" in data:
+        data = _extend(data, s)
     return scene_from_dict(data, name=name)
+
+
+def _extend(data: dict, source: str) -> dict:
+    """A variant scene: ``extends = "base"`` plus tables merged key by key into the base, and
+    ``[variant."roller name"]`` tables merged into that roller."""
+    base_name = data.pop("extends")
+    if not isinstance(base_name, str) or base_name not in builtin_scene_names():
+        raise _err("extends", base_name, f"not a built-in scene ({', '.join(builtin_scene_names())})")
+    base = tomllib.loads((resources.files("jaxbelt") / "scenes" / f"{base_name}.toml").read_text())
+    if "extends" in base:
+        base = _extend(base, base_name)
+    variant = data.pop("variant", {})
+    for table, values in data.items():
+        if table == "roller":
+            raise _err("roller", "…", "a variant changes rollers through [variant.\"name\"] tables")
+        if not isinstance(values, dict):
+            raise _err(table, values, "must be a table")
+        base.setdefault(table, {}).update(values)
+    names = [r.get("name") for r in base.get("roller", [])]
+    for rname, values in variant.items():
+        if rname not in names:
+            raise _err(f"variant.{rname}", "…", f"no roller of that name in {base_name!r} ({', '.join(map(str, names))})")
+        base["roller"][names.index(rname)].update(values)
+    return base

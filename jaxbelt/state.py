@@ -24,13 +24,13 @@ class BeltState(eqx.Module):
     step: jax.Array
 
 
+@eqx.filter_jit
 def initial_state(model: BeltModel) -> BeltState:
     """Static equilibrium ``K x = F`` on the misaligned rollers, with zero velocity except the
     drive rollers (``α̇_z = ω``) and the belt on them (``u̇ = R_r χ̇ = V``), as MODEL.md §2."""
     K, _ = dae_matrices(model, model.m_e0)
     u, chi = bordered_solve(K, *static_rhs(model))
     chi_dot = model.omega
-    on_drive = (jnp.abs(jnp.einsum("nbq,q->nb", model.R, jnp.where(model.is_az, chi_dot, 0.0))) > 0)
-    u_dot = jnp.where(on_drive, jnp.einsum("nbq,q->nb", model.R, chi_dot), 0.0)
+    u_dot = jnp.einsum("nbq,q->nb", model.R, chi_dot)  # non-zero only on the drive rollers' nodes
     return BeltState(u=u, u_dot=u_dot, chi=chi, chi_dot=chi_dot, m_e=model.m_e0,
                      step=jnp.zeros((), jnp.int32))

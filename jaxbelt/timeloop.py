@@ -23,6 +23,7 @@ class Trajectory(eqx.Module):
     """Recorded outputs, one row per kept step. Units: s, m, rad, kg.
 
     ``t`` (k,); ``tracer_u`` (k, n_tr) longitudinal tracer displacement after transport;
+    ``tracer_v`` (k, n_tr) lateral (2D; ``None`` in 1D);
     ``tracer_u_solved`` (k, n_tr) the same before transport (the solve's result);
     ``roller_state`` (k, p, d) roller DOFs as solved (``α_z`` = rotation during the step);
     ``roller_velocity`` (k, p, d); ``belt_mass`` (k,); ``transport_weights`` (k, 2) min/max
@@ -32,6 +33,7 @@ class Trajectory(eqx.Module):
 
     t: jax.Array
     tracer_u: jax.Array
+    tracer_v: jax.Array | None
     tracer_u_solved: jax.Array
     roller_state: jax.Array
     roller_velocity: jax.Array
@@ -40,11 +42,19 @@ class Trajectory(eqx.Module):
     u: jax.Array | None
 
 
-def tracer_values(model: BeltModel, u) -> jax.Array:
-    """Longitudinal displacement at the tracers, from the linear shape functions (n_tr,)."""
-    ux = u[:, 0]
-    c = model.tracer_col
-    return (1.0 - model.tracer_xi) * ux[c] + model.tracer_xi * ux[(c + 1) % model.n_xi]
+def tracer_values(model: BeltModel, u):
+    """``(u, v)`` at the tracers (n_tr,) each, from the element shape functions (linear in 1D,
+    bilinear in 2D); ``v`` is ``None`` in 1D."""
+    c, c1, xi = model.tracer_col, (model.tracer_col + 1) % model.n_xi, model.tracer_xi
+    if model.kind == "1d":
+        return (1.0 - xi) * u[c, 0] + xi * u[c1, 0], None
+    r, e = model.tracer_row, model.tracer_eta
+
+    def at(F):
+        return ((1 - xi) * (1 - e) * F[c, r] + (1 - xi) * e * F[c, r + 1]
+                + xi * (1 - e) * F[c1, r] + xi * e * F[c1, r + 1])
+
+    return at(u[:, 0::2]), at(u[:, 1::2])
 
 
 def make_step(model: BeltModel, integrator: AbstractIntegrator):
@@ -55,10 +65,12 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator):
         solved = integrator.solve_step(model, state)
         u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e)
         new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=state.step + 1)
+        tu, tv = tracer_values(model, u)
         rec = dict(
             t=(state.step + 1) * model.dt,
-            tracer_u=tracer_values(model, u),
-            tracer_u_solved=tracer_values(model, solved.u),
+            tracer_u=tu,
+            tracer_v=tv,
+            tracer_u_solved=tracer_values(model, solved.u)[0],
             roller_state=solved.chi.reshape(p, d),
             roller_velocity=solved.chi_dot.reshape(p, d),
             belt_mass=jnp.sum(m_e),

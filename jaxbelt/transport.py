@@ -86,18 +86,24 @@ def transport_masses(m_e, a, fwd):
     return m_e + flux - jnp.roll(flux, -1, axis=0)
 
 
-def roller_relative_correction(model: BeltModel, a, fwd, chi):
-    """``a_i (R_i χ - R_src χ)`` where the upwind node lies on the same roller, else 0."""
-    r = jnp.einsum("nbq,q->nb", model.R, chi)
-    same = (upwind_values(model.node_roller, fwd[:, 0]) == model.node_roller) & (model.node_roller >= 0)
-    return jnp.where(same[:, None], a * (r - upwind_values(r, fwd)), 0.0)
+def roller_relative_correction(model: BeltModel, a, fwd, r):
+    """``a (r_i - r_src)`` where the upwind node lies on the same roller, else 0 (all (n, b))."""
+    rollers = jnp.broadcast_to(model.node_roller[:, None], r.shape)
+    same = (upwind_values(rollers, fwd) == rollers) & (rollers >= 0)
+    return jnp.where(same, a * (r - upwind_values(r, fwd)), 0.0)
+
+
+def _x_dofs(model: BeltModel, f):
+    """The longitudinal components (n, n_eta) of a belt field (n, b)."""
+    return f if model.kind == "1d" else f[:, 0::2]
 
 
 def transport_step(model: BeltModel, u, u_dot, chi, m_e):
-    """Interpolate the solved state back onto the grid (1D: every belt DOF is longitudinal).
+    """Interpolate the solved state back onto the grid.
 
     **Arguments:** ``u``, ``u_dot`` (n, b) after the solve; ``chi`` (q,) roller DOFs;
-    ``m_e`` (n,) element masses. The rule is ``model.transport`` (module docstring).
+    ``m_e`` element masses, (n,) in 1D, (n, n_eta - 1) in 2D. The rule is ``model.transport``;
+    in 2D only x is transported unless ``model.lateral_transport`` (module docstring).
     **Returns:** ``(u, u_dot, chi, m_e)`` on the grid, ``α_z`` reset to 0.
     """
     u_new, u_dot_new, chi_new, m_new, _ = transport_step_with_weights(model, u, u_dot, chi, m_e)
@@ -106,14 +112,29 @@ def transport_step(model: BeltModel, u, u_dot, chi, m_e):
 
 def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e):
     """:func:`transport_step` plus the ``(min, max)`` of the interpolation weights (diagnostic)."""
-    if model.transport == "shift":
-        s = jnp.mean(u)
-        a, fwd = upwind_weights(jnp.full_like(u, s), model.ell)
-    else:
-        a, fwd = upwind_weights(u, model.ell)
-    u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, chi)
-    u_new = u_new - (s if model.transport == "shift" else jnp.mean(u_new))
+    from .assembly import roller_R, roller_surface_displacement
+
+    ux = _x_dofs(model, u)
+    shift = model.transport == "shift"
+    s = jnp.mean(ux)
+    a_x, fwd_x = upwind_weights(jnp.full_like(ux, s) if shift else ux, model.ell)
+    if model.kind == "1d":
+        a, fwd = a_x, fwd_x
+    else:  # u and v of a node share the node's weight; v is frozen (a = 0) unless transported
+        a_v = a_x if model.lateral_transport else jnp.zeros_like(a_x)
+        a = jnp.stack([a_x, a_v], axis=2).reshape(u.shape)
+        fwd = jnp.repeat(fwd_x, 2, axis=1)
+    r = roller_surface_displacement(model, chi, roller_R(model, u))
+    u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, r)
+    mean = s if shift else jnp.mean(_x_dofs(model, u_new))
+    x_mask = jnp.ones(u.shape[1]) if model.kind == "1d" else jnp.tile(jnp.array([1.0, 0.0]), model.n_eta)
+    u_new = u_new - mean * x_mask
     u_dot_new = interpolate(u_dot, a, fwd)
-    m_new = transport_masses(m_e, a[:, 0], fwd[:, 0])
+    if m_e.ndim == 1:
+        m_new = transport_masses(m_e, a_x[:, 0], fwd_x[:, 0])
+    else:  # element rows move with the mean displacement of their two node rows
+        ue = jnp.full_like(m_e, s) if shift else 0.5 * (ux[:, :-1] + ux[:, 1:])
+        a_e, fwd_e = upwind_weights(ue, model.ell)
+        m_new = transport_masses(m_e, a_e, fwd_e)
     chi_new = jnp.where(model.is_az, 0.0, chi)
-    return u_new, u_dot_new, chi_new, m_new, jnp.stack([jnp.min(a), jnp.max(a)])
+    return u_new, u_dot_new, chi_new, m_new, jnp.stack([jnp.min(a_x), jnp.max(a_x)])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import equinox as eqx
 
-from ..assembly import dae_matrices, dae_rhs
+from ..assembly import dae_matrices, dae_rhs, roller_R
 from ..linalg import bordered_solve, dense_solve
 from ._base import AbstractIntegrator
 
@@ -20,8 +20,9 @@ class DirectBackwardEuler(AbstractIntegrator):
 
     def solve_step(self, model, state):
         dt = model.dt
-        K, M = dae_matrices(model, state.m_e)
-        F_b, F_r = dae_rhs(model, state.u, state.chi)
+        R = roller_R(model, state.u)
+        K, M = dae_matrices(model, state.m_e, R)
+        F_b, F_r = dae_rhs(model, state.u, state.chi, R)
         p_b, p_r = state.u + dt * state.u_dot, state.chi + dt * state.chi_dot
         Kp_b, Kp_r = K.matvec(p_b, p_r)
         solve = bordered_solve if self.linear_solver == "structured" else dense_solve

@@ -19,7 +19,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..assembly import dae_matrices, dae_rhs
+from ..assembly import dae_matrices, dae_rhs, roller_R
 from ..linalg import join, split
 from ._base import AbstractIntegrator
 
@@ -33,9 +33,10 @@ def algebraic_partition(model):
 def eliminated_system(model, state, dyn_idx, alg_idx):
     """The condensed ODE at the current step: ``(M̂, K̂, F̂, P, g, p)`` with ``p = x + Δt ẋ``."""
     dt = model.dt
-    K, M = dae_matrices(model, state.m_e)
+    R = roller_R(model, state.u)
+    K, M = dae_matrices(model, state.m_e, R)
     Kd, Md = K.to_dense(), M.to_dense()
-    F = join(*dae_rhs(model, state.u, state.chi))
+    F = join(*dae_rhs(model, state.u, state.chi, R))
     f, e = jnp.asarray(dyn_idx), jnp.asarray(alg_idx)
     p = join(state.u, state.chi) + dt * join(state.u_dot, state.chi_dot)
     Kee, Kef, Kfe, Kff = Kd[e][:, e], Kd[e][:, f], Kd[f][:, e], Kd[f][:, f]

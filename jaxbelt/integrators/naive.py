@@ -5,7 +5,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from ..assembly import dae_matrices, dae_rhs
+from ..assembly import dae_matrices, dae_rhs, roller_R
 from ..linalg import join, split
 from ._base import AbstractIntegrator
 
@@ -28,12 +28,13 @@ class NaiveBackwardEuler(AbstractIntegrator):
 
     def solve_step(self, model, state):
         dt = model.dt
-        K, M = dae_matrices(model, state.m_e)
+        R = roller_R(model, state.u)
+        K, M = dae_matrices(model, state.m_e, R)
         Kd, Md = K.to_dense(), M.to_dense()
         N = Kd.shape[0]
         I, Z = jnp.eye(N), jnp.zeros((N, N))
         A = jnp.block([[Kd, Z, Md], [I, -dt * I, Z], [Z, I, -dt * I]])
-        F = join(*dae_rhs(model, state.u, state.chi))
+        F = join(*dae_rhs(model, state.u, state.chi, R))
         rhs = jnp.concatenate([F, join(state.u, state.chi), join(state.u_dot, state.chi_dot)])
         r = 1.0 / jnp.max(jnp.abs(A), axis=1)
         A = A * r[:, None]
