@@ -28,13 +28,22 @@ def plot_run(traj, mesh, path, times=None, title: str = ""):
     plt = _plt()
     t = np.asarray(traj.t)
     tu = np.asarray(traj.tracer_u) * 1e3
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5), constrained_layout=True)
+    lateral = traj.tracer_v is not None
+    fig, axes = plt.subplots(3 if lateral else 2, 1, figsize=(9, 10 if lateral else 7.5), constrained_layout=True)
+    ax1, ax2 = axes[0], axes[-1]
     for k in range(tu.shape[1]):
         ax1.plot(t, tu[:, k], lw=0.8)
     ax1.set_xlabel("t [s]")
-    ax1.set_ylabel("tracer displacement u [mm]")
-    ax1.set_title(title or "tracer trajectories (longitudinal)")
+    ax1.set_ylabel("tracer displacement u (x) [mm]")
+    ax1.set_title(title or "tracer trajectories")
     ax1.grid(alpha=0.3)
+    if lateral:
+        tv = np.asarray(traj.tracer_v) * 1e3
+        for k in range(tv.shape[1]):
+            axes[1].plot(t, tv[:, k], lw=0.8)
+        axes[1].set_xlabel("t [s]")
+        axes[1].set_ylabel("tracer displacement v (z) [mm]")
+        axes[1].grid(alpha=0.3)
 
     if times is None:
         times = t[np.linspace(0, len(t) - 1, 4).astype(int)]
@@ -42,7 +51,7 @@ def plot_run(traj, mesh, path, times=None, title: str = ""):
     seg_x = np.asarray(mesh.x)[np.asarray(mesh.segment_starts)] * 1e3
     if traj.u is not None:
         x = np.asarray(mesh.x) * 1e3
-        prof = np.asarray(traj.u)[:, :, 0] * 1e3
+        prof = np.asarray(traj.u)[:, :, 0 if mesh.n_eta == 1 else 2 * (mesh.n_eta // 2)] * 1e3  # centre row
         for i in idx:
             ax2.plot(x, prof[i], lw=1, label=f"t = {t[i]:.3g} s")
     else:

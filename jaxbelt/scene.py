@@ -204,7 +204,11 @@ def _int_list(d: dict, key: str, where: str, n: int):
 
 
 def scene_from_dict(data: dict, name: str = "scene") -> Scene:
-    """Validate a parsed TOML document and convert it to a :class:`Scene` in SI units."""
+    """Validate a parsed TOML document and convert it to a :class:`Scene` in SI units.
+
+    A document with ``extends = "built-in name"`` is a variant: see :func:`_extend`."""
+    if "extends" in data:
+        data = _extend(dict(data), name)
     for k in data:
         if k not in _TABLES:
             raise _err(k, "…", f"unknown table (allowed: {', '.join(sorted(_TABLES))})")
@@ -416,8 +420,6 @@ def load_scene(source: str | Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{s}: not valid TOML: {e}") from None
-    if "extends" in data:
-        data = _extend(data, s)
     return scene_from_dict(data, name=name)
 
 

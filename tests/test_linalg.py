@@ -63,3 +63,15 @@ def test_gradient_through_structured_solve_matches_dense():
     g1 = jax.grad(loss)(0.1, bordered_solve)
     g2 = jax.grad(loss)(0.1, dense_solve)
     assert float(g1) == pytest.approx(float(g2), rel=1e-9)
+
+
+def test_row_equilibration_conditions_the_belt_matrix():
+    from jaxbelt.linalg.bordered import row_equilibrate
+    from helpers import scene_with
+
+    m = jb.compile_scene(scene_with(lambda d: d["mesh"].update(n_eta=4), "three-roller"))
+    K, M = dae_matrices(m, m.m_e0)
+    A = M + K.scale(m.dt**2)
+    As, _, _ = row_equilibrate(A, jnp.zeros((m.n_xi, m.block)), jnp.zeros(m.n_roller_dofs))
+    c0, c1 = np.linalg.cond(np.asarray(A.to_dense())), np.linalg.cond(np.asarray(As.to_dense()))
+    assert c0 > 1e8 and c1 < 2e4

@@ -138,12 +138,32 @@ def _block_thomas(diag, lower, upper, rhs):
     return xs
 
 
+def row_equilibrate(A: BorderedBlockCyclic, rhs_belt, rhs_roll):
+    """Scale every row by ``1 / max|row|`` (same solution, far better conditioning).
+
+    The belt DAE mixes rows of very different size: Backward-Euler constraint rows are
+    ``Δt²`` times unit coefficients, stiffness rows ``~EA/ℓ``, roller rows ``r EA``. On the
+    small three-roller scene row scaling brings the condition number of ``M + Δt² K`` from
+    3e8 to 1e4 (``tests/test_linalg.py``)."""
+    absmax = lambda a, axes: jnp.max(jnp.abs(a), axis=axes)
+    rb = jnp.maximum(jnp.maximum(absmax(A.diag, 2), jnp.maximum(absmax(A.lower, 2), absmax(A.upper, 2))),
+                     absmax(A.C, 2) if A.C.shape[2] else 0.0)
+    rr = jnp.maximum(jnp.max(jnp.abs(A.D), axis=(0, 2)), absmax(A.E, 1)) if A.E.shape[0] else jnp.zeros(0)
+    sb, sr = 1.0 / jnp.where(rb > 0, rb, 1.0), 1.0 / jnp.where(rr > 0, rr, 1.0)
+    As = BorderedBlockCyclic(diag=A.diag * sb[:, :, None], lower=A.lower * sb[:, :, None],
+                             upper=A.upper * sb[:, :, None], C=A.C * sb[:, :, None],
+                             D=A.D * sr[None, :, None], E=A.E * sr[:, None])
+    return As, rhs_belt * sb, rhs_roll * sr
+
+
 def bordered_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array):
-    """Exact solve of ``A x = r`` exploiting the structure (see module docstring).
+    """Exact solve of ``A x = r`` exploiting the structure (see module docstring), after
+    :func:`row_equilibrate`.
 
     **Arguments:** ``A``; ``rhs_belt`` (n, b); ``rhs_roll`` (q,).
     **Returns:** ``(x_belt (n, b), x_roll (q,))``.
     """
+    A, rhs_belt, rhs_roll = row_equilibrate(A, rhs_belt, rhs_roll)
     n, b, q = A.n_blocks, A.block, A.n_border
     s = b + q
     if n < 3:
@@ -171,6 +191,7 @@ def bordered_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Ar
 
 
 def dense_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array):
-    """Reference: dense ``jnp.linalg.solve`` on the assembled matrix."""
+    """Reference: dense ``jnp.linalg.solve`` on the assembled, row-equilibrated matrix."""
+    A, rhs_belt, rhs_roll = row_equilibrate(A, rhs_belt, rhs_roll)
     x = jnp.linalg.solve(A.to_dense(), join(rhs_belt, rhs_roll))
     return split(x, A.n_blocks, A.block)

@@ -1,0 +1,157 @@
+"""The 2D plane-stress model (MODEL.md §4): counts, solves, invariants, symmetry, linearity."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbelt as jb
+from jaxbelt.assembly import dae_matrices, roller_R
+from jaxbelt.linalg import bordered_solve, dense_solve, join
+from helpers import scene_with
+
+
+def small(name="three-roller", n_eta=3, **extra):
+    def m(d):
+        d.setdefault("mesh", {})["n_eta"] = n_eta
+        for table, values in extra.items():
+            d.setdefault(table, {}).update(values)
+    return jb.compile_scene(scene_with(m, name))
+
+
+def with_variant(model, rollers):
+    """Misalignments as {roller index: dict(translation=(x, y, z) m, rotation=(x, y) rad)}."""
+    t = np.zeros((model.n_rollers, 3))
+    r = np.zeros((model.n_rollers, 3))
+    for j, v in rollers.items():
+        t[j] = v.get("translation", (0, 0, 0))
+        r[j, :2] = v.get("rotation", (0, 0))
+    return model.with_misalignment(translation=jnp.asarray(t), rotation=jnp.asarray(r))
+
+
+@pytest.mark.parametrize("scene,n_eta,expected", [("three-roller", 18, 3762), ("three-roller", 4, 850),
+                                                  ("four-roller-external", 18, 3768), ("three-roller-tension", 5, None)])
+def test_unknown_counts(scene, n_eta, expected):
+    m = small(scene, n_eta=n_eta)
+    assert m.n_unknowns == 2 * m.n_xi * m.n_eta + 6 * m.n_rollers
+    if expected is not None:
+        assert m.n_unknowns == expected
+
+
+def test_default_scene_count_via_info(capsys):
+    import json
+
+    from jaxbelt.cli import main
+
+    assert main(["info", "three-roller", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["n_unknowns"] == 3762 and info["n_xi"] == 104 and info["n_eta"] == 18
+
+
+def test_structured_solve_equals_dense_2d():
+    m = with_variant(small(n_eta=4), {0: dict(translation=(0, 2e-3, 1e-3)), 1: dict(rotation=(4e-4, 2e-4))})
+    s0 = jb.initial_state(m)
+    R = roller_R(m, s0.u)
+    K, M = dae_matrices(m, s0.m_e, R)
+    A = M + K.scale(m.dt**2)
+    rng = np.random.default_rng(0)
+    rb, rr = jnp.asarray(rng.normal(size=(m.n_xi, m.block))), jnp.asarray(rng.normal(size=m.n_roller_dofs))
+    for mat in (A, K):
+        x1, x2 = join(*bordered_solve(mat, rb, rr)), join(*dense_solve(mat, rb, rr))
+        assert float(jnp.linalg.norm(x1 - x2) / jnp.linalg.norm(x2)) < 1e-10
+
+
+def test_mass_conserved_500_steps_and_idle_speeds():
+    m = with_variant(small(n_eta=3), {0: dict(translation=(1e-3, 2e-3, 0)), 2: dict(rotation=(3e-4, 0))})
+    _, tr = jb.simulate(m, n_steps=500)
+    mass = np.asarray(tr.belt_mass)
+    assert np.max(np.abs(mass - mass[0])) / mass[0] < 1e-13
+    w = np.asarray(tr.roller_velocity)[-1, :, 5]
+    radii = np.array([0.08, 0.06, 0.10])
+    np.testing.assert_allclose(np.abs(w) * radii, 1.0, rtol=1e-3)
+
+
+def test_aligned_stretched_belt_is_symmetric():
+    """No lateral misalignment, belt stretched by moving roller 2 outwards: Poisson contraction
+    only, v = 0 on the centre line and v(-z) = -v(z), u(-z) = u(z)."""
+    m = with_variant(small(n_eta=5), {1: dict(translation=(2e-3, 0, 0))})
+    s, tr = jb.simulate(m, n_steps=60)
+    u, v = np.asarray(s.u[:, 0::2]), np.asarray(s.u[:, 1::2])
+    assert np.max(np.abs(v)) > 1e-7  # the contraction is there (the test is not vacuous)
+    np.testing.assert_allclose(v[:, 2], 0.0, atol=1e-15 + 1e-9 * np.max(np.abs(v)))
+    np.testing.assert_allclose(v, -v[:, ::-1], atol=1e-9 * np.max(np.abs(v)))
+    np.testing.assert_allclose(u, u[:, ::-1], atol=1e-9 * np.max(np.abs(u)))
+    assert np.max(np.abs(np.asarray(tr.tracer_v))) < 1e-9 * np.max(np.abs(v))  # tracers on the centre line
+
+
+def test_mirrored_lateral_misalignment_mirrors_the_field():
+    base = small(n_eta=4)
+    a = with_variant(base, {0: dict(translation=(0, 0, 1e-3)), 1: dict(rotation=(4e-4, -2e-4))})
+    b = with_variant(base, {0: dict(translation=(0, 0, -1e-3)), 1: dict(rotation=(-4e-4, 2e-4))})
+    sa, _ = jb.simulate(a, n_steps=40)
+    sb, _ = jb.simulate(b, n_steps=40)
+    ua, va = np.asarray(sa.u[:, 0::2]), np.asarray(sa.u[:, 1::2])
+    ub, vb = np.asarray(sb.u[:, 0::2]), np.asarray(sb.u[:, 1::2])
+    assert np.max(np.abs(va)) > 1e-5
+    np.testing.assert_allclose(vb, -va[:, ::-1], atol=1e-9 * np.max(np.abs(va)))
+    np.testing.assert_allclose(ub, ua[:, ::-1], atol=1e-9 * max(np.max(np.abs(ua)), 1e-9))
+
+
+def test_doubling_a_small_misalignment_doubles_the_response():
+    base = small(n_eta=3)
+    c1 = {0: dict(translation=(0, 1e-4, 1e-4)), 1: dict(rotation=(5e-5, 0)), 2: dict(rotation=(0, 4e-5))}
+    c2 = {k: {kk: tuple(2 * x for x in vv) for kk, vv in v.items()} for k, v in c1.items()}
+    zero = jb.simulate(base, n_steps=60)[1]
+    r1 = jb.simulate(with_variant(base, c1), n_steps=60)[1]
+    r2 = jb.simulate(with_variant(base, c2), n_steps=60)[1]
+    for f in ("tracer_u", "tracer_v"):
+        d1 = np.asarray(getattr(r1, f) - getattr(zero, f))
+        d2 = np.asarray(getattr(r2, f) - getattr(zero, f))
+        assert np.linalg.norm(d2 - 2 * d1) < 0.01 * np.linalg.norm(2 * d1)
+
+
+def test_integrators_agree_2d():
+    m = with_variant(small(n_eta=3), {0: dict(translation=(0, 1e-3, 5e-4)), 1: dict(rotation=(3e-4, 1e-4))})
+    ref = jb.simulate(m, "direct", n_steps=15)[1]
+    scale = float(jnp.max(jnp.abs(ref.tracer_u)))
+    for name in ("naive", "eliminated"):
+        tr = jb.simulate(m, name, n_steps=15)[1]
+        assert float(jnp.max(jnp.abs(tr.tracer_u - ref.tracer_u))) < 1e-9 * scale
+        assert float(jnp.max(jnp.abs(tr.tracer_v - ref.tracer_v))) < 1e-9 * scale
+
+
+def test_tension_roller_moves_and_is_balanced():
+    m = small("three-roller-tension", n_eta=3)
+    s, tr = jb.simulate(m, n_steps=100)
+    dx = np.asarray(tr.roller_state)[-1, 1, 0]
+    assert dx > 0  # pulled outwards by the 200 N
+    w = np.asarray(tr.roller_velocity)[-1, :, 5]
+    np.testing.assert_allclose(np.abs(w) * np.array([0.08, 0.06, 0.10]), 1.0, rtol=2e-3)
+
+
+def test_exact_static_rotation_matches_linear_for_small_angles():
+    from jaxbelt.rollers import exact_static_displacement
+
+    m = small(n_eta=3)
+    chi = jnp.zeros((3, 6)).at[1, 3].set(1e-6).at[1, 4].set(-2e-6).at[0, 1].set(1e-6)
+    g = exact_static_displacement(chi, m.node_roller, m.node_theta, m.node_radius, m.node_sense, m.z0)
+    lin = jnp.einsum("nbq,q->nb", m.R, chi.reshape(-1))
+    np.testing.assert_allclose(np.asarray(g), np.asarray(lin), atol=1e-11)
+    # and differs at second order for a finite tilt
+    chi2 = jnp.zeros((3, 6)).at[1, 3].set(0.05).at[1, 4].set(0.05)
+    g2 = exact_static_displacement(chi2, m.node_roller, m.node_theta, m.node_radius, m.node_sense, m.z0)
+    assert float(jnp.max(jnp.abs(g2 - jnp.einsum("nbq,q->nb", m.R, chi2.reshape(-1))))) > 1e-5
+
+
+def test_rejects_too_coarse_2d_grid():
+    with pytest.raises(jb.SceneError, match="at least 5"):
+        jb.compile_scene(scene_with(lambda d: d["mesh"].update(n_xi=60), "three-roller"))
+
+
+def test_unknown_variant_roller():
+    import tomllib
+
+    with pytest.raises(jb.SceneError, match="no roller of that name"):
+        from jaxbelt.scene import _extend
+
+        _extend(tomllib.loads('extends = "three-roller"\n[variant."nope"]\nrotation_mrad = [1.0, 0.0, 0.0]'), "x")
