@@ -75,3 +75,50 @@ def test_pretension_statics():
     F_b, F_r = static_rhs(model)
     np.testing.assert_allclose(np.asarray(y_r), np.asarray(F_r), atol=1e-12)
     assert eps0 > 0
+
+
+def test_quad_stiffness_matches_scikit_fem_plane_stress():
+    skfem = pytest.importorskip("skfem")
+    from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+    from jaxbelt.elements import quad_stiffness
+
+    E, nu, t, ell, w = 2.5e9, 0.34, 3e-4, 0.027, 0.0235
+    K = np.asarray(quad_stiffness(ell, w, E, nu, t))
+    mesh = skfem.MeshQuad(np.array([[0, ell, ell, 0], [0, 0, w, w]]), np.array([[0], [1], [2], [3]]))
+    basis = skfem.Basis(mesh, skfem.ElementVector(skfem.ElementQuad1()), intorder=3)
+    lam, mu = lame_parameters(E, nu)
+    lam_plane_stress = 2 * lam * mu / (lam + 2 * mu)
+    K_ref = (t * linear_elasticity(lam_plane_stress, mu).assemble(basis)).toarray()
+    # skfem's nodes (0,0),(ℓ,0),(ℓ,w),(0,w) → jaxbelt's (i,j),(i,j+1),(i+1,j),(i+1,j+1)
+    order = [0, 3, 1, 2]
+    dofs = np.array([[basis.nodal_dofs[0, k], basis.nodal_dofs[1, k]] for k in order]).ravel()
+    np.testing.assert_allclose(K, K_ref[np.ix_(dofs, dofs)], rtol=1e-12, atol=1e-12 * np.abs(K_ref).max())
+
+
+def test_assembled_2d_stiffness_matches_scikit_fem_on_a_strip():
+    """The free-belt blocks of a whole strip (3 element columns × 2 rows) against skfem."""
+    skfem = pytest.importorskip("skfem")
+    from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+    from jaxbelt.elements import free_belt_stiffness_2d
+
+    E, nu, t = 2.5e9, 0.34, 3e-4
+    ell = np.array([0.02, 0.03, 0.025, 1.0])  # the 4th element column closes the loop and is not free
+    free = np.array([1.0, 1.0, 1.0, 0.0])
+    z = np.array([-0.02, 0.0, 0.02])
+    Kd, Kl, Ku = free_belt_stiffness_2d(jnp.asarray(ell), jnp.asarray(np.diff(z)), jnp.asarray(free), E, nu, t)
+    n, b = 4, 6
+    K = BorderedBlockCyclic(Kd, Kl, Ku, jnp.zeros((n, b, 0)), jnp.zeros((n, 0, b)), jnp.zeros((0, 0))).to_dense()
+    xs = np.concatenate([[0], np.cumsum(ell[:3])])
+    mesh = skfem.MeshQuad.init_tensor(xs, z)
+    basis = skfem.Basis(mesh, skfem.ElementVector(skfem.ElementQuad1()), intorder=3)
+    lam, mu = lame_parameters(E, nu)
+    K_ref = (t * linear_elasticity(2 * lam * mu / (lam + 2 * mu), mu).assemble(basis)).toarray()
+    # map jaxbelt DOF (column i, row j, comp c) → skfem DOF of the node at (xs[i], z[j])
+    perm = []
+    for i in range(4):
+        for j in range(3):
+            k = int(np.argmin((mesh.p[0] - xs[i]) ** 2 + (mesh.p[1] - z[j]) ** 2))
+            perm += [basis.nodal_dofs[0, k], basis.nodal_dofs[1, k]]
+    np.testing.assert_allclose(np.asarray(K), K_ref[np.ix_(perm, perm)], rtol=1e-12, atol=1e-12 * np.abs(K_ref).max())
