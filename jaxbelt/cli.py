@@ -25,7 +25,7 @@ class SimulationError(Exception):
     pass
 
 
-def _load(scene_arg, t_end=None, dt=None, integrator=None, transport=None):
+def _load(scene_arg, t_end=None, dt=None, integrator=None, transport=None, linear_solver=None):
     from .scene import load_scene
 
     scene = load_scene(scene_arg)
@@ -43,6 +43,8 @@ def _load(scene_arg, t_end=None, dt=None, integrator=None, transport=None):
         scene = scene.replace(solver=dataclasses.replace(scene.solver, integrator=integrator))
     if transport is not None:
         scene = scene.replace(solver=dataclasses.replace(scene.solver, transport=transport))
+    if linear_solver is not None:
+        scene = scene.replace(solver=dataclasses.replace(scene.solver, linear_solver=linear_solver))
     return scene
 
 
@@ -138,7 +140,8 @@ def cmd_simulate(args, demo=False):
     from .integrators import make_integrator
     from .mesh import build_mesh
 
-    scene = _load(args.scene, args.t_end, args.dt, args.integrator, getattr(args, "transport", None))
+    scene = _load(args.scene, args.t_end, args.dt, args.integrator, getattr(args, "transport", None),
+                  getattr(args, "solver", None))
     mesh = build_mesh(scene)
     model = compile_scene(scene, mesh)
     integrator = make_integrator(model.integrator, model)
@@ -237,6 +240,8 @@ def build_parser():
     s.add_argument("--t-end", type=float, default=None, help="end time, s")
     s.add_argument("--dt", type=float, default=None, help="time step, s (checked against CFL)")
     s.add_argument("--integrator", choices=("naive", "direct", "eliminated"), default=None)
+    s.add_argument("--solver", choices=("structured", "dense", "reuse"), default=None,
+                   help="linear solver of the direct integrator (reuse: frozen factorisation + refinement)")
     s.add_argument("--transport", choices=("source", "shift"), default=None,
                    help="relabelling rule of the transport step (see jaxbelt.transport)")
     s.add_argument("--out", default=None, help="write the trajectory to this .npz")

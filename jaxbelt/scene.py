@@ -85,7 +85,7 @@ class OutputSpec:
 @dataclasses.dataclass(frozen=True)
 class SolverSpec:
     integrator: str = "direct"  # naive | direct | eliminated
-    linear_solver: str = "structured"  # structured | dense
+    linear_solver: str = "structured"  # structured | dense | reuse
     transport: str = "shift"  # shift (moving-reference relabelling) | source (eq. 3.56)
     lateral_transport: bool = False  # 2D: also transport v (lets a skewed roller steer the belt)
 
@@ -112,7 +112,7 @@ class Scene:
 _ROLES = ("drive", "idle", "tension")
 _SIDES = ("internal", "external")
 _INTEGRATORS = ("naive", "direct", "eliminated")
-_LINEAR = ("structured", "dense")
+_LINEAR = ("structured", "dense", "reuse")
 
 _TABLES = {
     "model": {"kind", "name", "description", "direction"},

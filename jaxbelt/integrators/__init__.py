@@ -6,14 +6,20 @@ from .eliminated import EliminatedBackwardEuler as EliminatedBackwardEuler
 from .eliminated import algebraic_partition as algebraic_partition
 from .eliminated import eliminated_system as eliminated_system
 from .naive import NaiveBackwardEuler as NaiveBackwardEuler
+from .reuse import ReusedFactorisationBackwardEuler as ReusedFactorisationBackwardEuler
 
 INTEGRATORS = ("naive", "direct", "eliminated")
 
 
 def make_integrator(name: str, model, linear_solver: str | None = None) -> AbstractIntegrator:
-    """Integrator by name: ``"naive"``, ``"direct"`` or ``"eliminated"``."""
+    """Integrator by name: ``"naive"``, ``"direct"`` or ``"eliminated"``; the direct one with the
+    linear solver ``"structured"`` (exact), ``"dense"`` (reference) or ``"reuse"`` (frozen
+    factorisation + iterative refinement)."""
     if name == "direct":
-        return DirectBackwardEuler(linear_solver or model.linear_solver)
+        ls = linear_solver or model.linear_solver
+        if ls == "reuse":
+            return ReusedFactorisationBackwardEuler.for_model(model)
+        return DirectBackwardEuler(ls)
     if name == "naive":
         return NaiveBackwardEuler()
     if name == "eliminated":
