@@ -14,6 +14,7 @@ if _os.environ.get("JAXBELT_X64", "1") != "0":
 from .integrators import DirectBackwardEuler as DirectBackwardEuler
 from .integrators import EliminatedBackwardEuler as EliminatedBackwardEuler
 from .integrators import NaiveBackwardEuler as NaiveBackwardEuler
+from .integrators import ReusedFactorisationBackwardEuler as ReusedFactorisationBackwardEuler
 from .integrators import make_integrator as make_integrator
 from .mesh import Mesh as Mesh
 from .mesh import build_mesh as build_mesh
