@@ -156,7 +156,8 @@ def cmd_simulate(args, demo=False):
     if args.out:
         out = Path(args.out)
         np.savez(
-            out, t=np.asarray(traj.t), transport_weights=np.asarray(traj.transport_weights), tracer_u=np.asarray(traj.tracer_u),
+            out, t=np.asarray(traj.t), transport_weights=np.asarray(traj.transport_weights),
+            **({"tracer_v": np.asarray(traj.tracer_v)} if traj.tracer_v is not None else {}), tracer_u=np.asarray(traj.tracer_u),
             tracer_u_solved=np.asarray(traj.tracer_u_solved), roller_state=np.asarray(traj.roller_state),
             roller_velocity=np.asarray(traj.roller_velocity), belt_mass=np.asarray(traj.belt_mass),
             tracer_x=mesh.tracer_x, tracer_z=mesh.tracer_z, roller_names=np.array(model.roller_names),
@@ -224,6 +225,17 @@ def cmd_info(args):
     return 0
 
 
+def cmd_plot_scene(args):
+    from .mesh import build_mesh
+    from .plot import plot_scene
+
+    scene = _load(args.scene)
+    out = args.out or f"{scene.name}-scene.png"
+    plot_scene(scene, build_mesh(scene), out)
+    print(f"wrote {out}")
+    return 0
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="jaxbelt", description="Differentiable conveyor-belt simulator (JAX)")
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -235,6 +247,9 @@ def build_parser():
     i = sub.add_parser("info", help="what the compiled model of a scene contains")
     i.add_argument("scene", help="TOML path or built-in scene name")
     i.add_argument("--json", action="store_true")
+    ps = sub.add_parser("plot-scene", help="draw rollers, belt path, contact and tracer points")
+    ps.add_argument("scene", help="TOML path or built-in scene name")
+    ps.add_argument("--out", default=None, help="PNG path (default SCENE-scene.png)")
     s = sub.add_parser("simulate", help="run a scene")
     s.add_argument("scene", help="TOML path or built-in scene name")
     s.add_argument("--t-end", type=float, default=None, help="end time, s")
@@ -257,7 +272,8 @@ def main(argv=None) -> int:
 
     args = build_parser().parse_args(argv)
     try:
-        return {"demo": cmd_demo, "scenes": cmd_scenes, "info": cmd_info, "simulate": cmd_simulate}[args.cmd](args)
+        return {"demo": cmd_demo, "scenes": cmd_scenes, "info": cmd_info, "simulate": cmd_simulate,
+                "plot-scene": cmd_plot_scene}[args.cmd](args)
     except (SceneError, UsageError) as e:
         print(f"jaxbelt: error: {e}", file=sys.stderr)
         return 2

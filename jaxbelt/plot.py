@@ -68,3 +68,48 @@ def plot_run(traj, mesh, path, times=None, title: str = ""):
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def plot_scene(scene, mesh, path):
+    """Rollers, belt path, contact points and tracer points in the (x³ᴰ, y³ᴰ) plane (mm), as the
+    source's Figures 2.2 / 7.1."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 6), constrained_layout=True)
+    for j, r in enumerate(scene.rollers):
+        c = np.array(r.center) * 1e3
+        style = dict(fill=False, lw=1.5, color="tab:red" if r.external else "tab:blue")
+        ax.add_patch(plt.Circle(c, r.radius * 1e3, **style))
+        ax.annotate(f"{j + 1}: {r.name}\n({r.role}{', external' if r.external else ''})", c, ha="center",
+                    va="center", fontsize=8)
+    # belt path: arcs and spans
+    for seg in mesh.path.segments:
+        if seg.kind == "free":
+            pts = np.stack([seg.start, seg.end]) * 1e3
+        else:
+            j = seg.index
+            th = seg.theta_in + seg.sense * seg.wrap * np.linspace(0, 1, 60)
+            pts = (mesh.path.centers[j] + mesh.path.radii[j] * np.stack([np.cos(th), np.sin(th)], 1)) * 1e3
+        ax.plot(pts[:, 0], pts[:, 1], color="k", lw=1)
+        ax.plot(*(seg.start * 1e3), "o", color="tab:orange", ms=4)
+    # tracers: position along the path → point in the plane
+    xs = np.cumsum([0.0] + [s.length for s in mesh.path.segments])
+    for xt in mesh.tracer_x:
+        k = int(np.searchsorted(xs, xt, side="right") - 1)
+        seg, f = mesh.path.segments[k], (xt - xs[k]) / mesh.path.segments[k].length
+        if seg.kind == "free":
+            p = seg.start + f * (seg.end - seg.start)
+        else:
+            th = seg.theta_in + seg.sense * seg.wrap * f
+            p = mesh.path.centers[seg.index] + mesh.path.radii[seg.index] * np.array([np.cos(th), np.sin(th)])
+        ax.plot(*(p * 1e3), "x", color="tab:green", ms=5)
+    ax.plot([], [], "o", color="tab:orange", label="contact lines")
+    ax.plot([], [], "x", color="tab:green", label="tracer points")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x³ᴰ [mm]")
+    ax.set_ylabel("y³ᴰ [mm]")
+    ax.set_title(f"{scene.name}: belt path {mesh.length * 1e3:.1f} mm")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

@@ -79,3 +79,14 @@ def test_diverging_run_is_reported(capsys):
     err = capsys.readouterr().err
     assert rc in (0, 3)
     assert "extrapolated" in err or "diverged" in err
+
+
+def test_plot_scene_and_2d_simulate(tmp_path, capsys):
+    png = tmp_path / "scene.png"
+    assert main(["plot-scene", "four-roller-external", "--out", str(png)]) == 0
+    assert png.stat().st_size > 10_000
+    out = tmp_path / "run.npz"
+    assert main(["simulate", "three-roller-t72", "--t-end", "0.1", "--solver", "reuse", "--out", str(out), "--json"]) == 0
+    data = np.load(out)
+    assert data["tracer_u"].shape == (5, 30) and data["tracer_v"].shape == (5, 30)
+    assert data["roller_state"].shape == (5, 3, 6)
