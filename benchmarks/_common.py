@@ -38,3 +38,21 @@ def write(name, payload):
     path.write_text(json.dumps({"machine": machine(), **payload}, indent=2))
     print(f"wrote {path}")
     return path
+
+
+def bar_plot(rows, key, ratio_key, ratio_fmt, xlabel, title, path):
+    """Horizontal bars of ``rows[name][key]`` annotated with ``rows[name][ratio_key]``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 3.5), constrained_layout=True)
+    names = list(rows)
+    ax.barh(names, [rows[n][key] for n in names], color="tab:blue")
+    for i, n in enumerate(names):
+        ax.text(rows[n][key], i, " " + ratio_fmt.format(rows[n][ratio_key]), va="center")
+    ax.set_xlabel(xlabel)
+    ax.set_title(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

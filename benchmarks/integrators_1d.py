@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from _common import RESULTS, timed, write
+from _common import RESULTS, bar_plot, timed, write
 
 
 def main():
@@ -42,19 +42,8 @@ def main():
         r["ratio_to_direct_structured"] = r["per_step_ms"] / base
     write("integrators_1d", {"scene": args.scene, "n_unknowns": model.n_unknowns, "steps": args.steps, "rows": rows})
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 3.5), constrained_layout=True)
-    names = list(rows)
-    ax.barh(names, [rows[n]["per_step_ms"] for n in names], color="tab:blue")
-    for i, n in enumerate(names):
-        ax.text(rows[n]["per_step_ms"], i, f" {rows[n]['ratio_to_direct_structured']:.1f}×", va="center")
-    ax.set_xlabel("ms per step (solve + transport), CPU")
-    ax.set_title(f"{args.scene}: N = {model.n_unknowns}, {args.steps} steps")
-    fig.savefig(RESULTS / "integrators_1d.png", dpi=120)
+    bar_plot(rows, "per_step_ms", "ratio_to_direct_structured", "{:.1f}×", "ms per step (solve + transport), CPU",
+             f"{args.scene}: N = {model.n_unknowns}, {args.steps} steps", RESULTS / "integrators_1d.png")
 
 
 if __name__ == "__main__":

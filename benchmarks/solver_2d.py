@@ -15,7 +15,7 @@ import numpy as np
 
 import jaxbelt as jb
 from jaxbelt.timeloop import _run_jit
-from _common import RESULTS, write
+from _common import RESULTS, bar_plot, write
 from scipy_reference import ScipyBelt
 
 
@@ -67,19 +67,8 @@ def main():
     write("solver_2d", {"scene": args.scene, "n_unknowns": model.n_unknowns, "steps": args.steps,
                         "projected_100s_reuse_s": reuse * 5000 / 1e3, "rows": rows})
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 3.2), constrained_layout=True)
-    names = list(rows)
-    ax.barh(names, [rows[n]["per_step_ms"] for n in names])
-    for i, n in enumerate(names):
-        ax.text(rows[n]["per_step_ms"], i, f" ×{rows[n]['speedup_vs_scipy']:.1f}", va="center")
-    ax.set_xlabel("ms per step (assembly + solve + transport), 2-core CPU")
-    ax.set_title(f"{args.scene}: N = {model.n_unknowns}")
-    fig.savefig(RESULTS / "solver_2d.png", dpi=120)
+    bar_plot(rows, "per_step_ms", "speedup_vs_scipy", "×{:.1f}", "ms per step (assembly + solve + transport), 2-core CPU",
+             f"{args.scene}: N = {model.n_unknowns}", RESULTS / "solver_2d.png")
 
 
 if __name__ == "__main__":

@@ -128,13 +128,18 @@ def _block_thomas(diag, lower, upper, rhs):
     zero_l = lower.at[0].set(0.0)
     init = (jnp.zeros((b, b), rhs.dtype), jnp.zeros((b, k), rhs.dtype))
     _, (cs, ys) = lax.scan(forward, init, (diag, zero_l, upper, rhs))
+    return _back_substitute(cs, ys)
+
+
+def _back_substitute(cs, ys):
+    """Backward sweep of block Thomas: ``x_m = y_m``, ``x_i = y_i - Ĉ_i x_{i+1}``."""
 
     def backward(x_next, blk):
         c, y = blk
         x = y - c @ x_next
         return x, x
 
-    _, xs = lax.scan(backward, jnp.zeros((b, k), rhs.dtype), (cs, ys), reverse=True)
+    _, xs = lax.scan(backward, jnp.zeros_like(ys[0]), (cs, ys), reverse=True)
     return xs
 
 
@@ -240,14 +245,7 @@ def _thomas_apply(inv, C_hat, L, rhs):
         return y, y
 
     _, ys = lax.scan(forward, jnp.zeros((b, k), rhs.dtype), (inv, L, rhs))
-
-    def backward(x_next, blk):
-        c, y = blk
-        x = y - c @ x_next
-        return x, x
-
-    _, xs = lax.scan(backward, jnp.zeros((b, k), rhs.dtype), (C_hat, ys), reverse=True)
-    return xs
+    return _back_substitute(C_hat, ys)
 
 
 def factorise(A: BorderedBlockCyclic) -> BorderedFactorisation:
