@@ -29,6 +29,7 @@ def main():
     s0 = jax.block_until_ready(jb.initial_state(model))
     rows, trajs = {}, {}
     for name, integ in [("jaxbelt exact (structured)", jb.make_integrator("direct", model, "structured")),
+                        ("jaxbelt exact, cyclic reduction", jb.DirectBackwardEuler("structured", "cyclic-reduction")),
                         ("jaxbelt reuse (refine=2)", jb.make_integrator("direct", model, "reuse")),
                         ("jaxbelt reuse (refine=1)", jb.ReusedFactorisationBackwardEuler.for_model(model, refine=1))]:
         t0 = time.perf_counter()

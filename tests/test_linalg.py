@@ -22,10 +22,11 @@ def _random(n, b, q, seed=0):
     ), jnp.asarray(rng.normal(size=(n, b))), jnp.asarray(rng.normal(size=q))
 
 
+@pytest.mark.parametrize("method", ["thomas", "cyclic-reduction"])
 @pytest.mark.parametrize("n,b,q", [(3, 1, 2), (12, 1, 4), (9, 4, 6), (20, 6, 18)])
-def test_structured_equals_dense(n, b, q):
+def test_structured_equals_dense(n, b, q, method):
     A, rb, rr = _random(n, b, q)
-    xb, xr = bordered_solve(A, rb, rr)
+    xb, xr = bordered_solve(A, rb, rr, method)
     x_ref = jnp.linalg.solve(A.to_dense(), join(rb, rr))
     np.testing.assert_allclose(np.asarray(join(xb, xr)), np.asarray(x_ref), rtol=1e-10, atol=1e-12)
 
@@ -35,6 +36,19 @@ def test_matvec_and_transpose():
     y = join(*A.matvec(rb, rr))
     np.testing.assert_allclose(np.asarray(y), np.asarray(A.to_dense() @ join(rb, rr)), rtol=1e-12)
     np.testing.assert_array_equal(np.asarray(A.transpose().to_dense()), np.asarray(A.to_dense().T))
+
+
+def test_cyclic_reduction_equals_thomas_on_interiors():
+    from jaxbelt.linalg.bordered import thomas_apply, thomas_factor
+    from jaxbelt.linalg.cyclic_reduction import bcr_apply, bcr_factor
+
+    rng = np.random.default_rng(5)
+    for m in (1, 2, 5, 8, 103):
+        D = jnp.asarray(rng.normal(size=(m, 4, 4)) + 8 * np.eye(4))
+        L, U = jnp.asarray(rng.normal(size=(m, 4, 4))), jnp.asarray(rng.normal(size=(m, 4, 4)))
+        r = jnp.asarray(rng.normal(size=(m, 4, 3)))
+        np.testing.assert_allclose(np.asarray(bcr_apply(bcr_factor(D, L, U), r)),
+                                   np.asarray(thomas_apply(thomas_factor(D, L, U), r)), rtol=1e-10, atol=1e-12)
 
 
 def test_belt_matrix_structured_equals_dense():

@@ -17,6 +17,7 @@ class DirectBackwardEuler(AbstractIntegrator):
     """
 
     linear_solver: str = eqx.field(static=True, default="structured")
+    interior: str | None = eqx.field(static=True, default=None)  # "thomas" | "cyclic-reduction" | None: by backend
 
     def solve_step(self, model, state):
         dt = model.dt
@@ -25,8 +26,11 @@ class DirectBackwardEuler(AbstractIntegrator):
         F_b, F_r = dae_rhs(model, state.u, state.chi, R)
         p_b, p_r = state.u + dt * state.u_dot, state.chi + dt * state.chi_dot
         Kp_b, Kp_r = K.matvec(p_b, p_r)
-        solve = bordered_solve if self.linear_solver == "structured" else dense_solve
-        a_b, a_r = solve(M + K.scale(dt**2), F_b - Kp_b, F_r - Kp_r)
+        A = M + K.scale(dt**2)
+        if self.linear_solver == "structured":
+            a_b, a_r = bordered_solve(A, F_b - Kp_b, F_r - Kp_r, self.interior)
+        else:
+            a_b, a_r = dense_solve(A, F_b - Kp_b, F_r - Kp_r)
         ud, chid = state.u_dot + dt * a_b, state.chi_dot + dt * a_r
         return eqx.tree_at(
             lambda s: (s.u, s.u_dot, s.chi, s.chi_dot), state,

@@ -14,11 +14,14 @@ columns, ``D``: roller rows × belt columns, ``E``: roller × roller).
 
 :func:`bordered_solve` is exact and costs ``O(n b³ + n b² (b + q))``: the loop is cut at block
 0, which joins the roller unknowns in a dense border of size ``s = b + q``; the remaining
-``n - 1`` blocks form a plain block-tridiagonal matrix solved by block Thomas elimination
-(``lax.scan``) for ``s + 1`` right-hand sides at once; a dense ``s × s`` Schur complement
-closes the system. Everything is ordinary ``jnp`` code: it jit-compiles, vmaps and is
-differentiable in both arguments by JAX's own rules. Block Thomas does not pivot across
-blocks; the belt blocks of ``M + Δt² K`` are diagonally dominant (lumped mass plus
+``n - 1`` blocks form a plain block-tridiagonal matrix ``T``, factored by block cyclic reduction
+(:mod:`jaxbelt.linalg.cyclic_reduction`, default: ``log₂ n`` batched levels) or block Thomas
+elimination (a sequential ``lax.scan``); ``T⁻¹`` is applied to the ``s`` border columns and a
+dense ``s × s`` Schur complement closes the system. :func:`factorise` keeps all of it, so
+:func:`factor_solve` re-solves for a new right-hand side with matrix products only (the
+factorisation-reuse integrator). Everything is ordinary ``jnp`` code: it jit-compiles, vmaps
+and is differentiable by JAX's own rules. Neither interior method pivots across blocks; after
+row equilibration the belt blocks of ``M + Δt² K`` are diagonally dominant (lumped mass plus
 stiffness, identity rows for the no-slip constraints), which is what makes that safe.
 """
 
@@ -28,6 +31,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax import lax
+
+from .cyclic_reduction import CyclicReductionFactors, bcr_apply, bcr_factor
 
 
 class BorderedBlockCyclic(eqx.Module):
@@ -109,40 +114,6 @@ def join(x_belt: jax.Array, x_roll: jax.Array) -> jax.Array:
     return jnp.concatenate([x_belt.reshape(-1), x_roll])
 
 
-def _block_thomas(diag, lower, upper, rhs):
-    """Solve a (non-cyclic) block-tridiagonal system with ``k`` right-hand sides.
-
-    ``diag, lower, upper``: (m, b, b) with ``lower[0]`` and ``upper[m-1]`` ignored;
-    ``rhs``: (m, b, k). Returns (m, b, k).
-    """
-
-    def forward(carry, blk):
-        c_prev, y_prev = carry
-        a, l, u, r = blk
-        den = a - l @ c_prev
-        sol = jnp.linalg.solve(den, jnp.concatenate([u, r - l @ y_prev], axis=1))
-        c, y = sol[:, : u.shape[1]], sol[:, u.shape[1]:]
-        return (c, y), (c, y)
-
-    b, k = rhs.shape[1], rhs.shape[2]
-    zero_l = lower.at[0].set(0.0)
-    init = (jnp.zeros((b, b), rhs.dtype), jnp.zeros((b, k), rhs.dtype))
-    _, (cs, ys) = lax.scan(forward, init, (diag, zero_l, upper, rhs))
-    return _back_substitute(cs, ys)
-
-
-def _back_substitute(cs, ys):
-    """Backward sweep of block Thomas: ``x_m = y_m``, ``x_i = y_i - Ĉ_i x_{i+1}``."""
-
-    def backward(x_next, blk):
-        c, y = blk
-        x = y - c @ x_next
-        return x, x
-
-    _, xs = lax.scan(backward, jnp.zeros_like(ys[0]), (cs, ys), reverse=True)
-    return xs
-
-
 def row_equilibrate(A: BorderedBlockCyclic, rhs_belt, rhs_roll):
     """Scale every row by ``1 / max|row|`` (same solution, far better conditioning).
 
@@ -161,67 +132,65 @@ def row_equilibrate(A: BorderedBlockCyclic, rhs_belt, rhs_roll):
     return As, rhs_belt * sb, rhs_roll * sr
 
 
-def bordered_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array):
-    """Exact solve of ``A x = r`` exploiting the structure (see module docstring), after
-    :func:`row_equilibrate`.
+class ThomasFactors(eqx.Module):
+    """Block Thomas factors: inverse pivot blocks, ``Ĉ = den⁻¹ U`` and the sub-diagonal blocks."""
 
-    **Arguments:** ``A``; ``rhs_belt`` (n, b); ``rhs_roll`` (q,).
-    **Returns:** ``(x_belt (n, b), x_roll (q,))``.
-    """
-    A, rhs_belt, rhs_roll = row_equilibrate(A, rhs_belt, rhs_roll)
-    n, b, q = A.n_blocks, A.block, A.n_border
-    s = b + q
-    if n < 3:
-        x = jnp.linalg.solve(A.to_dense(), join(rhs_belt, rhs_roll))
-        return split(x, n, b)
-    # interior blocks 1..n-1 couple to the border (block 0 + rollers) through G (rows) / H (cols)
-    G = jnp.zeros((n - 1, b, s), A.diag.dtype)
-    G = G.at[0, :, :b].add(A.lower[1])  # A[1, 0]
-    G = G.at[n - 2, :, :b].add(A.upper[n - 1])  # A[n-1, 0]
-    G = G.at[:, :, b:].set(A.C[1:])
-    H = jnp.zeros((n - 1, s, b), A.diag.dtype)
-    H = H.at[0, :b, :].add(A.upper[0])  # A[0, 1]
-    H = H.at[n - 2, :b, :].add(A.lower[0])  # A[0, n-1]
-    H = H.at[:, b:, :].set(A.D[1:])
-    Z = jnp.block([[A.diag[0], A.C[0]], [A.D[0], A.E]])
-    r_border = jnp.concatenate([rhs_belt[0], rhs_roll])
-    rhs = jnp.concatenate([rhs_belt[1:, :, None], G], axis=2)  # (n-1, b, 1 + s)
-    sol = _block_thomas(A.diag[1:], A.lower[1:], A.upper[1:], rhs)
-    y_r, y_G = sol[:, :, 0], sol[:, :, 1:]
-    S = Z - jnp.einsum("nsb,nbt->st", H, y_G)
-    x_border = jnp.linalg.solve(S, r_border - jnp.einsum("nsb,nb->s", H, y_r))
-    x_int = y_r - jnp.einsum("nbs,s->nb", y_G, x_border)
-    x_belt = jnp.concatenate([x_border[None, :b], x_int], axis=0)
-    return x_belt, x_border[b:]
-
-
-def dense_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array):
-    """Reference: dense ``jnp.linalg.solve`` on the assembled, row-equilibrated matrix."""
-    A, rhs_belt, rhs_roll = row_equilibrate(A, rhs_belt, rhs_roll)
-    x = jnp.linalg.solve(A.to_dense(), join(rhs_belt, rhs_roll))
-    return split(x, A.n_blocks, A.block)
-
-
-# ----------------------------------------------------------------------------- factorisation reuse
-
-
-class BorderedFactorisation(eqx.Module):
-    """LU factors of a row-equilibrated bordered block-cyclic matrix, for repeated solves.
-
-    Holds the block-Thomas factors of the interior (the inverse of every pivot block,
-    ``C_hat = den⁻¹ U``, the sub-diagonal blocks), ``y_G = T⁻¹ G``, the border coupling ``H``
-    and the LU of the ``(b + q)²`` Schur complement. A solve with them costs
-    ``O(n b (b + q))`` instead of ``O(n b³)``."""
-
-    row_b: jax.Array
-    row_r: jax.Array
     inv: jax.Array
     C_hat: jax.Array
     L: jax.Array
+
+
+def thomas_factor(diag, lower, upper) -> ThomasFactors:
+    b = diag.shape[1]
+    eye = jnp.eye(b, dtype=diag.dtype)
+    lower = lower.at[0].set(0.0)
+
+    def forward(c_prev, blk):
+        a, l, u = blk
+        inv = jnp.linalg.solve(a - l @ c_prev, eye)
+        return inv @ u, (inv, inv @ u)
+
+    _, (inv, C_hat) = lax.scan(forward, jnp.zeros((b, b), diag.dtype), (diag, lower, upper))
+    return ThomasFactors(inv, C_hat, lower)
+
+
+def thomas_apply(F: ThomasFactors, rhs):
+    """Forward sweep ``y_i = den_i⁻¹ (r_i - L_i y_{i-1})``, backward ``x_i = y_i - Ĉ_i x_{i+1}``."""
+
+    def forward(y_prev, blk):
+        inv_i, l, r = blk
+        y = inv_i @ (r - l @ y_prev)
+        return y, y
+
+    _, ys = lax.scan(forward, jnp.zeros_like(rhs[0]), (F.inv, F.L, rhs))
+
+    def backward(x_next, blk):
+        c, y = blk
+        x = y - c @ x_next
+        return x, x
+
+    _, xs = lax.scan(backward, jnp.zeros_like(ys[0]), (F.C_hat, ys), reverse=True)
+    return xs
+
+
+class BorderedFactorisation(eqx.Module):
+    """Factors of a row-equilibrated bordered block-cyclic matrix, for repeated solves.
+
+    ``interior``: factors of the block-tridiagonal interior ``T`` (cyclic reduction or Thomas);
+    ``y_G = T⁻¹ G`` for the border columns, the border coupling ``H`` and the LU of the
+    ``(b + q)²`` Schur complement. A solve with them costs ``O(n b (b + q))``."""
+
+    row_b: jax.Array
+    row_r: jax.Array
+    interior: CyclicReductionFactors | ThomasFactors
     y_G: jax.Array
     H: jax.Array
     S_lu: jax.Array
     S_piv: jax.Array
+
+
+def _apply_interior(F, rhs):
+    return bcr_apply(F, rhs) if isinstance(F, CyclicReductionFactors) else thomas_apply(F, rhs)
 
 
 def _border_parts(A):
@@ -235,52 +204,59 @@ def _border_parts(A):
     return G, H, Z
 
 
-def _thomas_apply(inv, C_hat, L, rhs):
-    b, k = rhs.shape[1], rhs.shape[2]
-    L = L.at[0].set(0.0)
+def default_interior_method() -> str:
+    """Block Thomas on CPU, cyclic reduction on accelerators.
 
-    def forward(y_prev, blk):
-        inv_i, l, r = blk
-        y = inv_i @ (r - l @ y_prev)
-        return y, y
-
-    _, ys = lax.scan(forward, jnp.zeros((b, k), rhs.dtype), (inv, L, rhs))
-    return _back_substitute(C_hat, ys)
+    On this project's 2-core CPU XLA runs small batched inverses at ~4 GFlop/s, so cyclic
+    reduction's extra work does not pay: factor + border application of the default scene's
+    interior take 6.2 + 4.1 ms with cyclic reduction and 3.5 + 2.1 ms with Thomas
+    (``benchmarks/solver_2d.py`` times both). On a GPU the sequential chain is the bottleneck."""
+    return "thomas" if jax.default_backend() == "cpu" else "cyclic-reduction"
 
 
-def factorise(A: BorderedBlockCyclic) -> BorderedFactorisation:
-    """Factor ``A`` (after row equilibration) for :func:`factor_solve` (needs ``n >= 3``)."""
+def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFactorisation:
+    """Factor ``A`` (after row equilibration, ``n >= 3`` blocks) for :func:`factor_solve`.
+
+    ``method``: ``"thomas"`` (sequential ``lax.scan``) or ``"cyclic-reduction"`` (``log₂ n``
+    batched levels); default :func:`default_interior_method`."""
     from jax.scipy.linalg import lu_factor
 
+    method = method or default_interior_method()
     n, b = A.n_blocks, A.block
     As, row_b, row_r = row_equilibrate(A, jnp.ones((n, b)), jnp.ones(A.n_border))  # scales = scaled ones
-    diag, lower, upper = As.diag[1:], As.lower[1:], As.upper[1:]
-
-    from jax.scipy.linalg import lu_solve
-
-    eye = jnp.eye(b, dtype=A.diag.dtype)
-
-    def forward(c_prev, blk):
-        a, l, u = blk
-        lu_piv = lu_factor(a - l @ c_prev)
-        inv = lu_solve(lu_piv, eye)
-        return inv @ u, (inv, inv @ u)
-
-    _, (inv, C_hat) = lax.scan(forward, jnp.zeros((b, b), A.diag.dtype), (diag, lower.at[0].set(0.0), upper))
+    interior = (bcr_factor if method == "cyclic-reduction" else thomas_factor)(As.diag[1:], As.lower[1:], As.upper[1:])
     G, H, Z = _border_parts(As)
-    y_G = _thomas_apply(inv, C_hat, lower, G)
+    y_G = _apply_interior(interior, G)
     S_lu, S_piv = lu_factor(Z - jnp.einsum("nsb,nbt->st", H, y_G))
-    return BorderedFactorisation(row_b, row_r, inv, C_hat, lower, y_G, H, S_lu, S_piv)
+    return BorderedFactorisation(row_b, row_r, interior, y_G, H, S_lu, S_piv)
 
 
 def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
-    """Solve with frozen factors: exact for the factored matrix, a preconditioner for a nearby one."""
+    """Solve with the factors: exact for the factored matrix, a preconditioner for a nearby one."""
     from jax.scipy.linalg import lu_solve
 
     rb, rr = rhs_belt * F.row_b, rhs_roll * F.row_r
     b = rb.shape[1]
-    y_r = _thomas_apply(F.inv, F.C_hat, F.L, rb[1:, :, None])[:, :, 0]
-    r_border = jnp.concatenate([rb[0], rr])
-    x_border = lu_solve((F.S_lu, F.S_piv), r_border - jnp.einsum("nsb,nb->s", F.H, y_r))
+    y_r = _apply_interior(F.interior, rb[1:, :, None])[:, :, 0]
+    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - jnp.einsum("nsb,nb->s", F.H, y_r))
     x_int = y_r - jnp.einsum("nbs,s->nb", F.y_G, x_border)
     return jnp.concatenate([x_border[None, :b], x_int], axis=0), x_border[b:]
+
+
+def bordered_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array,
+                   method: str | None = None):
+    """Exact solve of ``A x = r`` exploiting the structure (module docstring).
+
+    **Arguments:** ``A``; ``rhs_belt`` (n, b); ``rhs_roll`` (q,); ``method`` of the interior.
+    **Returns:** ``(x_belt (n, b), x_roll (q,))``.
+    """
+    if A.n_blocks < 3:
+        return dense_solve(A, rhs_belt, rhs_roll)
+    return factor_solve(factorise(A, method), rhs_belt, rhs_roll)
+
+
+def dense_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array):
+    """Reference: dense ``jnp.linalg.solve`` on the assembled, row-equilibrated matrix."""
+    A, rhs_belt, rhs_roll = row_equilibrate(A, rhs_belt, rhs_roll)
+    x = jnp.linalg.solve(A.to_dense(), join(rhs_belt, rhs_roll))
+    return split(x, A.n_blocks, A.block)
