@@ -1,0 +1,65 @@
+"""Accelerator figures for the 2D default scene: exact (Thomas / cyclic reduction) and reuse
+per-step times, and a vmap batch of misalignment configurations (reuse mode, factors per
+configuration). Run on the GPU machine: ``python benchmarks/gpu_2d.py --batch 256``."""
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxbelt as jb
+from jaxbelt.timeloop import _run_jit, run
+from _common import write
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scene", default="three-roller-t72")
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--batch", type=int, default=256)
+    ap.add_argument("--tag", default="gpu")
+    args = ap.parse_args()
+    model = jb.load_model(args.scene)
+    s0 = jax.block_until_ready(jb.initial_state(model))
+    rows = {}
+    for name, integ in [("exact thomas", jb.DirectBackwardEuler("structured", "thomas")),
+                        ("exact cyclic-reduction", jb.DirectBackwardEuler("structured", "cyclic-reduction")),
+                        ("reuse", jb.make_integrator("direct", model, "reuse"))]:
+        t0 = time.perf_counter()
+        c = _run_jit.lower(model, integ, s0, args.steps).compile()
+        comp = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        jax.block_until_ready(c(model, integ, s0, args.steps))
+        rows[name] = {"compile_s": comp, "per_step_ms": (time.perf_counter() - t0) / args.steps * 1e3}
+        print(name, rows[name], flush=True)
+
+    rng = np.random.default_rng(0)
+    chis = np.tile(np.asarray(model.chi_static), (args.batch, 1))
+    chis[:, 1] = rng.uniform(-5e-3, 5e-3, args.batch)  # roller 1 y translation
+    chis[:, 9] = rng.uniform(-5e-4, 5e-4, args.batch)  # roller 2 x rotation
+    chis[:, 15] = rng.uniform(-5e-4, 5e-4, args.batch)  # roller 3 x rotation
+
+    def one(chi):
+        m = model.replace(chi_static=chi)
+        s = jb.initial_state(m)
+        integ = jb.ReusedFactorisationBackwardEuler.for_model(m, state=s)
+        return run(m, integ, s, args.steps)[1].tracer_v
+
+    f = jax.jit(jax.vmap(one))
+    t0 = time.perf_counter()
+    f = f.lower(jnp.asarray(chis)).compile()
+    comp = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    tv = jax.block_until_ready(f(jnp.asarray(chis)))
+    wall = time.perf_counter() - t0
+    rows[f"vmap {args.batch} configs (reuse)"] = {
+        "compile_s": comp, "wall_s": wall, "per_config_step_ms": wall / args.batch / args.steps * 1e3,
+        "max_tracer_v_mm": float(jnp.max(jnp.abs(tv))) * 1e3}
+    print(rows, flush=True)
+    write(f"gpu_2d_{args.tag}", {"device": str(jax.devices()[0]), "scene": args.scene, "steps": args.steps, "rows": rows})
+
+
+if __name__ == "__main__":
+    main()
