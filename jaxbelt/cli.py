@@ -159,7 +159,8 @@ def cmd_simulate(args, demo=False):
             out, t=np.asarray(traj.t), transport_weights=np.asarray(traj.transport_weights),
             **({"tracer_v": np.asarray(traj.tracer_v)} if traj.tracer_v is not None else {}), tracer_u=np.asarray(traj.tracer_u),
             tracer_u_solved=np.asarray(traj.tracer_u_solved), roller_state=np.asarray(traj.roller_state),
-            roller_velocity=np.asarray(traj.roller_velocity), belt_mass=np.asarray(traj.belt_mass),
+            roller_velocity=np.asarray(traj.roller_velocity), roller_reaction=np.asarray(traj.roller_reaction),
+            belt_mass=np.asarray(traj.belt_mass),
             tracer_x=mesh.tracer_x, tracer_z=mesh.tracer_z, roller_names=np.array(model.roller_names),
             roller_dofs=np.array(model.dofs), **({"u": np.asarray(traj.u)} if traj.u is not None else {}),
         )

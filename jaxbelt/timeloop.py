@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
+from .assembly import free_belt_matvec, generalised_belt_force, nodal_masses, roller_R
 from .integrators import AbstractIntegrator, make_integrator
 from .model import BeltModel
 from .state import BeltState, initial_state
@@ -26,7 +27,8 @@ class Trajectory(eqx.Module):
     ``tracer_v`` (k, n_tr) lateral (2D; ``None`` in 1D);
     ``tracer_u_solved`` (k, n_tr) the same before transport (the solve's result);
     ``roller_state`` (k, p, d) roller DOFs as solved (``α_z`` = rotation during the step);
-    ``roller_velocity`` (k, p, d); ``belt_mass`` (k,); ``transport_weights`` (k, 2) min/max
+    ``roller_velocity`` (k, p, d); ``roller_reaction`` (k, p, d) support force (N) / torque (N·m)
+    at prescribed roller DOFs, residual (≈ 0) at dynamic ones; ``belt_mass`` (k,); ``transport_weights`` (k, 2) min/max
     interpolation weight of the transport step (outside [0, 1) = extrapolation);
     ``u`` (k, n_xi, b) or ``None``.
     """
@@ -37,6 +39,7 @@ class Trajectory(eqx.Module):
     tracer_u_solved: jax.Array
     roller_state: jax.Array
     roller_velocity: jax.Array
+    roller_reaction: jax.Array
     belt_mass: jax.Array
     transport_weights: jax.Array
     u: jax.Array | None
@@ -61,6 +64,15 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator):
     """``step(state) -> (state, record)``: one solve + transport with its outputs."""
     p, d = model.n_rollers, len(model.dofs)
 
+    def roller_loads(state, solved):
+        """``M_r χ̈ + Σ R_rᵀ f_k - Q_ext`` per roller DOF (§4 post-processing): at a prescribed DOF
+        the force/torque its support must supply (what holds a misaligned roller, what the drive
+        delivers); at a dynamic DOF the residual of its equation (≈ 0)."""
+        a_u = (solved.u_dot - state.u_dot) / model.dt
+        a_chi = (solved.chi_dot - state.chi_dot) / model.dt
+        f = nodal_masses(model, state.m_e) * a_u + free_belt_matvec(model, solved.u) + model.f0
+        return model.M_roller * a_chi + generalised_belt_force(roller_R(model, state.u), f) - model.Q_ext
+
     def step(state: BeltState):
         solved = integrator.solve_step(model, state)
         u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e)
@@ -73,6 +85,7 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator):
             tracer_u_solved=tracer_values(model, solved.u)[0],
             roller_state=solved.chi.reshape(p, d),
             roller_velocity=solved.chi_dot.reshape(p, d),
+            roller_reaction=roller_loads(state, solved).reshape(p, d),
             belt_mass=jnp.sum(m_e),
             transport_weights=weights,
         )

@@ -155,3 +155,18 @@ def test_unknown_variant_roller():
         from jaxbelt.scene import _extend
 
         _extend(tomllib.loads('extends = "three-roller"\n[variant."nope"]\nrotation_mrad = [1.0, 0.0, 0.0]'), "x")
+
+
+def test_roller_reactions_balance_and_vanish_at_dynamic_dofs():
+    """Post-processed support loads: the equations of dynamic DOFs hold (residual ≈ 0); the
+    in-plane support forces of all rollers plus the applied force sum to zero in steady state
+    (the belt carries no other load); the drive delivers no torque without losses."""
+    m = small("three-roller-tension", n_eta=3)
+    _, tr = jb.simulate(m, n_steps=150)
+    reac = np.asarray(tr.roller_reaction)[-1]  # (p, 6)
+    dyn = np.asarray(m.dynamic).reshape(3, 6)
+    assert np.max(np.abs(reac[dyn])) < 1e-6 * 200.0
+    total = reac[:, :2].sum(axis=0) + np.asarray(m.Q_ext).reshape(3, 6)[:, :2].sum(axis=0)
+    assert np.max(np.abs(total)) < 1e-3 * 200.0
+    assert abs(reac[0, 5]) < 1e-3  # drive torque, N·m
+    assert np.max(np.abs(reac[0, :2])) > 10.0  # the drive's support really carries the belt tension
