@@ -177,14 +177,15 @@ class BorderedFactorisation(eqx.Module):
     """Factors of a row-equilibrated bordered block-cyclic matrix, for repeated solves.
 
     ``interior``: factors of the block-tridiagonal interior ``T`` (cyclic reduction or Thomas);
-    ``y_G = T⁻¹ G`` for the border columns, the border coupling ``H`` and the LU of the
-    ``(b + q)²`` Schur complement. A solve with them costs ``O(n b (b + q))``."""
+    ``y_G = T⁻¹ G`` for the border columns, the (row-equilibrated) matrix ``A`` for the border
+    rows' couplings, and the LU of the ``(b + q)²`` Schur complement. A solve with them costs
+    ``O(n b (b + q))``."""
 
     row_b: jax.Array
     row_r: jax.Array
     interior: CyclicReductionFactors | ThomasFactors
     y_G: jax.Array
-    H: jax.Array
+    A: BorderedBlockCyclic
     S_lu: jax.Array
     S_piv: jax.Array
 
@@ -194,14 +195,23 @@ def _apply_interior(F, rhs):
 
 
 def _border_parts(A):
+    """Couplings of the interior blocks ``1..n-1`` to the border (block 0 + rollers): ``G``
+    (interior rows × border columns, (n-1, b, s)), ``Z`` (border × border). The border rows'
+    couplings ``H`` are used in sparse form (:func:`_border_times`)."""
     n, b = A.n_blocks, A.block
-    s = b + A.n_border
-    G = jnp.zeros((n - 1, b, s), A.diag.dtype)
-    G = G.at[0, :, :b].add(A.lower[1]).at[n - 2, :, :b].add(A.upper[n - 1]).at[:, :, b:].set(A.C[1:])
-    H = jnp.zeros((n - 1, s, b), A.diag.dtype)
-    H = H.at[0, :b, :].add(A.upper[0]).at[n - 2, :b, :].add(A.lower[0]).at[:, b:, :].set(A.D[1:])
+    zero = jnp.zeros((n - 1, b, b), A.diag.dtype)
+    G0 = zero.at[0].add(A.lower[1]).at[n - 2].add(A.upper[n - 1])
+    G = jnp.concatenate([G0, A.C[1:]], axis=2)
     Z = jnp.block([[A.diag[0], A.C[0]], [A.D[0], A.E]])
-    return G, H, Z
+    return G, Z
+
+
+def _border_times(A, Y):
+    """``H Y`` for interior values ``Y`` (n-1, b, k) without forming ``H``: block 0's rows see
+    interior blocks 1 and n-1 only (``U_0``, ``L_0``), the roller rows see ``D``."""
+    top = A.upper[0] @ Y[0] + A.lower[0] @ Y[-1]
+    rollers = jnp.einsum("nqb,nbk->qk", A.D[1:], Y)
+    return jnp.concatenate([top, rollers], axis=0)
 
 
 def default_interior_method() -> str:
@@ -225,10 +235,10 @@ def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFact
     n, b = A.n_blocks, A.block
     As, row_b, row_r = row_equilibrate(A, jnp.ones((n, b)), jnp.ones(A.n_border))  # scales = scaled ones
     interior = (bcr_factor if method == "cyclic-reduction" else thomas_factor)(As.diag[1:], As.lower[1:], As.upper[1:])
-    G, H, Z = _border_parts(As)
+    G, Z = _border_parts(As)
     y_G = _apply_interior(interior, G)
-    S_lu, S_piv = lu_factor(Z - jnp.einsum("nsb,nbt->st", H, y_G))
-    return BorderedFactorisation(row_b, row_r, interior, y_G, H, S_lu, S_piv)
+    S_lu, S_piv = lu_factor(Z - _border_times(As, y_G))
+    return BorderedFactorisation(row_b, row_r, interior, y_G, As, S_lu, S_piv)
 
 
 def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
@@ -238,7 +248,7 @@ def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
     rb, rr = rhs_belt * F.row_b, rhs_roll * F.row_r
     b = rb.shape[1]
     y_r = _apply_interior(F.interior, rb[1:, :, None])[:, :, 0]
-    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - jnp.einsum("nsb,nb->s", F.H, y_r))
+    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - _border_times(F.A, y_r[:, :, None])[:, 0])
     x_int = y_r - jnp.einsum("nbs,s->nb", F.y_G, x_border)
     return jnp.concatenate([x_border[None, :b], x_int], axis=0), x_border[b:]
 
