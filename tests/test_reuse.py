@@ -45,3 +45,14 @@ def test_reuse_mode_tracks_exact_mode():
     rmse_u = float(jnp.sqrt(jnp.mean((exact.tracer_u - reuse.tracer_u) ** 2)))
     rmse_v = float(jnp.sqrt(jnp.mean((exact.tracer_v - reuse.tracer_v) ** 2)))
     assert rmse_u < 1e-12 and rmse_v < 1e-12  # m, i.e. < 1e-9 mm
+
+
+def test_step_matrix_equals_M_plus_dt2_K():
+    from jaxbelt.assembly import step_matrix
+
+    m = _model()
+    s, _ = jb.simulate(m, n_steps=3)
+    R = roller_R(m, s.u)
+    K, M = dae_matrices(m, s.m_e, R)
+    np.testing.assert_allclose(np.asarray(step_matrix(m, s.m_e, R, m.dt).to_dense()),
+                               np.asarray((M + K.scale(m.dt**2)).to_dense()), rtol=1e-14, atol=1e-18)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import equinox as eqx
 
-from ..assembly import dae_matrices, dae_rhs, roller_R
+from ..assembly import dae_apply, dae_rhs, roller_R, step_matrix
 from ..linalg import bordered_solve, dense_solve
 from ._base import AbstractIntegrator
 
@@ -22,11 +22,10 @@ class DirectBackwardEuler(AbstractIntegrator):
     def solve_step(self, model, state):
         dt = model.dt
         R = roller_R(model, state.u)
-        K, M = dae_matrices(model, state.m_e, R)
         F_b, F_r = dae_rhs(model, state.u, state.chi, R)
         p_b, p_r = state.u + dt * state.u_dot, state.chi + dt * state.chi_dot
-        Kp_b, Kp_r = K.matvec(p_b, p_r)
-        A = M + K.scale(dt**2)
+        (Kp_b, Kp_r), _ = dae_apply(model, state.m_e, R, p_b, p_r)
+        A = step_matrix(model, state.m_e, R, dt)
         if self.linear_solver == "structured":
             a_b, a_r = bordered_solve(A, F_b - Kp_b, F_r - Kp_r, self.interior)
         else:

@@ -140,18 +140,35 @@ class ThomasFactors(eqx.Module):
     L: jax.Array
 
 
-def thomas_factor(diag, lower, upper) -> ThomasFactors:
+def thomas_factor(diag, lower, upper, rhs=None):
+    """Block Thomas factors; with ``rhs`` (m, b, k) also solves for it in the same sweep and
+    returns ``(factors, solution)`` (one scan instead of two for the border columns)."""
     b = diag.shape[1]
     eye = jnp.eye(b, dtype=diag.dtype)
     lower = lower.at[0].set(0.0)
+    k = 0 if rhs is None else rhs.shape[2]
+    r = jnp.zeros((diag.shape[0], b, 0), diag.dtype) if rhs is None else rhs
 
-    def forward(c_prev, blk):
-        a, l, u = blk
+    def forward(carry, blk):
+        c_prev, y_prev = carry
+        a, l, u, rr = blk
         inv = jnp.linalg.solve(a - l @ c_prev, eye)
-        return inv @ u, (inv, inv @ u)
+        c, y = inv @ u, inv @ (rr - l @ y_prev)
+        return (c, y), (inv, c, y)
 
-    _, (inv, C_hat) = lax.scan(forward, jnp.zeros((b, b), diag.dtype), (diag, lower, upper))
-    return ThomasFactors(inv, C_hat, lower)
+    init = (jnp.zeros((b, b), diag.dtype), jnp.zeros((b, k), diag.dtype))
+    _, (inv, C_hat, ys) = lax.scan(forward, init, (diag, lower, upper, r))
+    F = ThomasFactors(inv, C_hat, lower)
+    if rhs is None:
+        return F
+
+    def backward(x_next, blk):
+        c, y = blk
+        x = y - c @ x_next
+        return x, x
+
+    _, xs = lax.scan(backward, jnp.zeros((b, k), diag.dtype), (C_hat, ys), reverse=True)
+    return F, xs
 
 
 def thomas_apply(F: ThomasFactors, rhs):
@@ -234,9 +251,12 @@ def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFact
     method = method or default_interior_method()
     n, b = A.n_blocks, A.block
     As, row_b, row_r = row_equilibrate(A, jnp.ones((n, b)), jnp.ones(A.n_border))  # scales = scaled ones
-    interior = (bcr_factor if method == "cyclic-reduction" else thomas_factor)(As.diag[1:], As.lower[1:], As.upper[1:])
     G, Z = _border_parts(As)
-    y_G = _apply_interior(interior, G)
+    if method == "cyclic-reduction":
+        interior = bcr_factor(As.diag[1:], As.lower[1:], As.upper[1:])
+        y_G = bcr_apply(interior, G)
+    else:
+        interior, y_G = thomas_factor(As.diag[1:], As.lower[1:], As.upper[1:], G)
     S_lu, S_piv = lu_factor(Z - _border_times(As, y_G))
     return BorderedFactorisation(row_b, row_r, interior, y_G, As, S_lu, S_piv)
 
