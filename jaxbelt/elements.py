@@ -23,11 +23,6 @@ def bar_prestress_force(EA, eps0):
     return EA * eps0 * jnp.array([-1.0, 1.0])
 
 
-def bar_lumped_mass(ell, rhoA):
-    """Lumped (Newton–Cotes) element mass ``ρAℓ`` split half to each end (eq. 3.25–3.26)."""
-    return rhoA * ell
-
-
 def column_pair_to_blocks(Ke):
     """Scatter element-column matrices (n, 2b, 2b) into ``(diag, lower, upper)`` blocks (n, b, b)."""
     b = Ke.shape[1] // 2
