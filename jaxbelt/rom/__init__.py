@@ -1,4 +1,4 @@
-"""Model order reduction on the belt model (MODEL.md §5): snapshots, metrics, exact DMD and POD-Galerkin so far."""
+"""Model order reduction on the belt model (MODEL.md §5): snapshots, metrics, exact DMD, POD-Galerkin and modal decomposition so far."""
 
 from .dmd import DMDModel as DMDModel
 from .dmd import fit_dmd as fit_dmd
@@ -11,3 +11,5 @@ from .pod import PODGalerkin as PODGalerkin
 from .pod import choose_modes as choose_modes
 from .pod import fit_pod as fit_pod
 from .pod import pod_basis as pod_basis
+from .modal import forcing_order as forcing_order
+from .modal import modal_basis as modal_basis
