@@ -145,7 +145,7 @@ def cmd_simulate(args, demo=False):
     mesh = build_mesh(scene)
     model = compile_scene(scene, mesh)
     integrator = make_integrator(model.integrator, model)
-    progress = not args.json and sys.stderr.isatty() if not getattr(args, "progress", False) else True
+    progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
     _, traj, timing = simulate_with_progress(model, integrator, progress=progress)
     wall, compile_s = timing["run_s"], timing["compile_s"]
     s = _summary(scene, model, traj, wall, compile_s)

@@ -15,6 +15,7 @@ from jax import lax
 
 from .assembly import free_belt_matvec, generalised_belt_force, nodal_masses, roller_R
 from .integrators import AbstractIntegrator, make_integrator
+from .linalg import join
 from .model import BeltModel
 from .state import BeltState, initial_state
 from .transport import transport_step_with_weights
@@ -60,8 +61,10 @@ def tracer_values(model: BeltModel, u):
     return at(u[:, 0::2]), at(u[:, 1::2])
 
 
-def make_step(model: BeltModel, integrator: AbstractIntegrator):
-    """``step(state) -> (state, record)``: one solve + transport with its outputs."""
+def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: bool = False):
+    """``step(state) -> (state, record)``: one solve + transport with its outputs; with
+    ``record_solved`` the record also holds the full pre-transport state ``x_solved``,
+    ``v_solved`` (flat ``[belt; rollers]``), the snapshots of model order reduction."""
     p, d = model.n_rollers, len(model.dofs)
 
     def roller_loads(state, solved):
@@ -91,6 +94,9 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator):
         )
         if model.full_fields:
             rec["u"] = u
+        if record_solved:
+            rec["x_solved"] = join(solved.u, solved.chi)
+            rec["v_solved"] = join(solved.u_dot, solved.chi_dot)
         return new, rec
 
     return step

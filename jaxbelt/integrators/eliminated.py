@@ -50,6 +50,20 @@ def eliminated_system(model, state, dyn_idx, alg_idx):
     return M_hat, K_hat, F_hat, P, g, p
 
 
+def recover_state(state, dt, x_f, v_f, P, g, dyn_idx, alg_idx):
+    """The full state after a step on the dynamic unknowns: ``x_e = g + P x_f`` exactly, algebraic
+    velocities by Backward Euler, written back into ``state`` (shared by every integrator that
+    works on the eliminated ODE)."""
+    f, e = jnp.asarray(dyn_idx), jnp.asarray(alg_idx)
+    x0, v0 = join(state.u, state.chi), join(state.u_dot, state.chi_dot)
+    x_e = g + P @ x_f
+    x = jnp.zeros_like(x0).at[f].set(x_f).at[e].set(x_e)
+    v = jnp.zeros_like(v0).at[f].set(v_f).at[e].set((x_e - x0[e]) / dt)
+    n, b = state.u.shape
+    (u, chi), (ud, chid) = split(x, n, b), split(v, n, b)
+    return eqx.tree_at(lambda s: (s.u, s.u_dot, s.chi, s.chi_dot), state, (u, ud, chi, chid))
+
+
 class EliminatedBackwardEuler(AbstractIntegrator):
     """Backward Euler on the condensed ODE; build with :meth:`for_model`."""
 
@@ -63,16 +77,8 @@ class EliminatedBackwardEuler(AbstractIntegrator):
     def solve_step(self, model, state):
         dt = model.dt
         M_hat, K_hat, F_hat, P, g, p = eliminated_system(model, state, self.dyn_idx, self.alg_idx)
-        f, e = jnp.asarray(self.dyn_idx), jnp.asarray(self.alg_idx)
-        x0 = join(state.u, state.chi)
-        v0 = join(state.u_dot, state.chi_dot)
+        f = jnp.asarray(self.dyn_idx)
         a_f = jnp.linalg.solve(M_hat + dt**2 * K_hat, F_hat - K_hat @ p[f])
-        v_f = v0[f] + dt * a_f
-        x_f = x0[f] + dt * v_f
-        x_e = g + P @ x_f
-        x = jnp.zeros_like(x0).at[f].set(x_f).at[e].set(x_e)
-        v = jnp.zeros_like(v0).at[f].set(v_f).at[e].set((x_e - x0[e]) / dt)
-        n, b = state.u.shape
-        u, chi = split(x, n, b)
-        ud, chid = split(v, n, b)
-        return eqx.tree_at(lambda s: (s.u, s.u_dot, s.chi, s.chi_dot), state, (u, ud, chi, chid))
+        v_f = join(state.u_dot, state.chi_dot)[f] + dt * a_f
+        x_f = join(state.u, state.chi)[f] + dt * v_f
+        return recover_state(state, dt, x_f, v_f, P, g, self.dyn_idx, self.alg_idx)

@@ -21,8 +21,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..integrators import AbstractIntegrator, algebraic_partition
-from ..integrators.eliminated import eliminated_system
-from ..linalg import join, split
+from ..integrators.eliminated import eliminated_system, recover_state
+from ..linalg import join
 
 
 def pod_basis(X, n_modes: int | None = None, energy_tol: float | None = None, rule: str | None = None):
@@ -57,22 +57,14 @@ class PODGalerkin(AbstractIntegrator):
 
     def solve_step(self, model, state):
         dt, V = model.dt, self.basis
-        M_hat, K_hat, F_hat, P, g, p = eliminated_system(model, state, self.dyn_idx, self.alg_idx)
-        f, e = jnp.asarray(self.dyn_idx), jnp.asarray(self.alg_idx)
-        x0, v0 = join(state.u, state.chi), join(state.u_dot, state.chi_dot)
+        M_hat, K_hat, F_hat, P, g, _ = eliminated_system(model, state, self.dyn_idx, self.alg_idx)
+        f = jnp.asarray(self.dyn_idx)
         # the state is kept in the span of the basis: x_f = V ξ, ẋ_f = V ξ̇
-        xi, xi_dot = V.T @ x0[f], V.T @ v0[f]
+        xi, xi_dot = V.T @ join(state.u, state.chi)[f], V.T @ join(state.u_dot, state.chi_dot)[f]
         A_r = V.T @ (M_hat + dt**2 * K_hat) @ V
         xi_ddot = jnp.linalg.solve(A_r, V.T @ (F_hat - K_hat @ (V @ (xi + dt * xi_dot))))
         xi_dot = xi_dot + dt * xi_ddot
-        v_f = V @ xi_dot
-        x_f = V @ (xi + dt * xi_dot)
-        x_e = g + P @ x_f
-        x = jnp.zeros_like(x0).at[f].set(x_f).at[e].set(x_e)
-        v = jnp.zeros_like(v0).at[f].set(v_f).at[e].set((x_e - x0[e]) / dt)
-        n, b = state.u.shape
-        (u, chi), (ud, chid) = split(x, n, b), split(v, n, b)
-        return eqx.tree_at(lambda s: (s.u, s.u_dot, s.chi, s.chi_dot), state, (u, ud, chi, chid))
+        return recover_state(state, dt, V @ (xi + dt * xi_dot), V @ xi_dot, P, g, self.dyn_idx, self.alg_idx)
 
 
 def fit_pod(model, snapshots, **choice) -> PODGalerkin:

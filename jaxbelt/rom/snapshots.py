@@ -13,9 +13,8 @@ import jax.numpy as jnp
 from jax import lax
 
 from ..integrators import make_integrator
-from ..linalg import join
 from ..state import BeltState, initial_state
-from ..transport import transport_step
+from ..timeloop import make_step
 
 
 def collect_snapshots(model, n_steps: int, integrator=None, state: BeltState | None = None):
@@ -24,15 +23,9 @@ def collect_snapshots(model, n_steps: int, integrator=None, state: BeltState | N
     if integrator is None or isinstance(integrator, str):
         integrator = make_integrator(integrator or model.integrator, model)
     state = initial_state(model) if state is None else state
-
-    def step(s, _):
-        solved = integrator.solve_step(model, s)
-        u, ud, chi, m_e = transport_step(model, solved.u, solved.u_dot, solved.chi, s.m_e)
-        new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=s.step + 1)
-        return new, (join(solved.u, solved.chi), join(solved.u_dot, solved.chi_dot))
-
-    final, (X, Xd) = jax.jit(lambda s: lax.scan(step, s, None, length=n_steps))(state)
-    return final, X.T, Xd.T
+    step = make_step(model, integrator, record_solved=True)
+    final, rec = jax.jit(lambda s: lax.scan(lambda c, _: step(c), s, None, length=n_steps))(state)
+    return final, rec["x_solved"].T, rec["v_solved"].T
 
 
 def first_order(X, Xdot):
