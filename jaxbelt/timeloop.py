@@ -64,7 +64,8 @@ def tracer_values(model: BeltModel, u):
 def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: bool = False):
     """``step(state) -> (state, record)``: one solve + transport with its outputs; with
     ``record_solved`` the record also holds the full pre-transport state ``x_solved``,
-    ``v_solved`` (flat ``[belt; rollers]``), the snapshots of model order reduction."""
+    ``v_solved`` (flat ``[belt; rollers]``), the snapshots of model order reduction, and the
+    state after transport ``x_grid``, ``v_grid``."""
     p, d = model.n_rollers, len(model.dofs)
 
     def roller_loads(state, solved):
@@ -97,6 +98,8 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
         if record_solved:
             rec["x_solved"] = join(solved.u, solved.chi)
             rec["v_solved"] = join(solved.u_dot, solved.chi_dot)
+            rec["x_grid"] = join(new.u, new.chi)
+            rec["v_grid"] = join(new.u_dot, new.chi_dot)
         return new, rec
 
     return step

@@ -110,13 +110,20 @@ def transport_step(model: BeltModel, u, u_dot, chi, m_e):
     return u_new, u_dot_new, chi_new, m_new
 
 
-def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e):
-    """:func:`transport_step` plus the ``(min, max)`` of the interpolation weights (diagnostic)."""
+def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=None):
+    """:func:`transport_step` plus the ``(min, max)`` of the interpolation weights (diagnostic).
+
+    ``s`` (shift rule only) imposes the shift instead of ``mean(ũ)`` and ``R`` freezes the roller
+    kinematics used for the roller-relative correction: with both given the step is affine in
+    ``(u, u_dot, chi)`` — what the fully reduced step (:mod:`jaxbelt.rom.reduced`) projects."""
     from .assembly import roller_R, roller_surface_displacement
 
     ux = _x_dofs(model, u)
     shift = model.transport == "shift"
-    s = jnp.mean(ux)
+    if s is None:
+        s = jnp.mean(ux)
+    elif not shift:
+        raise ValueError("an imposed shift needs the 'shift' transport rule")
     a_x, fwd_x = upwind_weights(jnp.full_like(ux, s) if shift else ux, model.ell)
     if model.kind == "1d":
         a, fwd = a_x, fwd_x
@@ -124,7 +131,7 @@ def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e):
         a_v = a_x if model.lateral_transport else jnp.zeros_like(a_x)
         a = jnp.stack([a_x, a_v], axis=2).reshape(u.shape)
         fwd = jnp.repeat(fwd_x, 2, axis=1)
-    r = roller_surface_displacement(model, chi, roller_R(model, u))
+    r = roller_surface_displacement(model, chi, roller_R(model, u) if R is None else R)
     u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, r)
     mean = s if shift else jnp.mean(_x_dofs(model, u_new))
     x_mask = jnp.ones(u.shape[1]) if model.kind == "1d" else jnp.tile(jnp.array([1.0, 0.0]), model.n_eta)

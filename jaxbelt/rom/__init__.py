@@ -1,15 +1,32 @@
-"""Model order reduction on the belt model (MODEL.md §5): snapshots, metrics, exact DMD, POD-Galerkin and modal decomposition so far."""
+"""Model order reduction on the belt model (MODEL.md §5): snapshots, metrics, modal decomposition,
+POD-Galerkin (as the source), the fully reduced POD step, exact DMD, DMD with control and
+parametric DMD, and an a-posteriori error indicator."""
 
 from .dmd import DMDModel as DMDModel
 from .dmd import fit_dmd as fit_dmd
+from .dmd import stack_trajectories as stack_trajectories
+from .dmdc import DMDcModel as DMDcModel
+from .dmdc import ParametricDMD as ParametricDMD
+from .dmdc import belt_inputs as belt_inputs
+from .dmdc import fit_dmdc as fit_dmdc
+from .dmdc import fit_parametric_dmd as fit_parametric_dmd
+from .dmdc import interpolation_weights as interpolation_weights
+from .dmdc import stack_controlled as stack_controlled
 from .metrics import rmse as rmse
 from .metrics import rrmse as rrmse
-from .snapshots import collect_snapshots as collect_snapshots
-from .snapshots import first_order as first_order
-from .snapshots import tracer_operator as tracer_operator
+from .modal import forcing_order as forcing_order
+from .modal import modal_basis as modal_basis
 from .pod import PODGalerkin as PODGalerkin
 from .pod import choose_modes as choose_modes
 from .pod import fit_pod as fit_pod
 from .pod import pod_basis as pod_basis
-from .modal import forcing_order as forcing_order
-from .modal import modal_basis as modal_basis
+from .reduced import ReducedStep as ReducedStep
+from .reduced import fit_reduced_pod as fit_reduced_pod
+from .reduced import parameters as parameters
+from .reduced import with_parameters as with_parameters
+from .snapshots import collect_first_order as collect_first_order
+from .snapshots import collect_snapshots as collect_snapshots
+from .snapshots import first_order as first_order
+from .snapshots import state_to_z as state_to_z
+from .snapshots import tracer_operator as tracer_operator
+from .snapshots import z_to_state as z_to_state

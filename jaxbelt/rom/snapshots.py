@@ -14,6 +14,7 @@ from jax import lax
 
 from ..integrators import make_integrator
 from ..state import BeltState, initial_state
+from ..linalg import join, split
 from ..timeloop import make_step
 
 
@@ -26,6 +27,37 @@ def collect_snapshots(model, n_steps: int, integrator=None, state: BeltState | N
     step = make_step(model, integrator, record_solved=True)
     final, rec = jax.jit(lambda s: lax.scan(lambda c, _: step(c), s, None, length=n_steps))(state)
     return final, rec["x_solved"].T, rec["v_solved"].T
+
+
+def collect_first_order(model, n_steps: int, integrator=None, state: BeltState | None = None):
+    """Run ``n_steps`` and return ``(final_state, Z_pre, Z_post)``: the scaled first-order states
+    ``z = [x; Δt ẋ]`` before each step's transport (2N, n_steps) and after it, the start state
+    first (2N, n_steps + 1). The velocity is
+    scaled by ``Δt`` so both halves are lengths (a POD of mixed m and m/s would weigh them by
+    the unit system). These are the snapshots of the fully reduced step
+    (:mod:`jaxbelt.rom.reduced`)."""
+    if integrator is None or isinstance(integrator, str):
+        integrator = make_integrator(integrator or model.integrator, model)
+    state = initial_state(model) if state is None else state
+    step = make_step(model, integrator, record_solved=True)
+    final, rec = jax.jit(lambda s: lax.scan(lambda c, _: step(c), s, None, length=n_steps))(state)
+    dt = model.dt
+    Z_pre = jnp.concatenate([rec["x_solved"], dt * rec["v_solved"]], axis=1).T
+    Z_post = jnp.concatenate([rec["x_grid"], dt * rec["v_grid"]], axis=1).T
+    return final, Z_pre, jnp.concatenate([state_to_z(model, state)[:, None], Z_post], axis=1)
+
+
+def state_to_z(model, state: BeltState):
+    """The scaled first-order state ``[x; Δt ẋ]`` (2N,) of a :class:`BeltState`."""
+    return jnp.concatenate([join(state.u, state.chi), model.dt * join(state.u_dot, state.chi_dot)])
+
+
+def z_to_state(model, z, m_e=None, step=0) -> BeltState:
+    """Inverse of :func:`state_to_z` (element masses ``m_e`` default to the initial ones)."""
+    N, n, b = model.n_unknowns, model.n_xi, model.block
+    (u, chi), (ud, chid) = split(z[:N], n, b), split(z[N:] / model.dt, n, b)
+    return BeltState(u=u, u_dot=ud, chi=chi, chi_dot=chid, m_e=model.m_e0 if m_e is None else m_e,
+                     step=jnp.asarray(step, jnp.int32))
 
 
 def first_order(X, Xdot):

@@ -1,0 +1,198 @@
+"""The fully reduced POD step: solve *and* transport projected (MODEL.md §5, the source's §8.1).
+
+The source's POD-Galerkin reduced only the solve and handed the full state to the transport
+step, so every reduced step still cost O(N) (§7.3, §8.1). Here both halves of the discrete step
+are projected once, offline, and a reduced step costs O(r²) whatever the mesh.
+
+**Structure used.** Write the scaled first-order state ``z = [x; Δt ẋ]`` (2N) and the
+configuration parameters ``μ = [χ_static; ω]`` (2q): static misalignments and drive rates. With the shift transport rule and a uniform belt
+the element masses never change, and then
+
+* the Backward-Euler solve (eq. 3.43–3.46 with its constraint rows) is *affine* in ``(z, μ)``:
+  ``z̃ = S z + T μ + c`` exactly in 1D; in 2D the lever arm of the tilts (``R_r`` depends on
+  ``v``) and the exact finite static rotations make it weakly nonlinear, and it is linearised at
+  the reference state of the training (the nominal configuration's initial state);
+* the transport with an imposed shift ``s`` is affine in ``z̃`` and linear in ``s``:
+  ``z⁺ = Z z̃ + s (G z̃ + H μ + h)``, where ``Z`` resets the roller rotations ``α_z`` and
+  ``G`` is the upwind difference divided by the element length (with the roller-relative
+  correction, ``R_r`` frozen at the reference), and ``s = cᵀ z̃`` is the mean longitudinal
+  displacement — so the transport is *bilinear* in the state and projects exactly.
+
+With an orthonormal POD basis ``V`` (2N, r) of training snapshots (before and after transport)
+the reduced step is
+
+$$ ξ̃ = A ξ + B μ + d,\\quad s = c_rᵀ ξ̃,\\quad ξ⁺ = Z_r ξ̃ + s (G_r ξ̃ + H_r μ + h_r) $$
+
+with ``A = Vᵀ S V``, ``B = Vᵀ T``, ``Z_r = Vᵀ Z V``, … all assembled offline by Jacobian-vector
+products of the full-order step along the basis (r + q products, no N × N matrix is formed).
+This is the Galerkin projection of the *time-discrete* step map (not of the ODE, as
+:class:`~jaxbelt.rom.pod.PODGalerkin` does); because ``μ`` enters explicitly, a basis trained on
+several configurations predicts a new one without any full-order work beyond its initial state.
+Tracers are read through ``C V`` (n_tr, r): full fields are never formed online.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+
+from ..assembly import roller_R
+from ..integrators import make_integrator
+from ..state import initial_state
+from ..transport import transport_step_with_weights
+from .pod import choose_modes
+from .snapshots import state_to_z, tracer_operator, z_to_state
+
+
+def parameters(model):
+    """The configuration parameters ``μ = [χ_static; ω]`` (2q,) a reduced model takes as input:
+    static roller misalignments (m, rad) and drive rates (rad/s)."""
+    return jnp.concatenate([model.chi_static, model.omega])
+
+
+def with_parameters(model, mu):
+    """``model`` with ``μ = [χ_static; ω]`` replaced (inverse of :func:`parameters`)."""
+    q = model.n_roller_dofs
+    return eqx.tree_at(lambda m: (m.chi_static, m.omega), model, (mu[:q], mu[q:]))
+
+
+_with_mu = with_parameters
+
+
+def solve_map(model, integrator):
+    """``(z, μ) -> z̃``: one full-order solve (before transport) on scaled first-order states."""
+
+    def f(z, mu):
+        m = _with_mu(model, mu)
+        return state_to_z(m, integrator.solve_step(m, z_to_state(m, z)))
+
+    return f
+
+
+def transport_map(model, R):
+    """``(z̃, μ, s) -> z⁺``: the transport step with imposed shift ``s`` and frozen ``R``."""
+    N = model.n_unknowns
+
+    def f(z, mu, s):
+        m = _with_mu(model, mu)
+        st = z_to_state(m, z)
+        u, ud, chi, _, _ = transport_step_with_weights(m, st.u, st.u_dot, st.chi, st.m_e, s=s, R=R)
+        return state_to_z(m, st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=st.m_e, step=st.step))
+
+    return f, N
+
+
+def shift_functional(model):
+    """``c`` (2N,) with ``cᵀ z = mean`` longitudinal belt displacement (the shift, §3.5)."""
+    n, b = model.n_xi, model.block
+    c = np.zeros(2 * model.n_unknowns)
+    cols = np.arange(n) * b
+    idx = cols[:, None] + (np.arange(0, b, 2) if model.kind == "2d" else np.array([0]))[None, :]
+    c[idx.reshape(-1)] = 1.0 / idx.size
+    return jnp.asarray(c)
+
+
+class ReducedStep(eqx.Module):
+    """Fully reduced POD model (offline operators; see the module docstring). ``basis`` (2N, r) is
+    kept only to lift and to reconstruct fields; the online loop touches r-sized arrays only."""
+
+    basis: jax.Array
+    A: jax.Array
+    B: jax.Array
+    d: jax.Array
+    c: jax.Array
+    Z: jax.Array
+    G: jax.Array
+    H: jax.Array
+    h: jax.Array
+    C_tracer: jax.Array  # (n_tr, r): longitudinal tracer displacement from ξ
+    singular_values: jax.Array
+
+    @property
+    def n_modes(self) -> int:
+        return self.A.shape[0]
+
+    def project(self, model, state):
+        """Reduced coordinates ``ξ = Vᵀ z`` of a full state."""
+        return self.basis.T @ state_to_z(model, state)
+
+    def step(self, xi, mu):
+        """One reduced step: ``(ξ̃ before transport, ξ⁺ after)``."""
+        xt = self.A @ xi + self.B @ mu + self.d
+        s = self.c @ xt
+        return xt, self.Z @ xt + s * (self.G @ xt + self.H @ mu + self.h)
+
+    def run(self, xi0, mu, n_steps: int):
+        """``n_steps`` reduced steps: ``dict(xi (n, r), tracer_u (n, n_tr), tracer_u_solved)``
+        — tracers after and before each transport, as :class:`~jaxbelt.timeloop.Trajectory`."""
+
+        def body(xi, _):
+            xt, xn = self.step(xi, mu)
+            return xn, (xn, self.C_tracer @ xn, self.C_tracer @ xt)
+
+        _, (xis, tu, tus) = lax.scan(body, xi0, None, length=n_steps)
+        return dict(xi=xis, tracer_u=tu, tracer_u_solved=tus)
+
+    def fields(self, xis):
+        """Full scaled first-order states ``V ξ`` (n, 2N) — offline/diagnostic use only."""
+        return xis @ self.basis.T
+
+
+def reduced_operators(model, V, integrator=None, ref_state=None, mu_ref=None):
+    """Project the full step onto ``V`` (2N, r): the operators of :class:`ReducedStep`.
+
+    Linearisation point: ``ref_state`` (default: the initial state of ``model``) and
+    ``mu_ref`` (default :func:`parameters` of ``model``). Costs r + q + 2 Jacobian-vector products.
+    """
+    if model.transport != "shift":
+        raise ValueError("the fully reduced step needs the 'shift' transport rule (masses constant)")
+    integrator = make_integrator(integrator or model.integrator, model) if integrator is None or isinstance(integrator, str) else integrator
+    ref_state = initial_state(model) if ref_state is None else ref_state
+    mu_ref = parameters(model) if mu_ref is None else jnp.asarray(mu_ref)
+    s_nom = float(shift_functional(model) @ solve_map(model, integrator)(state_to_z(model, ref_state), mu_ref))
+    V = jnp.asarray(V)
+    ops = _operators(model, integrator, ref_state, mu_ref, V, float(np.sign(s_nom) or 1.0))
+    C = tracer_operator(model)
+    return dict(ops, c=shift_functional(model) @ V, C_tracer=jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V)
+
+
+@eqx.filter_jit
+def _operators(model, integrator, ref_state, mu_ref, V, direction):
+    z_ref = state_to_z(model, ref_state)
+    solve = solve_map(model, integrator)
+    R = roller_R(model, ref_state.u)
+    transport, _ = transport_map(model, R)
+
+    z_sol, lin = jax.linearize(solve, z_ref, mu_ref)
+    SV = jax.vmap(lambda v: lin(v, jnp.zeros_like(mu_ref)), in_axes=1, out_axes=1)(V)
+    T = jax.vmap(lambda e: lin(jnp.zeros_like(z_ref), e), in_axes=1, out_axes=1)(jnp.eye(mu_ref.size))
+    Sz = lin(z_ref, jnp.zeros_like(mu_ref))
+    c_full = z_sol - Sz - T @ mu_ref
+
+    # the transport is linear in s for a fixed upwind direction: difference quotient at s1 is exact
+    s1 = direction * 0.5 * jnp.min(model.ell)
+    zero_mu = jnp.zeros_like(mu_ref)
+
+    def diff(z, mu):
+        return (transport(z, mu, s1) - transport(z, mu, 0.0)) / s1
+
+    ZV = jax.vmap(lambda v: transport(v, zero_mu, 0.0) - transport(jnp.zeros_like(v), zero_mu, 0.0), in_axes=1, out_axes=1)(V)
+    h_mu, lin_t = jax.linearize(lambda mu: diff(jnp.zeros_like(z_ref), mu), mu_ref)
+    Hmu = jax.vmap(lin_t, in_axes=1, out_axes=1)(jnp.eye(mu_ref.size))
+    GV = jax.vmap(lambda v: diff(v, mu_ref) - diff(jnp.zeros_like(v), mu_ref), in_axes=1, out_axes=1)(V)
+    h0 = h_mu - Hmu @ mu_ref
+    return dict(A=V.T @ SV, B=V.T @ T, d=V.T @ c_full, Z=V.T @ ZV, G=V.T @ GV, H=V.T @ Hmu, h=V.T @ h0)
+
+
+def fit_reduced_pod(model, snapshots, integrator=None, ref_state=None, mu_ref=None, **choice) -> ReducedStep:
+    """Fully reduced POD model from scaled first-order snapshots (2N, m) — e.g. ``Z_pre`` and
+    ``Z_post`` of :func:`~jaxbelt.rom.snapshots.collect_first_order`, of one configuration or
+    several side by side. ``choice``: ``n_modes=`` / ``energy_tol=`` / ``rule="source"`` as
+    :func:`~jaxbelt.rom.pod.pod_basis`. ``model``: the configuration to linearise at (use the
+    nominal one for multi-configuration training)."""
+    U, s, _ = jnp.linalg.svd(jnp.asarray(snapshots), full_matrices=False)
+    V = U[:, : choose_modes(np.asarray(s), **choice)]
+    return ReducedStep(basis=V, singular_values=s, **reduced_operators(model, V, integrator, ref_state, mu_ref))
