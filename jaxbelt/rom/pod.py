@@ -16,7 +16,10 @@ source did. With all modes it reproduces the eliminated integrator.
 
 from __future__ import annotations
 
+import functools
+
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -25,13 +28,53 @@ from ..integrators.eliminated import eliminated_system, recover_state
 from ..linalg import join
 
 
+@functools.partial(jax.custom_jvp, nondiff_argnums=(1,))
+def truncated_svd(X, r: int):
+    """Leading ``r`` left singular vectors and values of ``X``: ``(U_r (N, r), s_r (r,))``.
+
+    Differentiable with a JVP that divides only by differences between a *kept* and any other
+    singular value: with the thin SVD ``X = U S Vᵀ`` (k = min(N, m) values), ``dP = Uᵀ dX V``
+    and ``F_ij = 1/(s_j² - s_i²)``, column ``j < r`` of ``dU`` is
+    ``Σ_{i≠j} u_i F_ij (dP_ij s_j + s_i dP_ji) + (I - U Uᵀ) dX v_j / s_j`` and ``ds_j = dP_jj``
+    (Townsend 2016). It is the exact derivative; the plain SVD rule also divides by
+    differences between *dropped* values, and snapshot matrices have many numerically zero,
+    nearly equal ones, which turns gradients into NaN. Needs the kept singular values distinct,
+    non-zero and apart from the dropped ones.
+    """
+    U, s, _ = jnp.linalg.svd(X, full_matrices=False)
+    return U[:, :r], s[:r]
+
+
+@truncated_svd.defjvp
+def _truncated_svd_jvp(r, primals, tangents):
+    (X,), (dX,) = primals, tangents
+    U, s, Vh = jnp.linalg.svd(X, full_matrices=False)
+    V = Vh.T
+    dP = U.T @ dX @ V[:, :r]  # (k, r)
+    dPt = (U[:, :r].T @ dX @ V).T  # (k, r): entries dP_ji
+    sk, sr = s, s[:r]
+    same = jnp.arange(s.shape[0])[:, None] == jnp.arange(r)[None, :]
+    diff = sr[None, :] ** 2 - sk[:, None] ** 2
+    F = jnp.where(same, 0.0, 1.0 / jnp.where(same, 1.0, diff))
+    inner = F * (dP * sr[None, :] + sk[:, None] * dPt)
+    dXV = dX @ V[:, :r]
+    dU = U @ inner + (dXV - U @ (U.T @ dXV)) / sr[None, :]
+    return (U[:, :r], sr), (dU, jnp.diagonal(dP[:r]))
+
+
 def pod_basis(X, n_modes: int | None = None, energy_tol: float | None = None, rule: str | None = None):
     """POD modes of snapshots ``X`` (N, m): ``(V (N, r), singular values (min(N, m),))``.
 
-    Exactly one of ``n_modes``, ``energy_tol`` (eq. 5.11) or ``rule="source"`` (eq. 7.2)."""
-    U, s, _ = jnp.linalg.svd(X, full_matrices=False)
-    r = choose_modes(np.asarray(s), n_modes, energy_tol, rule)
-    return U[:, :r], s
+    Exactly one of ``n_modes``, ``energy_tol`` (eq. 5.11) or ``rule="source"`` (eq. 7.2). The
+    basis is differentiable w.r.t. ``X`` (:func:`truncated_svd`); the rules that look at the
+    singular values need concrete data, so under ``jax.grad`` give ``n_modes``."""
+    X = jnp.asarray(X)
+    s = jnp.linalg.svd(jax.lax.stop_gradient(X), compute_uv=False)
+    if n_modes is not None and energy_tol is None and rule is None:
+        r = int(min(n_modes, min(X.shape)))
+    else:
+        r = choose_modes(np.asarray(s), n_modes, energy_tol, rule)
+    return truncated_svd(X, r)[0], s
 
 
 def choose_modes(s, n_modes=None, energy_tol=None, rule=None) -> int:

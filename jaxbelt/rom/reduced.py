@@ -43,7 +43,7 @@ from ..assembly import roller_R
 from ..integrators import make_integrator
 from ..state import initial_state
 from ..transport import transport_step_with_weights
-from .pod import choose_modes
+from .pod import pod_basis
 from .snapshots import state_to_z, tracer_operator, z_to_state
 
 
@@ -152,9 +152,10 @@ def reduced_operators(model, V, integrator=None, ref_state=None, mu_ref=None):
     integrator = make_integrator(integrator or model.integrator, model) if integrator is None or isinstance(integrator, str) else integrator
     ref_state = initial_state(model) if ref_state is None else ref_state
     mu_ref = parameters(model) if mu_ref is None else jnp.asarray(mu_ref)
-    s_nom = float(shift_functional(model) @ solve_map(model, integrator)(state_to_z(model, ref_state), mu_ref))
+    s_nom = shift_functional(model) @ solve_map(model, integrator)(state_to_z(model, ref_state), mu_ref)
+    direction = jnp.where(jax.lax.stop_gradient(s_nom) < 0, -1.0, 1.0)  # the belt's running direction
     V = jnp.asarray(V)
-    ops = _operators(model, integrator, ref_state, mu_ref, V, float(np.sign(s_nom) or 1.0))
+    ops = _operators(model, integrator, ref_state, mu_ref, V, direction)
     C = tracer_operator(model)
     return dict(ops, c=shift_functional(model) @ V, C_tracer=jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V)
 
@@ -193,6 +194,5 @@ def fit_reduced_pod(model, snapshots, integrator=None, ref_state=None, mu_ref=No
     several side by side. ``choice``: ``n_modes=`` / ``energy_tol=`` / ``rule="source"`` as
     :func:`~jaxbelt.rom.pod.pod_basis`. ``model``: the configuration to linearise at (use the
     nominal one for multi-configuration training)."""
-    U, s, _ = jnp.linalg.svd(jnp.asarray(snapshots), full_matrices=False)
-    V = U[:, : choose_modes(np.asarray(s), **choice)]
+    V, s = pod_basis(jnp.asarray(snapshots), **choice)
     return ReducedStep(basis=V, singular_values=s, **reduced_operators(model, V, integrator, ref_state, mu_ref))
