@@ -249,7 +249,8 @@ methods:
         configurations: the basis is linearised at the first one and run with SCENE's
         parameters); predicts all --steps steps from SCENE's initial state.
   dmd   exact DMD of SCENE's own pre-transport snapshots (one configuration): trains on the
-        first --train-steps steps, predicts the rest from the last training snapshot.
+        first --train-steps steps, predicts the rest from the last training snapshot; modes
+        with |λ| > 1 + 1e-4 are discarded (the static offset lives on a mode at λ ≈ 1).
   dmdc  DMD with control (inputs: the configuration parameters), trained on the --train scenes.
   pdmd  parametric DMD (one DMD per --train scene, interpolated in parameter space).
 
@@ -335,6 +336,8 @@ def cmd_reduce(args):
         raise UsageError("--method dmd fits one configuration, the scene's own first --train-steps steps; "
                          "use dmdc or pdmd (or pod) to train on other scenes")
 
+    if args.plot and not Path(args.plot).resolve().parent.is_dir():
+        raise UsageError(f"--plot {args.plot}: the folder {Path(args.plot).parent} does not exist")
     scene = _load(args.scene)
     test = compile_scene(scene)
     train_names = train_names or [args.scene]
@@ -515,13 +518,13 @@ def build_parser():
     r.add_argument("--train", nargs="+", default=None, metavar="SCENE",
                    help="training scenes (pod: default SCENE itself; dmdc/pdmd: required, at least two: the nominal "
                         "configuration plus one run per varied parameter)")
-    r.add_argument("--modes", type=int, default=None,
+    r.add_argument("--modes", type=int, default=None, metavar="N",
                    help="reduced dimension (default: pod 20, dmdc/pdmd 30, dmd all non-negligible)")
-    r.add_argument("--train-steps", type=int, default=None, help="full-order steps per training scene "
+    r.add_argument("--train-steps", type=int, default=None, metavar="N", help="full-order steps per training scene "
                    "(default min(200, steps/2))")
-    r.add_argument("--steps", type=int, default=None, help="steps to predict and compare (default: the scene's t_end / dt)")
-    r.add_argument("--stride", type=int, default=10, help="residual indicator every K-th step (0: skip; default 10)")
-    r.add_argument("--plot", default=None, help="write singular values / eigenvalues / error over time to this .png")
+    r.add_argument("--steps", type=int, default=None, metavar="N", help="steps to predict and compare (default: the scene's t_end / dt)")
+    r.add_argument("--stride", type=int, default=10, metavar="K", help="residual indicator every K-th step (0: skip; default 10)")
+    r.add_argument("--plot", default=None, metavar="FILE.png", help="write singular values / eigenvalues / error over time to this .png")
     r.add_argument("--json", action="store_true", help="print a JSON summary")
     return p
 

@@ -176,14 +176,15 @@ class ParametricDMD(eqx.Module):
 
 
 def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: int | None = None,
-                       energy_tol: float | None = None) -> ParametricDMD:
+                       energy_tol: float | None = None, discard_unstable: bool = True) -> ParametricDMD:
     """Parametric DMD from training ``trajectories`` (list of (N, m_j) snapshot sequences, each
     starting at its configuration's initial state) with parameters ``params`` (J, d).
 
     ``rank``: common POD basis size (or ``energy_tol``, eq. 5.11); ``dmd_rank``: SVD truncation of
-    each per-configuration DMD (default: all non-negligible). Unstable modes (``|λ| > 1``) are
-    kept: the belt's drifts are slow and a mode just above 1 is often a real one; check the
-    error indicator (:mod:`jaxbelt.rom.indicator`) on long horizons.
+    each per-configuration DMD (default: all non-negligible). ``discard_unstable``: drop modes
+    with ``|λ| > 1 + 1e-8`` (the source's rule, §6.4.1) — over thousands of steps a spurious
+    growing mode of one configuration, multiplied by its interpolation weight, ruins the
+    prediction. Check the error indicator (:mod:`jaxbelt.rom.indicator`) on long horizons.
     """
     from .pod import choose_modes
 
@@ -201,6 +202,8 @@ def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: 
         jnp.pad(f.amplitudes(V.T @ jnp.asarray(t)[:, 0]), (0, k - f.eigs.shape[0]))
         for f, t in zip(fits, trajectories)
     ])
+    if discard_unstable:
+        amps = jnp.where(jnp.abs(eigs) > 1 + 1e-8, 0.0, amps)
     return ParametricDMD(V, eigs, modes, amps, jnp.asarray(params))
 
 

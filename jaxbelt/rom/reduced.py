@@ -109,6 +109,7 @@ class ReducedStep(eqx.Module):
     H: jax.Array
     h: jax.Array
     C_tracer: jax.Array  # (n_tr, r): longitudinal tracer displacement from ξ
+    C_lateral: jax.Array  # (n_tr, r): lateral tracer displacement (zero in 1D)
     singular_values: jax.Array
 
     @property
@@ -126,15 +127,16 @@ class ReducedStep(eqx.Module):
         return xt, self.Z @ xt + s * (self.G @ xt + self.H @ mu + self.h)
 
     def run(self, xi0, mu, n_steps: int):
-        """``n_steps`` reduced steps: ``dict(xi (n, r), tracer_u (n, n_tr), tracer_u_solved)``
-        — tracers after and before each transport, as :class:`~jaxbelt.timeloop.Trajectory`."""
+        """``n_steps`` reduced steps: ``dict(xi (n, r), tracer_u (n, n_tr), tracer_v, tracer_u_solved)``
+        — tracers after (longitudinal, lateral) and before each transport, as
+        :class:`~jaxbelt.timeloop.Trajectory` (``tracer_v`` is zero in 1D)."""
 
         def body(xi, _):
             xt, xn = self.step(xi, mu)
-            return xn, (xn, self.C_tracer @ xn, self.C_tracer @ xt)
+            return xn, (xn, self.C_tracer @ xn, self.C_lateral @ xn, self.C_tracer @ xt)
 
-        _, (xis, tu, tus) = lax.scan(body, xi0, None, length=n_steps)
-        return dict(xi=xis, tracer_u=tu, tracer_u_solved=tus)
+        _, (xis, tu, tv, tus) = lax.scan(body, xi0, None, length=n_steps)
+        return dict(xi=xis, tracer_u=tu, tracer_v=tv, tracer_u_solved=tus)
 
     def fields(self, xis):
         """Full scaled first-order states ``V ξ`` (n, 2N) — offline/diagnostic use only."""
@@ -156,8 +158,11 @@ def reduced_operators(model, V, integrator=None, ref_state=None, mu_ref=None):
     direction = jnp.where(jax.lax.stop_gradient(s_nom) < 0, -1.0, 1.0)  # the belt's running direction
     V = jnp.asarray(V)
     ops = _operators(model, integrator, ref_state, mu_ref, V, direction)
-    C = tracer_operator(model)
-    return dict(ops, c=shift_functional(model) @ V, C_tracer=jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V)
+    def lift(C):
+        return jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V
+
+    C_lat = lift(tracer_operator(model, "z")) if model.kind == "2d" else jnp.zeros((model.n_tracers, V.shape[1]))
+    return dict(ops, c=shift_functional(model) @ V, C_tracer=lift(tracer_operator(model)), C_lateral=C_lat)
 
 
 @eqx.filter_jit

@@ -8,6 +8,7 @@ runs the full model (one ``lax.scan``) and records ``x̃_k = [u; χ]`` and ``x̃
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax import lax
@@ -39,12 +40,17 @@ def collect_first_order(model, n_steps: int, integrator=None, state: BeltState |
     if integrator is None or isinstance(integrator, str):
         integrator = make_integrator(integrator or model.integrator, model)
     state = initial_state(model) if state is None else state
-    step = make_step(model, integrator, record_solved=True)
-    final, rec = jax.jit(lambda s: lax.scan(lambda c, _: step(c), s, None, length=n_steps))(state)
+    final, rec = _scan_recorded(model, integrator, state, n_steps)
     dt = model.dt
     Z_pre = jnp.concatenate([rec["x_solved"], dt * rec["v_solved"]], axis=1).T
     Z_post = jnp.concatenate([rec["x_grid"], dt * rec["v_grid"]], axis=1).T
     return final, Z_pre, jnp.concatenate([state_to_z(model, state)[:, None], Z_post], axis=1)
+
+
+@eqx.filter_jit
+def _scan_recorded(model, integrator, state, n_steps: int):
+    step = make_step(model, integrator, record_solved=True)
+    return lax.scan(lambda c, _: step(c), state, None, length=n_steps)
 
 
 def state_to_z(model, state: BeltState):
@@ -65,9 +71,13 @@ def first_order(X, Xdot):
     return jnp.concatenate([X, Xdot], axis=0)
 
 
-def tracer_operator(model):
-    """Matrix ``C`` (n_tr, N) with ``C x̃ = `` longitudinal tracer displacement (linear shape
-    functions), so reduced models can predict tracers without forming full fields."""
+def tracer_operator(model, direction: str = "x"):
+    """Matrix ``C`` (n_tr, N) with ``C x̃ = `` tracer displacement (linear shape functions) along
+    the belt (``direction="x"``) or across it (``"z"``, 2D only), so reduced models can predict
+    tracers without forming full fields."""
+    if direction not in ("x", "z") or (direction == "z" and model.kind == "1d"):
+        raise ValueError(f"no tracer direction {direction!r} in a {model.kind} model")
+    off = 0 if direction == "x" else 1
     import numpy as np
 
     n, b, q = model.n_xi, model.block, model.n_roller_dofs
@@ -81,5 +91,5 @@ def tracer_operator(model):
         k = np.arange(len(col))
         for dc, wx in ((0, 1 - xi), (1, xi)):
             for dr, wz in ((0, 1 - eta), (1, eta)):
-                C[k, ((col + dc) % n) * b + 2 * (row + dr)] += wx * wz
+                C[k, ((col + dc) % n) * b + 2 * (row + dr) + off] += wx * wz
     return jnp.asarray(C)

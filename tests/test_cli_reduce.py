@@ -1,0 +1,127 @@
+"""``jaxbelt reduce``: every method meets the 0.02 mm tolerance on short 1D runs, the plot is
+written, and bad input ends with a clear message and exit code 2.
+
+Kept short (200 steps, 100 of them for training): compilations dominate, and the models of one
+scene are shared between the tests of this module through JAX's caches."""
+
+import json
+
+import numpy as np
+import pytest
+
+from jaxbelt.cli import _print_reduce, main
+
+SHORT = ["--steps", "200", "--train-steps", "100"]
+TRAIN = ["--train", "two-roller-1d", "two-roller-1d-train1"]
+TOL_MM = 0.02  # the source's tolerance on the tracer RMSE
+
+
+@pytest.fixture(scope="module")
+def held_out(tmp_path_factory):
+    """A configuration no training run has seen: the drive translated by 6 mm (train1: 10 mm)."""
+    p = tmp_path_factory.mktemp("scenes") / "two-roller-1d-drive6.toml"
+    p.write_text('extends = "two-roller-1d"\n\n[variant."drive"]\ntranslation_mm = [-6.0, 0.0, 0.0]\n')
+    return str(p)
+
+
+def _reduce(argv, capsys):
+    assert main(["reduce", *argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _check_common(r, method):
+    assert r["method"] == method
+    assert r["rmse_mm"] < TOL_MM and r["max_rmse_over_time_mm"] < 5 * TOL_MM
+    assert 0 < r["rrmse"] < 0.1
+    assert r["rmse_mm"] <= r["max_rmse_over_time_mm"]
+    t = r["timings"]
+    assert t["full_run_s"] > 0 and t["offline_s"] > 0 and t["online_s"] > 0
+    assert t["speedup_online"] == pytest.approx(t["full_run_s"] / t["online_s"])
+    assert t["speedup_total"] == pytest.approx(t["full_run_s"] / (t["offline_s"] + t["online_s"]))
+    assert r["n_test_configs"] == 1
+
+
+@pytest.mark.parametrize("method", ["dmdc", "pdmd"])
+def test_dmdc_and_pdmd_predict_a_held_out_configuration(method, held_out, capsys):
+    r = _reduce([held_out, "--method", method, *TRAIN, *SHORT, "--stride", "0"], capsys)
+    _check_common(r, method)
+    assert r["scene"] == "two-roller-1d-drive6" and r["train"] == ["two-roller-1d", "two-roller-1d-train1"]
+    assert r["modes"] == 30 and r["train_steps"] == 100
+    assert r["predict_from_step"] == 0 and r["predict_steps"] == 200 and r["compared"] == "tracer_u"
+    assert r["error_estimate_mm"] is None  # --stride 0: no indicator
+
+
+def test_pod_multi_configuration_with_indicator(held_out, capsys):
+    r = _reduce([held_out, "--method", "pod", *TRAIN, *SHORT, "--modes", "20", "--stride", "20"], capsys)
+    _check_common(r, "pod")
+    assert r["modes"] == 20 and r["predict_steps"] == 200
+    # the indicator errs on the high side here, and stays of the size of the tolerance
+    assert r["rmse_mm"] < r["error_estimate_mm"] < 10 * TOL_MM
+
+
+def test_dmd_single_configuration_json_plot_and_text(tmp_path, capsys):
+    png = tmp_path / "dmd.png"
+    r = _reduce(["two-roller-1d-train1", "--method", "dmd", *SHORT, "--stride", "0", "--plot", str(png)], capsys)
+    _check_common(r, "dmd")
+    assert r["train"] == ["two-roller-1d-train1"]
+    assert r["predict_from_step"] == 100 and r["predict_steps"] == 100 and r["compared"] == "tracer_u_solved"
+    assert r["modes"] > 10 and r["modes_discarded"] == 0  # the λ ≈ 1 offset mode is kept
+    assert png.stat().st_size > 10_000
+    # the readable table, printed from the same report (without --json)
+    _print_reduce(r)
+    out = capsys.readouterr().out
+    for fragment in ("RMSE", "mm", "speedup online", "speedup total", "offline", "two-roller-1d-train1", "dmd"):
+        assert fragment in out
+
+
+@pytest.mark.parametrize("argv,fragment", [
+    (["two-roller-1d", "--method", "dmdc"], "--train"),
+    (["two-roller-1d", "--method", "pdmd", "--train", "two-roller-1d"], "at least two scenes"),
+    (["two-roller-1d", "--method", "dmd", "--train", "two-roller-1d-train1"], "one configuration"),
+    (["two-roller-1d", "--method", "dmd", "--steps", "50", "--train-steps", "50"], "--train-steps"),
+    (["two-roller-1d", "--method", "pod", "--modes", "0"], "--modes"),
+    (["two-roller-1d", "--method", "pod", "--stride", "-1"], "--stride"),
+    (["no-such-scene", "--method", "pod"], "unknown scene"),
+    (["two-roller-1d", "--method", "pdmd", "--train", "two-roller-1d", "three-roller-1d"], "same mesh"),
+])
+def test_bad_input_exits_2_with_message(argv, fragment, capsys):
+    assert main(["reduce", *argv]) == 2
+    err = capsys.readouterr().err
+    assert fragment in err and "Traceback" not in err
+
+
+def test_unknown_method_and_missing_method_are_rejected(capsys):
+    for argv in (["two-roller-1d", "--method", "svd"], ["two-roller-1d"]):
+        with pytest.raises(SystemExit) as e:
+            main(["reduce", *argv])
+        assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "invalid choice: 'svd'" in err and "--method" in err
+
+
+def test_help_names_the_training_rule(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["reduce", "--help"])
+    assert e.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "nominal configuration plus one run per varied parameter" in out and "pdmd" in out
+
+
+def test_plot_functions_on_synthetic_data(tmp_path):
+    from jaxbelt.plot import plot_dmd_eigenvalues, plot_reduction, plot_rmse_over_time, plot_singular_values
+
+    s = 10.0 ** -np.arange(30.0)
+    lam = 0.99 * np.exp(1j * np.linspace(-1, 1, 9))
+    t = np.arange(1, 101) * 0.005
+    err = 1e-4 * (1 + t)
+    assert plot_singular_values(s, n_modes=5).get_ylabel()
+    ax = plot_dmd_eigenvalues(lam, weights=np.logspace(-8, 0, 9))
+    assert len(ax.figure.axes) == 2  # the eigenvalue plane and its colorbar
+    plot_dmd_eigenvalues(lam)
+    plot_rmse_over_time(t, err, estimate_mm=np.cumsum(err[::10]) * 10, estimate_t=t[::10])
+    png = tmp_path / "pod-like.png"  # 1 × 2: no eigenvalues
+    plot_reduction(dict(scene="s", method="pod", modes=5, rmse_mm=1e-4), t, err, png, singular_values=s)
+    assert png.stat().st_size > 10_000
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
