@@ -32,8 +32,12 @@ class DMDModel(eqx.Module):
         """The model restricted to the modes where ``keep`` (a boolean mask or index array)."""
         return DMDModel(self.eigs[keep], self.modes[:, keep])
 
-    def stable(self, tol: float = 1e-10) -> "DMDModel":
-        """Discard modes with ``|λ| > 1 + tol`` (outside Python control flow: shapes change)."""
+    def stable(self, tol: float = 1e-5) -> "DMDModel":
+        """Discard modes with ``|λ| > 1 + tol`` (outside Python control flow: shapes change).
+
+        The default is not round-off: the mode carrying the static offset sits at ``λ ≈ 1`` with
+        ``|λ| - 1`` up to ~1e-6 from the fit, and dropping it costs millimetres (found on the
+        1D Table 6.1 runs); ``(1 + 1e-5)^5000 ≈ 1.05`` over a whole 2D run."""
         import numpy as np
 
         return self.select(np.flatnonzero(np.abs(np.asarray(self.eigs)) <= 1 + tol))

@@ -176,15 +176,18 @@ class ParametricDMD(eqx.Module):
 
 
 def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: int | None = None,
-                       energy_tol: float | None = None, discard_unstable: bool = True) -> ParametricDMD:
+                       energy_tol: float | None = None, discard_unstable: bool = True,
+                       unstable_tol: float = 1e-5) -> ParametricDMD:
     """Parametric DMD from training ``trajectories`` (list of (N, m_j) snapshot sequences, each
     starting at its configuration's initial state) with parameters ``params`` (J, d).
 
     ``rank``: common POD basis size (or ``energy_tol``, eq. 5.11); ``dmd_rank``: SVD truncation of
     each per-configuration DMD (default: all non-negligible). ``discard_unstable``: drop modes
-    with ``|λ| > 1 + 1e-8`` (the source's rule, §6.4.1) — over thousands of steps a spurious
-    growing mode of one configuration, multiplied by its interpolation weight, ruins the
-    prediction. Check the error indicator (:mod:`jaxbelt.rom.indicator`) on long horizons.
+    with ``|λ| > 1 + unstable_tol`` (the source's rule, §6.4.1) — over thousands of steps a
+    spurious growing mode of one configuration, multiplied by its interpolation weight, ruins the
+    prediction. The tolerance is not round-off: the mode that carries the static offset sits at
+    ``λ ≈ 1`` with ``|λ| - 1`` up to ~1e-6 from the fit, and dropping it costs far more than it
+    saves (1D held-out test: 0.65 mm with 1e-8, 0.013 mm with 1e-5; ``(1 + 1e-5)^5000 = 1.05``). Check the error indicator (:mod:`jaxbelt.rom.indicator`) on long horizons.
     """
     from .pod import choose_modes
 
@@ -203,7 +206,7 @@ def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: 
         for f, t in zip(fits, trajectories)
     ])
     if discard_unstable:
-        amps = jnp.where(jnp.abs(eigs) > 1 + 1e-8, 0.0, amps)
+        amps = jnp.where(jnp.abs(eigs) > 1 + unstable_tol, 0.0, amps)
     return ParametricDMD(V, eigs, modes, amps, jnp.asarray(params))
 
 
