@@ -98,7 +98,7 @@ def fit_dmdc(X, Y, U, rank: int | None = None, rank_out: int | None = None, meth
       ``rtol`` relative to the largest singular value. On the belt the prescribed roller DOFs
       in the state *equal* inputs, so ``[Ξ; Υ]`` is nearly rank-deficient; truncating it
       (not the state) is what keeps ``B̃`` from amplifying round-off. Measured on the 1D
-      held-out test (``tests/test_rom_dmdc.py``): 0.0013 mm where Proctor's form gives 0.018 mm
+      held-out test (``benchmarks/rom_1d.py``): 0.0014 mm where Proctor's form gives 0.018 mm
       at its best rank and grows with it.
     * ``method="proctor"``: the algorithm of Proctor, Brunton & Kutz (2016) (and PyDMD's
       ``DMDc``): ``Ω = [X; Υ]`` truncated at ``rank`` (``p``), ``Y`` at ``rank_out`` (``r``),
