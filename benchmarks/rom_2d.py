@@ -26,7 +26,7 @@ import numpy as np
 import jaxbelt as jb
 from jaxbelt.integrators import make_integrator
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_parametric_dmd, fit_reduced_pod,
-                         parameters, rmse, stack_controlled, tracer_operator)
+                         parameters, rmse, stack_controlled, state_to_z, tracer_operator)
 from _common import write
 
 N_SINGLE = 1000  # 20 s of the 100 s run
@@ -139,8 +139,7 @@ def main():
         t_full_tests.append(tf)
         mu = parameters(mt)
         st = jb.initial_state(mt)
-        z0 = jnp.concatenate([jnp.concatenate([st.u.reshape(-1), st.chi]),
-                              mt.dt * jnp.concatenate([st.u_dot.reshape(-1), st.chi_dot])])
+        z0 = state_to_z(mt, st)
         row = {"full_s": tf}
         xi0 = rom.project(mt, st)
         pod_run(xi0, mu)

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 from jax import lax
 
 from .assembly import free_belt_matvec, generalised_belt_force, nodal_masses, roller_R
-from .integrators import AbstractIntegrator, make_integrator
+from .integrators import AbstractIntegrator, resolve_integrator
 from .linalg import join
 from .model import BeltModel
 from .state import BeltState, initial_state
@@ -142,8 +142,7 @@ def simulate(model: BeltModel, integrator: AbstractIntegrator | str | None = Non
 
     **Returns:** ``(final_state, Trajectory)``.
     """
-    if integrator is None or isinstance(integrator, str):
-        integrator = make_integrator(integrator or model.integrator, model)
+    integrator = resolve_integrator(integrator, model)
     if state is None:
         state = initial_state(model)
     return _run_jit(model, integrator, state, int(model.n_steps if n_steps is None else n_steps))
@@ -162,8 +161,7 @@ def simulate_with_progress(model: BeltModel, integrator=None, n_steps: int | Non
 
     from tqdm import tqdm
 
-    if integrator is None or isinstance(integrator, str):
-        integrator = make_integrator(integrator or model.integrator, model)
+    integrator = resolve_integrator(integrator, model)
     n_steps = int(model.n_steps if n_steps is None else n_steps)
     chunk = max(model.every, (chunk // model.every) * model.every)
     state = initial_state(model)

@@ -25,3 +25,10 @@ def make_integrator(name: str, model, linear_solver: str | None = None) -> Abstr
     if name == "eliminated":
         return EliminatedBackwardEuler.for_model(model)
     raise ValueError(f"unknown integrator {name!r} (one of {', '.join(INTEGRATORS)})")
+
+
+def resolve_integrator(integrator, model) -> AbstractIntegrator:
+    """``integrator`` itself, or the one it names, or (``None``) the scene's choice."""
+    if integrator is None or isinstance(integrator, str):
+        return make_integrator(integrator or model.integrator, model)
+    return integrator

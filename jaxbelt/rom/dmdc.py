@@ -193,18 +193,17 @@ def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: 
 
     Xall = jnp.concatenate([jnp.asarray(t) for t in trajectories], axis=1)
     U, s, _ = jnp.linalg.svd(Xall, full_matrices=False)
-    if rank is None and energy_tol is None:
-        rank = _rank(s, Xall.shape, None)
-    r = choose_modes(np.asarray(s), n_modes=rank) if energy_tol is None else choose_modes(np.asarray(s), energy_tol=energy_tol)
+    if energy_tol is not None:
+        r = choose_modes(np.asarray(s), energy_tol=energy_tol)
+    else:
+        r = _rank(s, Xall.shape, rank)
     V = U[:, :r]
-    fits = [fit_dmd(V.T @ jnp.asarray(t), rank=dmd_rank) for t in trajectories]
+    reduced = [V.T @ jnp.asarray(t) for t in trajectories]  # each configuration's coefficients
+    fits = [fit_dmd(xi, rank=dmd_rank) for xi in reduced]
     k = max(f.eigs.shape[0] for f in fits)
     eigs = jnp.stack([jnp.pad(f.eigs, (0, k - f.eigs.shape[0])) for f in fits])
     modes = jnp.stack([jnp.pad(f.modes, ((0, 0), (0, k - f.modes.shape[1]))) for f in fits])
-    amps = jnp.stack([
-        jnp.pad(f.amplitudes(V.T @ jnp.asarray(t)[:, 0]), (0, k - f.eigs.shape[0]))
-        for f, t in zip(fits, trajectories)
-    ])
+    amps = jnp.stack([jnp.pad(f.amplitudes(xi[:, 0]), (0, k - f.eigs.shape[0])) for f, xi in zip(fits, reduced)])
     if discard_unstable:
         amps = jnp.where(jnp.abs(eigs) > 1 + unstable_tol, 0.0, amps)
     return ParametricDMD(V, eigs, modes, amps, jnp.asarray(params))

@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..integrators import make_integrator
+from ..integrators import resolve_integrator
 from ..state import initial_state
 from ..timeloop import make_step
 from .metrics import rmse
@@ -39,8 +39,7 @@ def full_step_map(model, integrator=None, order: str = "post"):
     """``z -> F(z)``: one full-order step on scaled first-order states. ``order="post"``: states
     after transport (solve, then transport); ``"pre"``: states before transport (transport, then
     solve), as for DMD on pre-transport snapshots."""
-    integrator = make_integrator(integrator or model.integrator, model) if integrator is None or isinstance(integrator, str) else integrator
-    step = make_step(model, integrator, record_solved=True)
+    step = make_step(model, resolve_integrator(integrator, model), record_solved=True)
 
     def post(z):
         return state_to_z(model, step(z_to_state(model, z))[0])
@@ -92,7 +91,7 @@ def snapshot_count(model, fit_predict, tol_mm: float = 0.02, chunk: int = 50, sa
     **Returns:** ``dict(n_steps, converged, history=[(m, rmse_mm), …], Z)``: the chosen count,
     whether the rule fired before ``max_steps``, the validation errors and the snapshots.
     """
-    integrator = make_integrator(integrator or model.integrator, model) if integrator is None or isinstance(integrator, str) else integrator
+    integrator = resolve_integrator(integrator, model)
     C = tracer_operator(model)
     N = model.n_unknowns
     state = initial_state(model)

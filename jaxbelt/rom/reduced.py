@@ -40,7 +40,7 @@ import numpy as np
 from jax import lax
 
 from ..assembly import roller_R
-from ..integrators import make_integrator
+from ..integrators import resolve_integrator
 from ..state import initial_state
 from ..transport import transport_step_with_weights
 from .pod import pod_basis
@@ -59,14 +59,11 @@ def with_parameters(model, mu):
     return eqx.tree_at(lambda m: (m.chi_static, m.omega), model, (mu[:q], mu[q:]))
 
 
-_with_mu = with_parameters
-
-
 def solve_map(model, integrator):
     """``(z, μ) -> z̃``: one full-order solve (before transport) on scaled first-order states."""
 
     def f(z, mu):
-        m = _with_mu(model, mu)
+        m = with_parameters(model, mu)
         return state_to_z(m, integrator.solve_step(m, z_to_state(m, z)))
 
     return f
@@ -74,15 +71,14 @@ def solve_map(model, integrator):
 
 def transport_map(model, R):
     """``(z̃, μ, s) -> z⁺``: the transport step with imposed shift ``s`` and frozen ``R``."""
-    N = model.n_unknowns
 
     def f(z, mu, s):
-        m = _with_mu(model, mu)
+        m = with_parameters(model, mu)
         st = z_to_state(m, z)
         u, ud, chi, _, _ = transport_step_with_weights(m, st.u, st.u_dot, st.chi, st.m_e, s=s, R=R)
         return state_to_z(m, st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=st.m_e, step=st.step))
 
-    return f, N
+    return f
 
 
 def shift_functional(model):
@@ -151,26 +147,26 @@ def reduced_operators(model, V, integrator=None, ref_state=None, mu_ref=None):
     """
     if model.transport != "shift":
         raise ValueError("the fully reduced step needs the 'shift' transport rule (masses constant)")
-    integrator = make_integrator(integrator or model.integrator, model) if integrator is None or isinstance(integrator, str) else integrator
+    integrator = resolve_integrator(integrator, model)
     ref_state = initial_state(model) if ref_state is None else ref_state
     mu_ref = parameters(model) if mu_ref is None else jnp.asarray(mu_ref)
-    s_nom = shift_functional(model) @ solve_map(model, integrator)(state_to_z(model, ref_state), mu_ref)
-    direction = jnp.where(jax.lax.stop_gradient(s_nom) < 0, -1.0, 1.0)  # the belt's running direction
     V = jnp.asarray(V)
-    ops = _operators(model, integrator, ref_state, mu_ref, V, direction)
+    c = shift_functional(model)
+    ops = _operators(model, integrator, ref_state, mu_ref, V, c)
+
     def lift(C):
         return jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V
 
     C_lat = lift(tracer_operator(model, "z")) if model.kind == "2d" else jnp.zeros((model.n_tracers, V.shape[1]))
-    return dict(ops, c=shift_functional(model) @ V, C_tracer=lift(tracer_operator(model)), C_lateral=C_lat)
+    return dict(ops, c=c @ V, C_tracer=lift(tracer_operator(model)), C_lateral=C_lat)
 
 
 @eqx.filter_jit
-def _operators(model, integrator, ref_state, mu_ref, V, direction):
+def _operators(model, integrator, ref_state, mu_ref, V, c):
     z_ref = state_to_z(model, ref_state)
     solve = solve_map(model, integrator)
     R = roller_R(model, ref_state.u)
-    transport, _ = transport_map(model, R)
+    transport = transport_map(model, R)
 
     z_sol, lin = jax.linearize(solve, z_ref, mu_ref)
     SV = jax.vmap(lambda v: lin(v, jnp.zeros_like(mu_ref)), in_axes=1, out_axes=1)(V)
@@ -178,17 +174,19 @@ def _operators(model, integrator, ref_state, mu_ref, V, direction):
     Sz = lin(z_ref, jnp.zeros_like(mu_ref))
     c_full = z_sol - Sz - T @ mu_ref
 
-    # the transport is linear in s for a fixed upwind direction: difference quotient at s1 is exact
+    # the transport is linear in s for a fixed upwind direction (the belt's running direction, the
+    # sign of the nominal shift): the difference quotient at s1 is exact
+    direction = jnp.where(jax.lax.stop_gradient(c @ z_sol) < 0, -1.0, 1.0)
     s1 = direction * 0.5 * jnp.min(model.ell)
-    zero_mu = jnp.zeros_like(mu_ref)
+    zero_mu, zero_z = jnp.zeros_like(mu_ref), jnp.zeros_like(z_ref)
 
     def diff(z, mu):
         return (transport(z, mu, s1) - transport(z, mu, 0.0)) / s1
 
-    ZV = jax.vmap(lambda v: transport(v, zero_mu, 0.0) - transport(jnp.zeros_like(v), zero_mu, 0.0), in_axes=1, out_axes=1)(V)
-    h_mu, lin_t = jax.linearize(lambda mu: diff(jnp.zeros_like(z_ref), mu), mu_ref)
+    ZV = jax.vmap(lambda v: transport(v, zero_mu, 0.0), in_axes=1, out_axes=1)(V) - transport(zero_z, zero_mu, 0.0)[:, None]
+    h_mu, lin_t = jax.linearize(lambda mu: diff(zero_z, mu), mu_ref)
     Hmu = jax.vmap(lin_t, in_axes=1, out_axes=1)(jnp.eye(mu_ref.size))
-    GV = jax.vmap(lambda v: diff(v, mu_ref) - diff(jnp.zeros_like(v), mu_ref), in_axes=1, out_axes=1)(V)
+    GV = jax.vmap(lambda v: diff(v, mu_ref), in_axes=1, out_axes=1)(V) - h_mu[:, None]
     h0 = h_mu - Hmu @ mu_ref
     return dict(A=V.T @ SV, B=V.T @ T, d=V.T @ c_full, Z=V.T @ ZV, G=V.T @ GV, H=V.T @ Hmu, h=V.T @ h0)
 

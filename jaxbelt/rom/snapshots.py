@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-from ..integrators import make_integrator
+from ..integrators import resolve_integrator
 from ..state import BeltState, initial_state
 from ..linalg import join, split
 from ..timeloop import make_step
@@ -22,11 +22,8 @@ from ..timeloop import make_step
 def collect_snapshots(model, n_steps: int, integrator=None, state: BeltState | None = None):
     """Run ``n_steps`` and return ``(final_state, X, Xdot)``, each snapshot matrix (N, n_steps)
     with columns ``x̃_1 … x̃_n`` (pre-transport, flat ``[belt; rollers]`` order)."""
-    if integrator is None or isinstance(integrator, str):
-        integrator = make_integrator(integrator or model.integrator, model)
     state = initial_state(model) if state is None else state
-    step = make_step(model, integrator, record_solved=True)
-    final, rec = jax.jit(lambda s: lax.scan(lambda c, _: step(c), s, None, length=n_steps))(state)
+    final, rec = _scan_recorded(model, resolve_integrator(integrator, model), state, n_steps)
     return final, rec["x_solved"].T, rec["v_solved"].T
 
 
@@ -37,10 +34,8 @@ def collect_first_order(model, n_steps: int, integrator=None, state: BeltState |
     scaled by ``Δt`` so both halves are lengths (a POD of mixed m and m/s would weigh them by
     the unit system). These are the snapshots of the fully reduced step
     (:mod:`jaxbelt.rom.reduced`)."""
-    if integrator is None or isinstance(integrator, str):
-        integrator = make_integrator(integrator or model.integrator, model)
     state = initial_state(model) if state is None else state
-    final, rec = _scan_recorded(model, integrator, state, n_steps)
+    final, rec = _scan_recorded(model, resolve_integrator(integrator, model), state, n_steps)
     dt = model.dt
     Z_pre = jnp.concatenate([rec["x_solved"], dt * rec["v_solved"]], axis=1).T
     Z_post = jnp.concatenate([rec["x_grid"], dt * rec["v_grid"]], axis=1).T
