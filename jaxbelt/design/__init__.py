@@ -1,4 +1,47 @@
 """Tolerance design (MODEL.md §6): metrics, sensitivities, tolerance boxes, yield, sharding.
 
 Sits above :mod:`jaxbelt.timeloop` and :mod:`jaxbelt.rom` and is never imported by them.
+
+```python
+import jaxbelt as jb
+from jaxbelt import design
+
+study = design.make_study(jb.load_model("three-roller-t72"), "lateral_max", t_eval=2.0)
+design.sensitivity_report(study)                      # value + gradient per roller component
+box = design.tolerance_box(study, limit_um=20.0)      # largest verified tolerance box
+dist = design.Distribution(tuple(study.space.labels()), ("normal",) * study.space.size,
+                           tuple(box["half_widths"] / 3))
+design.run_sweep(study, dist, n=1000, limit_um=20.0)   # Monte-Carlo yield, FORM, IS
+```
 """
+
+from .metrics import METRICS as METRICS
+from .metrics import Study as Study
+from .metrics import evaluate as evaluate
+from .metrics import make_study as make_study
+from .metrics import metric_value as metric_value
+from .metrics import response as response
+from .metrics import tracer_deviation as tracer_deviation
+from .params import COMPONENTS as COMPONENTS
+from .params import ParameterSpace as ParameterSpace
+from .params import parameter_space as parameter_space
+from .sampling import Distribution as Distribution
+from .sampling import distribution_from_dict as distribution_from_dict
+from .sampling import evaluate_configs as evaluate_configs
+from .sampling import evaluate_metric as evaluate_metric
+from .sampling import form as form
+from .sampling import importance_sampling as importance_sampling
+from .sampling import monte_carlo as monte_carlo
+from .sampling import wilson_interval as wilson_interval
+from .sensitivity import response_jacobian as response_jacobian
+from .sensitivity import sensitivity_report as sensitivity_report
+from .sensitivity import value_and_gradient as value_and_gradient
+from .sharding import batched_map as batched_map
+from .sharding import config_mesh as config_mesh
+from .sharding import distributed_map as distributed_map
+from .sweep import run_sweep as run_sweep
+from .tolerance import LinearResponse as LinearResponse
+from .tolerance import optimise_box as optimise_box
+from .tolerance import rss_stackup as rss_stackup
+from .tolerance import tolerance_box as tolerance_box
+from .tolerance import worst_case as worst_case

@@ -1,0 +1,300 @@
+"""Yield under random misalignments: Monte Carlo, FORM and importance sampling.
+
+A *distribution* gives every varied component an independent law around the scene's own
+misalignment, in design units (mm / mrad): ``normal`` with standard deviation ``σ`` or
+``uniform`` on ``[-h, h]``. Both are written as transforms of a standard normal variable
+``u`` (the FORM space): ``θ = σ u`` and ``θ = h (2Φ(u) - 1)``. The limit state is
+
+$$ g(u) = \\text{limit} - \\text{metric}(θ(u)), \\qquad \\text{pass} \\iff g \\ge 0, $$
+
+and the *yield* is ``P(g ≥ 0)``.
+
+- **Monte Carlo** (:func:`monte_carlo`): ``n`` samples, evaluated in ``vmap`` batches (sharded
+  over the local devices, :mod:`jaxbelt.design.sharding`), chunk by chunk; the yield with a
+  Wilson score 95 % interval.
+- **FORM** (:func:`form`): the design point ``u*`` (the most probable failing configuration)
+  by Hasofer–Lind–Rackwitz–Fiessler iterations with the gradient of the metric through the
+  whole run, started from the linearised response; ``β = ‖u*‖``, yield ``Φ(β)``. For a
+  max-type metric the failure set is a union over tracers and signs, and FORM sees its most
+  probable member only (an upper bound on the yield when several compete).
+- **Importance sampling** (:func:`importance_sampling`) around ``u*`` for yields near 1:
+  ``u ~ N(u*, I)``, weights ``φ(u)/φ(u - u*)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.scipy.stats import norm
+
+from .metrics import Study, evaluate, metric_value
+from .params import COMPONENTS, TRANSLATIONS, parameter_space
+
+DISTRIBUTIONS = ("normal", "uniform")
+
+
+@dataclasses.dataclass(frozen=True)
+class Distribution:
+    """Independent laws per varied component: ``labels`` ("roller:component", P), ``kind``
+    (P,) "normal" | "uniform", ``scale`` (P,) σ or half-width (mm / mrad)."""
+
+    labels: tuple
+    kind: tuple
+    scale: tuple
+
+    @property
+    def components(self) -> list[str]:
+        return list(self.labels)
+
+    def transform(self, u):
+        """Standard normal ``u`` (..., P) → misalignments ``θ`` (..., P)."""
+        scale = jnp.asarray(self.scale)
+        uniform = jnp.asarray([k == "uniform" for k in self.kind])
+        return jnp.where(uniform, scale * (2.0 * norm.cdf(u) - 1.0), scale * u)
+
+    def to_dict(self) -> dict:
+        return {lab: {"dist": k, "scale": s} for lab, k, s in zip(self.labels, self.kind, self.scale)}
+
+
+def distribution_from_dict(data: dict, model) -> Distribution:
+    """Validate a distribution table (the ``--dist`` TOML file) against a model.
+
+    Format: ``[roller."NAME"]`` tables with ``translation_mm`` and/or ``rotation_mrad``, each
+    ``{dist = "normal", sigma = [x, y, z]}`` or ``{dist = "uniform", half_width = [x, y, z]}``.
+    Zero entries are not varied. Raises ``ValueError`` naming the key and value.
+    """
+    if not isinstance(data, dict) or set(data) - {"roller"}:
+        raise ValueError(f"distribution file: unknown table(s) {sorted(set(data) - {'roller'})} (only [roller.\"NAME\"])")
+    rollers = data.get("roller", {})
+    if not isinstance(rollers, dict) or not rollers:
+        raise ValueError("distribution file: no [roller.\"NAME\"] table")
+    labels, kinds, scales = [], [], []
+    space = parameter_space(model)
+    for name, table in rollers.items():
+        if name not in model.roller_names:
+            raise ValueError(f"roller.{name!r}: no roller of that name (rollers: {', '.join(model.roller_names)})")
+        if not isinstance(table, dict):
+            raise ValueError(f"roller.{name!r}: must be a table")
+        for group, spec in table.items():
+            where = f"roller.{name!r}.{group}"
+            if group not in ("translation_mm", "rotation_mrad"):
+                raise ValueError(f"{where}: unknown key (translation_mm or rotation_mrad)")
+            if not isinstance(spec, dict) or "dist" not in spec:
+                raise ValueError(f"{where}: must be {{dist = \"normal\", sigma = [...]}} or {{dist = \"uniform\", half_width = [...]}}")
+            dist = spec["dist"]
+            if dist not in DISTRIBUTIONS:
+                raise ValueError(f"{where}.dist = {dist!r}: unknown distribution (one of {', '.join(DISTRIBUTIONS)})")
+            key = "sigma" if dist == "normal" else "half_width"
+            extra = set(spec) - {"dist", key}
+            if extra:
+                raise ValueError(f"{where}: unknown key(s) {sorted(extra)} for dist = {dist!r} (expects {key})")
+            vals = spec.get(key)
+            if not isinstance(vals, list) or len(vals) != 3 or not all(isinstance(v, (int, float)) for v in vals):
+                raise ValueError(f"{where}.{key} = {vals!r}: must be a list of 3 numbers")
+            for k, v in enumerate(vals):
+                if not math.isfinite(v):
+                    raise ValueError(f"{where}.{key}[{k}] = {v}: must be finite")
+                if v < 0:
+                    raise ValueError(f"{where}.{key}[{k}] = {v}: must not be negative")
+                if v == 0:
+                    continue
+                comp = (TRANSLATIONS if group == "translation_mm" else ("ax", "ay", "az"))[k]
+                label = f"{name}:{comp}"
+                if label not in space.labels():
+                    j = model.roller_names.index(name)
+                    why = dict(space.structural).get((j, comp), "not a parameter")
+                    raise ValueError(f"{where}.{key}[{k}] = {v}: {label} cannot vary ({why})")
+                labels.append(label)
+                kinds.append(dist)
+                scales.append(float(v))
+    if not labels:
+        raise ValueError("distribution file: every σ / half-width is zero; nothing varies")
+    order = sorted(range(len(labels)), key=lambda i: (model.roller_names.index(labels[i].split(":")[0]),
+                                                      COMPONENTS.index(labels[i].split(":")[1])))
+    return Distribution(tuple(labels[i] for i in order), tuple(kinds[i] for i in order),
+                        tuple(scales[i] for i in order))
+
+
+def check_distribution(dist: Distribution, study: Study):
+    if list(dist.labels) != study.space.labels():
+        raise ValueError(f"the study varies {study.space.labels()}, the distribution {list(dist.labels)}")
+
+
+# ----------------------------------------------------------------------------- evaluation
+
+_EVALUATORS: dict = {}
+
+
+def _evaluator(study: Study):
+    """One function object per study, so the sharded map compiles once per study and chunk size."""
+    key = id(study)
+    if key not in _EVALUATORS:
+        if len(_EVALUATORS) > 8:
+            _EVALUATORS.clear()
+        _EVALUATORS[key] = (study, lambda th: evaluate(study, th))
+    return _EVALUATORS[key][1]
+
+
+def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=None):
+    """Full-model :func:`jaxbelt.design.metrics.evaluate` for every row of ``thetas`` (n, P),
+    batched with ``vmap`` and sharded over the local devices, ``chunk`` configurations at a
+    time; ``progress(done, chunk_result)`` is called after each chunk.
+
+    **Returns:** dict of numpy arrays with leading axis n."""
+    return _map(study, thetas, chunk, progress)
+
+
+def _map(study, thetas, chunk, progress=None):
+    """:func:`~jaxbelt.design.sharding.batched_map` with the rows padded to a whole number of
+    chunks, so that every call with the same ``chunk`` reuses one compilation."""
+    from .sharding import batched_map
+
+    thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
+    n = thetas.shape[0]
+    if chunk is not None and n % chunk:
+        thetas = np.concatenate([thetas, np.repeat(thetas[-1:], chunk - n % chunk, axis=0)])
+    out = batched_map(_evaluator(study), thetas, chunk=chunk, progress=progress)
+    return jax.tree.map(lambda a: a[:n], out)
+
+
+def evaluate_metric(study: Study, thetas, chunk: int | None = None):
+    """The metric (n,) at every row of ``thetas`` (n, P) (full model, batched)."""
+    return np.asarray(_map(study, thetas, chunk)["metric"])
+
+
+# ----------------------------------------------------------------------------- statistics
+
+
+def wilson_interval(passed: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (95 % by default)."""
+    if n <= 0:
+        raise ValueError(f"n = {n}: need at least one sample")
+    p = passed / n
+    den = 1 + z**2 / n
+    centre = (p + z**2 / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / den
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def standard_normal_samples(n: int, P: int, seed: int) -> np.ndarray:
+    """The ``u`` samples (n, P) of a seed: the same seed always gives the same configurations,
+    in the same order (a resumed sweep relies on that)."""
+    return np.random.default_rng(seed).standard_normal((n, P))
+
+
+def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed: int = 0,
+                chunk: int | None = None, progress=None) -> dict:
+    """Monte-Carlo yield with a Wilson 95 % interval.
+
+    **Returns:** ``{"yield", "ci95", "samples", "passed", "theta" (n, P), "metric" (n,)}``."""
+    check_distribution(dist, study)
+    if n <= 0:
+        raise ValueError(f"samples = {n}: must be at least 1")
+    thetas = np.asarray(dist.transform(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
+    out = evaluate_configs(study, thetas, chunk, progress)
+    metric = np.asarray(out["metric"])
+    passed = int(np.sum(metric <= limit_um))
+    return {"yield": passed / n, "ci95": wilson_interval(passed, n), "samples": n, "passed": passed,
+            "theta": thetas, "metric": metric, "outputs": out}
+
+
+@eqx.filter_jit
+def _g_and_grad(study, dist_scale, uniform, u, limit):
+    def g(u):
+        theta = jnp.where(uniform, dist_scale * (2.0 * norm.cdf(u) - 1.0), dist_scale * u)
+        return limit - metric_value(study, theta, smooth=True)
+
+    return jax.value_and_grad(g)(u)
+
+
+def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: int = 30,
+         tol: float = 1e-6) -> dict:
+    """First-order reliability: the design point by HL-RF iterations (module docstring).
+
+    The start point ``u0`` defaults to the design point of the linearised response's most
+    critical row (see :func:`linear_design_point`).
+
+    **Returns:** ``{"beta", "yield" = Φ(β), "u_star" (P,), "theta_star" (P,) mm / mrad,
+    "iterations", "converged", "series_bounds"}``; ``series_bounds`` (max-type metrics) are the
+    first-order bounds of a series system, ``[1 - Σ_j Φ(-β_j), 1 - max_j Φ(-β_j)]`` over the
+    linearised failure modes: FORM's single design point sees only the most probable one."""
+    from .sensitivity import response_jacobian
+
+    check_distribution(dist, study)
+    scale = jnp.asarray(dist.scale)
+    uniform = jnp.asarray([k == "uniform" for k in dist.kind])
+    r0, J = response_jacobian(study)
+    if u0 is None:
+        u0 = linear_design_point(r0, J, dist, limit_um, study.aggregate)
+    u = jnp.asarray(u0, float)
+    converged, it = False, 0
+    for it in range(1, max_iter + 1):
+        g, dg = _g_and_grad(study, scale, uniform, u, limit_um)
+        nd = float(jnp.dot(dg, dg))
+        if nd == 0.0:
+            break
+        u_new = (jnp.dot(dg, u) - g) / nd * dg
+        step = float(jnp.linalg.norm(u_new - u))
+        u = u_new
+        if step < tol * max(1.0, float(jnp.linalg.norm(u))) and abs(float(g)) < 1e-6 * limit_um:
+            converged = True
+            break
+    g, _ = _g_and_grad(study, scale, uniform, u, limit_um)
+    g0, _ = _g_and_grad(study, scale, uniform, jnp.zeros_like(u), limit_um)
+    beta = float(jnp.linalg.norm(u)) * (1.0 if float(g0) >= 0 else -1.0)  # negative: the nominal fails
+    out = {"beta": beta, "yield": float(norm.cdf(beta)), "u_star": np.asarray(u),
+           "theta_star": np.asarray(dist.transform(u)), "iterations": it, "converged": converged,
+           "g_star_um": float(g)}
+    if study.aggregate == "max":
+        pf = norm.cdf(-_mode_betas(r0, J, dist, limit_um)[0])
+        out["series_bounds"] = (max(0.0, 1.0 - float(jnp.sum(pf))), 1.0 - float(jnp.max(pf)))
+    return out
+
+
+def _mode_betas(r0, J, dist: Distribution, limit_um: float):
+    """Reliability indices of every failure mode ``s r_i > limit`` (row ``i``, sign ``s``) of
+    the response linearised at ``u = 0``: ``β = (limit - s r0_i) / ‖J_i D‖`` with ``D = σ``
+    (normal) or ``2 φ(0) h`` (uniform). **Returns:** ``(β (n_r, 2), J D)``."""
+    D = np.array([s * (2 * 0.3989422804014327 if k == "uniform" else 1.0) for k, s in zip(dist.kind, dist.scale)])
+    JD = np.asarray(J) * D
+    norms = np.linalg.norm(JD, axis=1)
+    beta = np.full((len(r0), 2), np.inf)
+    ok = norms > 0
+    for c, s in enumerate((1.0, -1.0)):
+        beta[ok, c] = (limit_um - s * np.asarray(r0)[ok]) / norms[ok]
+    return beta, JD
+
+
+def linear_design_point(r0, J, dist: Distribution, limit_um: float, kind: str) -> np.ndarray:
+    """Design point of the response linearised at ``u = 0``: for a max-type metric that of the
+    failure mode with the smallest ``β`` (:func:`_mode_betas`), for an RMS metric the leading
+    singular direction of ``J D`` scaled onto the limit."""
+    beta, JD = _mode_betas(r0, J, dist, limit_um)
+    if kind == "max":
+        i, c = np.unravel_index(np.argmin(beta), beta.shape)
+        return beta[i, c] * (1.0 if c == 0 else -1.0) * JD[i] / np.linalg.norm(JD[i])
+    _, sv, vt = np.linalg.svd(JD, full_matrices=False)
+    return limit_um * np.sqrt(JD.shape[0]) / max(sv[0], 1e-300) * vt[0]
+
+
+def importance_sampling(study: Study, dist: Distribution, limit_um: float, u_star, n: int = 1000,
+                        seed: int = 1, chunk: int | None = None) -> dict:
+    """Yield by importance sampling around the design point ``u_star``.
+
+    **Returns:** ``{"yield", "ci95", "failure_probability", "std_error", "samples"}``."""
+    check_distribution(dist, study)
+    u_star = np.asarray(u_star, float)
+    u = u_star + np.random.default_rng(seed).standard_normal((n, len(u_star)))
+    w = np.exp(-u @ u_star + 0.5 * u_star @ u_star)
+    metric = evaluate_metric(study, np.asarray(dist.transform(jnp.asarray(u))), chunk)
+    fail = (metric > limit_um).astype(float)
+    pf = float(np.mean(fail * w))
+    se = float(np.std(fail * w, ddof=1) / math.sqrt(n)) if n > 1 else float("inf")
+    z = 1.959963984540054
+    return {"yield": 1.0 - pf, "ci95": (max(0.0, 1.0 - pf - z * se), min(1.0, 1.0 - pf + z * se)),
+            "failure_probability": pf, "std_error": se, "samples": n}

@@ -1,0 +1,232 @@
+"""Tolerance design: parameters, metrics, gradients (= central differences), the tolerance box
+(analytic on a linear model, verified by full runs), Monte Carlo (= a brute-force loop), FORM,
+importance sampling, the sweep store."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import scene_with
+
+import jaxbelt as jb
+from jaxbelt import design
+from jaxbelt.design import sampling, tolerance
+from jaxbelt.design.store import load_sweep
+
+
+def coarse(name):
+    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), name))
+
+
+@pytest.fixture(scope="module")
+def model2d():
+    return coarse("three-roller-t72")  # misaligned base: the metric is smooth at theta = 0
+
+
+@pytest.fixture(scope="module")
+def study(model2d):
+    return design.make_study(model2d, "lateral_rms", t_eval=0.2, components="roller 2:rotation,roller 3:dx,roller 3:dz")
+
+
+# ----------------------------------------------------------------------------- parameters
+
+
+def test_parameter_space_excludes_structural_zeros(model2d):
+    sp = design.parameter_space(model2d)
+    assert sp.size == 15 and all(not lab.endswith(":az") for lab in sp.labels())
+    assert design.parameter_space(model2d, "roller 2:rotation").labels() == ["roller 2:ax", "roller 2:ay"]
+    for bad, word in (("roller 9", "no roller"), ("roller 2:bogus", "unknown component"),
+                      ("roller 2:az", "no static effect"), ("", "names no component")):
+        with pytest.raises(ValueError, match=word):
+            design.parameter_space(model2d, bad)
+    tension = jb.load_model("two-roller-1d-tension")
+    sp1 = design.parameter_space(tension)
+    assert all(lab.endswith(":dx") for lab in sp1.labels())
+    assert any("force/torque-loaded" in why for _, why in sp1.structural)
+
+
+def test_study_rejects_bad_metric_and_time(model2d):
+    with pytest.raises(ValueError, match="unknown"):
+        design.make_study(model2d, "lateral_avg")
+    with pytest.raises(ValueError, match="t_eval"):
+        design.make_study(model2d, "lateral_rms", t_eval=0.0)
+    with pytest.raises(ValueError, match="2D scene"):
+        design.make_study(jb.load_model("two-roller-1d"), "lateral_max", t_eval=0.05)
+
+
+def test_metrics_are_zero_for_the_aligned_machine_and_match_their_definitions(study):
+    du, dv = design.tracer_deviation(study, jnp.zeros(study.space.size))
+    k = study.n_steps - 1
+    assert np.isclose(float(design.metric_value(study, jnp.zeros(4))), float(jnp.sqrt(jnp.mean(dv[k] ** 2))), rtol=1e-12)
+    aligned = design.make_study(study.model.replace(chi_static=jnp.zeros_like(study.base)), "lateral_max",
+                                t_eval=study.t_eval, components="roller 2:rotation")
+    assert float(design.metric_value(aligned, jnp.zeros(2))) == 0.0
+    peak = design.make_study(study.model, "lateral_peak", t_eval=study.t_eval, components="roller 2:rotation")
+    dv2 = design.tracer_deviation(peak, jnp.zeros(2))[1]
+    assert np.isclose(float(design.metric_value(peak, jnp.zeros(2))), float(jnp.max(jnp.abs(dv2[-peak.window:]))))
+    assert float(design.metric_value(peak, jnp.zeros(2), smooth=True)) >= float(design.metric_value(peak, jnp.zeros(2)))
+
+
+# ----------------------------------------------------------------------------- gradients
+
+
+def _fd_check(study, theta, h):
+    value, grad = design.value_and_gradient(study, theta)
+    P = study.space.size
+    pts = jnp.concatenate([theta + h * jnp.eye(P), theta - h * jnp.eye(P)])
+    vals = jax.vmap(lambda t: design.metric_value(study, t))(pts)
+    fd = (vals[:P] - vals[P:]) / (2 * h)
+    np.testing.assert_allclose(np.asarray(grad), np.asarray(fd), rtol=1e-6, atol=1e-6 * float(jnp.max(jnp.abs(fd))))
+    return grad
+
+
+def test_gradient_2d_drive_idle_tension_translations_and_rotations():
+    """Roller 1 drives, roller 2 is a tension roller (pulled along x), roller 3 idles."""
+    model = coarse("three-roller-tension")
+    model = model.replace(chi_static=model.chi_static.at[jnp.array([1, 9, 14])].set(jnp.array([1e-3, 2e-4, 5e-4])))
+    st = design.make_study(model, "lateral_rms", t_eval=0.16,
+                           components="roller 1,roller 2,roller 3:dz,roller 3:ax")
+    assert "roller 2:dx" not in st.space.labels()  # the load sets it
+    grad = _fd_check(st, jnp.zeros(st.space.size), 1e-3)
+    assert float(jnp.min(jnp.abs(grad))) > 0
+
+
+def test_gradient_1d_translations():
+    st = design.make_study(jb.load_model("two-roller-1d-idle-translated"), "longitudinal_rms", t_eval=0.1)
+    _fd_check(st, jnp.zeros(st.space.size), 1e-4)
+
+
+def test_jacobian_forward_matches_the_reverse_gradient(study):
+    """Forward-mode Jacobian J of the response r and the reverse-mode gradient of RMS(r) agree
+    through the chain rule: ∇ = Jᵀ r / (n · RMS)."""
+    r0, J = design.response_jacobian(study, mode="forward")
+    report = design.sensitivity_report(study, repeat=1)
+    grad = np.array([p["gradient"] for p in report["parameters"]])
+    rms = np.sqrt(np.mean(r0**2))
+    np.testing.assert_allclose(grad, J.T @ r0 / (len(r0) * rms), rtol=1e-9)
+    assert np.isclose(report["value_um"], rms, rtol=1e-12)
+    assert report["gradient"]["roller 1"]["rotation_um_per_mrad"] == [0.0, 0.0, 0.0]
+    assert {z["component"] for z in report["structural_zero"]} == {"roller 1:az", "roller 2:az", "roller 3:az"}
+
+
+# ----------------------------------------------------------------------------- tolerance box
+
+
+def test_box_of_an_exactly_linear_model_is_analytic():
+    """One response row r = a·θ: max Σ w log h s.t. Σ |a_k| h_k ≤ L gives h_k = w_k L / (Σw |a_k|)."""
+    a = np.array([2.0, -0.5, 8.0, 1.0])
+    w = np.array([1.0, 2.0, 1.0, 0.5])
+    lin = tolerance.LinearResponse(np.zeros(1), a[None, :], "max")
+    h = tolerance.optimise_box(lin, 20.0, w, h_max=100.0)
+    np.testing.assert_allclose(h, w * 20.0 / (w.sum() * np.abs(a)), rtol=2e-3)
+    # with the cap h ≤ 5 active on component 1, the others share what is left
+    h = tolerance.optimise_box(lin, 20.0, w, h_max=5.0)
+    rest = np.array([0, 2, 3])
+    np.testing.assert_allclose(h[rest], w[rest] * 17.5 / (w[rest].sum() * np.abs(a[rest])), rtol=2e-3)
+    assert np.isclose(tolerance.worst_case(lin, h), 20.0, rtol=1e-9)
+
+
+def test_box_with_several_rows_and_rms_matches_scipy():
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(6, 3))
+    r0 = 0.5 * rng.normal(size=6)
+    for kind in ("max", "rms"):
+        lin = tolerance.LinearResponse(r0, J, kind)
+        h = tolerance.optimise_box(lin, 10.0)
+        cons = {"type": "ineq", "fun": lambda y: 10.0 - tolerance.worst_case(lin, np.exp(y))}
+        ref = minimize(lambda y: -np.sum(y), np.log(h * 0.5), constraints=[cons], method="SLSQP",
+                       bounds=[(None, np.log(tolerance.H_MAX))] * 3, options={"ftol": 1e-12, "maxiter": 500})
+        assert np.sum(np.log(h)) >= -ref.fun - 2e-3
+        assert tolerance.worst_case(lin, h) <= 10.0 + 1e-9
+
+
+def test_rss_stackup_of_one_row():
+    lin = tolerance.LinearResponse(np.zeros(1), np.array([[3.0, 4.0]]), "max")
+    assert np.isclose(tolerance.rss_stackup(lin, [1.0, 1.0])["three_sigma_um"], 15.0)
+
+
+def test_box_on_the_default_scene_is_verified_by_full_runs():
+    model = jb.load_model("three-roller")  # the aligned nominal machine, N = 3762
+    st = design.make_study(model, "lateral_max", t_eval=0.1, components="roller 2:rotation,roller 3:dz")
+    res = design.tolerance_box(st, 20.0, n_random=2, n_corners=2)
+    assert res["verified"] and 0.97 * 20 <= res["worst_case_um"] <= 20.0
+    full = [row["full_um"] for row in res["verification"]]
+    assert max(full) == res["worst_case_um"]
+    assert res["binding"] and set(res["binding"]) <= set(st.space.labels())
+    # the box is around the scene's own misalignment, half-widths non-negative and finite
+    assert np.all(res["half_widths"] >= 0) and np.all(np.isfinite(res["half_widths"]))
+
+
+# ----------------------------------------------------------------------------- yield
+
+
+def _dist(study, kinds=("normal", "uniform", "normal", "uniform"), scales=(0.2, 0.3, 0.05, 0.05)):
+    return sampling.Distribution(tuple(study.space.labels()), kinds[: study.space.size], scales[: study.space.size])
+
+
+def test_monte_carlo_equals_a_brute_force_loop(study):
+    dist = _dist(study)
+    limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
+    mc = design.monte_carlo(study, dist, 12, limit, seed=5, chunk=8)
+    u = sampling.standard_normal_samples(12, 4, 5)
+    f = jax.jit(lambda t: design.metric_value(study, t))
+    loop = np.array([float(f(dist.transform(jnp.asarray(ui)))) for ui in u])
+    np.testing.assert_allclose(mc["metric"], loop, rtol=1e-10)  # batched vs one at a time: round-off
+    assert mc["passed"] == int(np.sum(loop <= limit))
+    lo, hi = mc["ci95"]
+    assert lo <= mc["yield"] <= hi
+
+
+def test_wilson_interval_matches_scipy():
+    from scipy.stats import binomtest
+
+    for k, n in ((0, 10), (7, 10), (990, 1000), (1000, 1000)):
+        ci = binomtest(k, n).proportion_ci(method="wilson")
+        np.testing.assert_allclose(design.wilson_interval(k, n), (ci.low, ci.high), atol=1e-12)
+
+
+def test_distribution_file_validation(model2d):
+    ok = {"roller": {"roller 2": {"rotation_mrad": {"dist": "normal", "sigma": [0.1, 0.1, 0.0]},
+                                  "translation_mm": {"dist": "uniform", "half_width": [0.0, 0.0, 0.05]}}}}
+    d = design.distribution_from_dict(ok, model2d)
+    assert d.labels == ("roller 2:dz", "roller 2:ax", "roller 2:ay") and d.kind == ("uniform", "normal", "normal")
+    bad = [
+        ({"roller": {"roller 9": {}}}, "no roller"),
+        ({"roller": {"roller 2": {"rotation_mrad": {"dist": "normal", "sigma": [-0.1, 0, 0]}}}}, "negative"),
+        ({"roller": {"roller 2": {"rotation_mrad": {"dist": "normal", "sigma": [float("nan"), 0, 0]}}}}, "finite"),
+        ({"roller": {"roller 2": {"rotation_mrad": {"dist": "gumbel", "sigma": [0.1, 0, 0]}}}}, "unknown distribution"),
+        ({"roller": {"roller 2": {"rotation_mrad": {"dist": "normal", "sigma": [0, 0, 0.1]}}}}, "cannot vary"),
+        ({"roller": {"roller 2": {"spin": {"dist": "normal", "sigma": [0, 0, 0.1]}}}}, "unknown key"),
+        ({"roller": {"roller 2": {"rotation_mrad": {"dist": "normal", "sigma": [0, 0, 0]}}}}, "nothing varies"),
+    ]
+    for data, word in bad:
+        with pytest.raises(ValueError, match=word):
+            design.distribution_from_dict(data, model2d)
+
+
+def test_form_and_importance_sampling_agree_with_monte_carlo(study):
+    dist = _dist(study)
+    limit = 1.3 * float(design.metric_value(study, jnp.zeros(4)))
+    f = design.form(study, dist, limit)
+    assert f["converged"] and f["beta"] > 0
+    assert np.isclose(float(design.metric_value(study, jnp.asarray(f["theta_star"]))), limit, rtol=1e-6)
+    is_ = design.importance_sampling(study, dist, limit, f["u_star"], n=400, chunk=200)
+    mc = design.monte_carlo(study, dist, 400, limit, seed=11, chunk=200)
+    assert is_["ci95"][0] - 0.03 <= mc["yield"] <= is_["ci95"][1] + 0.03
+
+
+def test_sweep_store_resumes_and_extends(study, tmp_path):
+    dist = _dist(study)
+    limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
+    out = tmp_path / "sweep.zarr"
+    first = design.run_sweep(study, dist, 8, limit, chunk=8, out=out, with_form=False)
+    again = design.run_sweep(study, dist, 16, limit, chunk=8, out=out, with_form=False)
+    fresh = design.run_sweep(study, dist, 16, limit, chunk=8, with_form=False)
+    np.testing.assert_allclose(again["metric_values"], fresh["metric_values"], rtol=1e-12)
+    np.testing.assert_allclose(again["metric_values"][:8], first["metric_values"], rtol=1e-12)
+    ds = load_sweep(out)
+    assert ds.sizes["config"] == 16 and ds.sizes["tracer"] == study.ref_u.shape[1]
+    with pytest.raises(ValueError, match="another sweep"):
+        design.run_sweep(study, dist, 8, 2 * limit, chunk=8, out=out, with_form=False)
