@@ -230,3 +230,35 @@ def test_sweep_store_resumes_and_extends(study, tmp_path):
     assert ds.sizes["config"] == 16 and ds.sizes["tracer"] == study.ref_u.shape[1]
     with pytest.raises(ValueError, match="another sweep"):
         design.run_sweep(study, dist, 8, 2 * limit, chunk=8, out=out, with_form=False)
+
+
+def test_monte_carlo_and_form_match_openturns(study):
+    """The same limit state (metric > limit under the same input laws) through OpenTURNS' FORM
+    (Abdo–Rackwitz) and its Monte Carlo."""
+    ot = pytest.importorskip("openturns")
+    dist = _dist(study)
+    limit = 1.3 * float(design.metric_value(study, jnp.zeros(4)))
+    f = jax.jit(lambda t: design.metric_value(study, t))
+    df = jax.jit(jax.grad(lambda t: design.metric_value(study, t)))
+    fun = ot.PythonFunction(4, 1, lambda x: [float(f(jnp.asarray(x)))],
+                            gradient=lambda x: [[float(v)] for v in df(jnp.asarray(x))])
+    marginals = [ot.Normal(0.0, s) if k == "normal" else ot.Uniform(-s, s) for k, s in zip(dist.kind, dist.scale)]
+    X = ot.RandomVector(ot.JointDistribution(marginals))
+    event = ot.ThresholdEvent(ot.CompositeRandomVector(fun, X), ot.Greater(), limit)
+    solver = ot.AbdoRackwitz()
+    solver.setMaximumIterationNumber(100)
+    ref = ot.FORM(solver, event, [0.0] * 4)
+    ref.run()
+    ours = design.form(study, dist, limit)
+    assert np.isclose(ours["beta"], ref.getResult().getHasoferReliabilityIndex(), rtol=1e-5)
+    assert np.isclose(1 - ours["yield"], ref.getResult().getEventProbability(), rtol=1e-4)
+    ot.RandomGenerator.SetSeed(7)
+    mc_ref = ot.ProbabilitySimulationAlgorithm(event, ot.MonteCarloExperiment())
+    mc_ref.setMaximumOuterSampling(400)
+    mc_ref.setMaximumCoefficientOfVariation(0.0)
+    mc_ref.run()
+    p_ref = mc_ref.getResult().getProbabilityEstimate()
+    mc = design.monte_carlo(study, dist, 400, limit, seed=11, chunk=200)
+    p = 1 - mc["yield"]
+    sd = np.sqrt(p * (1 - p) / 400 + p_ref * (1 - p_ref) / 400)
+    assert abs(p - p_ref) <= 3.5 * sd + 1e-12
