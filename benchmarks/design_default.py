@@ -7,7 +7,7 @@
 2. sensitivity of ``lateral_max`` to all 15 components (value, gradient, forward and gradient
    wall time);
 3. the largest tolerance box for ``lateral_max ≤ 20 µm``, verified by full runs;
-4. the yield with every component normal, σ = half-width / 3: Monte Carlo, FORM, importance
+4. the yield with every component normal, σ = half-width / 2: Monte Carlo, FORM, importance
    sampling.
 
 Writes ``results/design_default.json`` and ``.png``. ``--quick`` uses n_eta = 6 and fewer samples.
@@ -75,12 +75,12 @@ def main():
         print(f"  {lab:14s} ± {h:.4g} {u}")
 
     dist = design.Distribution(tuple(box["labels"]), ("normal",) * len(box["labels"]),
-                               tuple(np.asarray(box["half_widths"]) / 3.0))
+                               tuple(np.asarray(box["half_widths"]) / 2.0))
     t0 = time.perf_counter()
     sw = design.run_sweep(study, dist, n, 20.0, chunk=50, progress=True)
     res["yield"] = {k: v for k, v in sw.items() if k != "metric_values"}
     res["yield"]["wall_s"] = time.perf_counter() - t0
-    print(f"yield (σ = h/3, {n} samples): MC {sw['yield']:.4f} {sw['ci95']}, FORM {sw['form_yield']:.6f}, "
+    print(f"yield (σ = h/2, {n} samples): MC {sw['yield']:.4f} {sw['ci95']}, FORM {sw['form_yield']:.6f}, "
           f"IS {sw.get('is_yield', float('nan')):.6f}; {res['yield']['wall_s']:.1f} s")
     write("design_default" + ("_quick" if a.quick else ""), res)
     plot(res, sw["metric_values"], RESULTS / ("design_default" + ("_quick" if a.quick else "") + ".png"))

@@ -132,3 +132,33 @@ def apply(model, space: ParameterSpace, theta, base=None):
 def aligned(model):
     """The same machine with every misalignment set to zero (the metrics' reference)."""
     return model.replace(chi_static=jnp.zeros_like(model.chi_static))
+
+
+def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:
+    """Cost weights (P,) from a weights table (the ``--weights`` TOML file); default 1.
+
+    Format: ``[roller."NAME"]`` with ``translation = [wx, wy, wz]`` and/or ``rotation = [wx, wy,
+    wz]``, positive numbers; a larger weight makes a component costlier to tighten, so it gets a
+    wider share of the budget. Raises ``ValueError`` naming the key and value.
+    """
+    w = np.ones(space.size)
+    if set(data) - {"roller"}:
+        raise ValueError(f"weights file: unknown table(s) {sorted(set(data) - {'roller'})} (only [roller.\"NAME\"])")
+    for name, table in data.get("roller", {}).items():
+        if name not in space.roller_names:
+            raise ValueError(f"roller.{name!r}: no roller of that name (rollers: {', '.join(space.roller_names)})")
+        if not isinstance(table, dict):
+            raise ValueError(f"roller.{name!r}: must be a table")
+        j = space.roller_names.index(name)
+        for group, vals in table.items():
+            if group not in ("translation", "rotation"):
+                raise ValueError(f"roller.{name!r}.{group}: unknown key (translation or rotation)")
+            if not isinstance(vals, list) or len(vals) != 3 or not all(isinstance(v, (int, float)) for v in vals):
+                raise ValueError(f"roller.{name!r}.{group} = {vals!r}: must be a list of 3 numbers")
+            for k, v in enumerate(vals):
+                if not (np.isfinite(v) and v > 0):
+                    raise ValueError(f"roller.{name!r}.{group}[{k}] = {v}: must be a positive number")
+                comp = (TRANSLATIONS if group == "translation" else ROTATIONS)[k]
+                if (j, comp) in space.entries:
+                    w[space.entries.index((j, comp))] = float(v)
+    return w

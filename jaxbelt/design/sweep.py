@@ -36,7 +36,7 @@ def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, se
 
 def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, seed: int = 0,
               chunk: int = 64, out=None, rom: str = "off", with_form: bool = True, progress: bool = False,
-              scene: str = "", importance_samples: int = 500) -> dict:
+              scene: str = "", importance_samples: int = 200) -> dict:
     """Monte-Carlo yield of ``study`` under ``dist`` (module docstring).
 
     **Returns:** ``{"metric", "limit_um", "samples", "yield", "ci95", "passed", "full_runs",
