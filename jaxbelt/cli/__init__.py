@@ -1,0 +1,46 @@
+"""Command line: ``jaxbelt demo | scenes | info | simulate | plot-scene | reduce``.
+
+One module per command. A command module provides ``add_parser(subparsers)``, which registers its
+sub-parser and sets its handler as ``func`` (``p.set_defaults(func=run)``, ``run(args) -> int``);
+a new command is one import and one entry in :data:`COMMANDS`.
+
+Every user error (bad scene, bad option) ends with a one-line message on stderr and exit code 2,
+never a traceback; a diverged run ends with exit code 3. Commands signal these by raising
+:class:`UsageError` (or :class:`jaxbelt.scene.SceneError`) and :class:`SimulationError`;
+:func:`main` turns them into the message and the exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import demo, info, plot_scene, reduce, scenes, simulate
+from ._common import SimulationError, UsageError
+from .reduce import _print_reduce
+
+COMMANDS = (demo, scenes, info, plot_scene, simulate, reduce)  # in the order of ``jaxbelt --help``
+
+__all__ = ["COMMANDS", "SimulationError", "UsageError", "_print_reduce", "build_parser", "main"]
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog="jaxbelt", description="Differentiable conveyor-belt simulator (JAX)")
+    sub = p.add_subparsers(dest="cmd", required=True)
+    for command in COMMANDS:
+        command.add_parser(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    from ..scene import SceneError
+
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except (SceneError, UsageError) as e:
+        print(f"jaxbelt: error: {e}", file=sys.stderr)
+        return 2
+    except SimulationError as e:
+        print(f"jaxbelt: error: {e}", file=sys.stderr)
+        return 3

@@ -1,0 +1,86 @@
+"""Pieces shared by the command modules: the two error kinds that :func:`jaxbelt.cli.main` turns
+into a one-line message and an exit code, scene loading with the command-line overrides, checks
+of numeric options, timing and output helpers."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+
+SCENE_HELP = "TOML path or built-in scene name"
+
+
+class UsageError(Exception):
+    """Bad input from the user: ``jaxbelt: error: …`` on stderr, exit code 2."""
+
+
+class SimulationError(Exception):
+    """A run that went wrong (diverged): ``jaxbelt: error: …`` on stderr, exit code 3."""
+
+
+def _load(scene_arg, t_end=None, dt=None, integrator=None, transport=None, linear_solver=None):
+    from ..scene import load_scene
+
+    scene = load_scene(scene_arg)
+    if t_end is not None or dt is not None:
+        t = scene.time
+        t_end = t.t_end if t_end is None else t_end
+        dt = t.dt if dt is None else dt
+        for key, v in (("--t-end", t_end), ("--dt", dt)):
+            if not np.isfinite(v) or v <= 0:
+                raise UsageError(f"{key} = {v}: must be a positive number")
+        if t_end < dt:
+            raise UsageError(f"--t-end = {t_end}: shorter than one step (dt = {dt})")
+        scene = scene.replace(time=dataclasses.replace(t, t_end=float(t_end), dt=float(dt)))
+    if integrator is not None:
+        scene = scene.replace(solver=dataclasses.replace(scene.solver, integrator=integrator))
+    if transport is not None:
+        scene = scene.replace(solver=dataclasses.replace(scene.solver, transport=transport))
+    if linear_solver is not None:
+        scene = scene.replace(solver=dataclasses.replace(scene.solver, linear_solver=linear_solver))
+    return scene
+
+
+def _positive(name, v, low=1):
+    if v is not None and v < low:
+        raise UsageError(f"{name} = {v}: must be at least {low}")
+
+
+def _finite(v):
+    v = float(v)
+    return v if np.isfinite(v) else None
+
+
+def _fmt(v, unit=""):
+    return "nan" if v is None else f"{v:.4g}{unit}"
+
+
+def _timed(f, *args, repeat: int = 5, budget_s: float = 0.5):
+    """``(result, seconds)`` of ``f(*args)`` with its outputs ready, after one untimed warm-up
+    call (compilation): the fastest of up to ``repeat`` calls, fewer once ``budget_s`` is spent
+    (so a long run is timed once; short ones are not at the mercy of one scheduler hiccup)."""
+    import time
+
+    import jax
+
+    jax.block_until_ready(f(*args))
+    times = []
+    while len(times) < repeat and sum(times) < budget_s:
+        t0 = time.perf_counter()
+        out = jax.block_until_ready(f(*args))
+        times.append(time.perf_counter() - t0)
+    return out, min(times)
+
+
+def _print_json(data):
+    print(json.dumps(data, indent=2))
+
+
+def _emit(args, data, print_text):
+    """``data`` as JSON with ``--json``, else ``print_text(data)``."""
+    if args.json:
+        _print_json(data)
+    else:
+        print_text(data)

@@ -1,0 +1,95 @@
+"""``jaxbelt info``: what the compiled model of a scene contains."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._common import SCENE_HELP, _emit, _load
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("info", help="what the compiled model of a scene contains")
+    p.add_argument("scene", help=SCENE_HELP)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args):
+    from ..mesh import build_mesh
+    from ..model import compile_scene
+
+    scene = _load(args.scene)
+    mesh = build_mesh(scene)
+    _emit(args, model_info(scene, mesh, compile_scene(scene, mesh)), _print_info)
+    return 0
+
+
+def bandwidth(K) -> int:
+    """Half-bandwidth of the belt part of ``K`` in the natural column ordering (cyclic corners
+    and the roller border excluded)."""
+    b = K.block
+    bw = 0
+    for blocks, shift in ((K.diag, 0), (K.upper, b), (K.lower, -b)):
+        nz = np.argwhere(np.any(np.asarray(blocks) != 0, axis=0))
+        if len(nz):
+            bw = max(bw, int(np.max(np.abs(nz[:, 1] - nz[:, 0] + shift))))
+    return bw
+
+
+def model_info(scene, mesh, model) -> dict:
+    """What the compiled model contains (``jaxbelt info``)."""
+    from ..assembly import dae_matrices
+
+    K, _ = dae_matrices(model, model.m_e0)
+    dyn = np.asarray(model.dynamic).reshape(model.n_rollers, len(model.dofs))
+    chi = np.asarray(model.chi_static).reshape(dyn.shape)
+    rollers = []
+    for j, r in enumerate(scene.rollers):
+        seg = mesh.path.segments[2 * j]
+        rollers.append(dict(
+            name=r.name, role=r.role, side="external" if r.external else "internal",
+            center_mm=[c * 1e3 for c in r.center], radius_mm=r.radius * 1e3,
+            wrap_deg=float(np.degrees(seg.wrap)), arc_mm=seg.length * 1e3,
+            elements=int(mesh.roller_elements[j]),
+            dynamic_dofs=[d for d, f in zip(model.dofs, dyn[j]) if f],
+            prescribed={d: float(v) for d, v, f in zip(model.dofs, chi[j], dyn[j]) if not f and d != "az"},
+            speed_m_s=r.speed if r.role == "drive" else None,
+        ))
+    segments = [dict(kind=s.kind, name=s.name, length_mm=s.length * 1e3,
+                     elements=int(mesh.roller_elements[s.index] if s.kind == "roller" else mesh.free_elements[s.index]))
+                for s in mesh.path.segments]
+    n_alg = model.n_algebraic
+    return dict(
+        scene=scene.name, kind=scene.kind, description=scene.description,
+        n_unknowns=model.n_unknowns, n_algebraic=n_alg, n_dynamic=model.n_unknowns - n_alg,
+        n_belt_dofs=model.n_xi * model.block, n_roller_dofs=model.n_roller_dofs,
+        n_xi=model.n_xi, n_eta=mesh.n_eta, block_size=model.block, bandwidth=bandwidth(K),
+        path_length_mm=mesh.length * 1e3, element_length_mm=[float(mesh.ell.min() * 1e3), float(mesh.ell.max() * 1e3)],
+        dt_s=model.dt, t_end_s=scene.time.t_end, n_steps=model.n_steps,
+        cfl=float(max((r.speed for r in scene.rollers if r.role == "drive"), default=0) * model.dt / mesh.ell.min()),
+        integrator=model.integrator, linear_solver=model.linear_solver, transport=model.transport,
+        n_tracers=model.n_tracers, output_every=model.every, full_fields=model.full_fields,
+        pretension_strain=float(mesh.length / (scene.belt.length or mesh.length) - 1.0),
+        dynamic_roller_rows=int(np.sum(dyn)), rollers=rollers, segments=segments,
+    )
+
+
+def _print_info(info):
+    print(f"scene {info['scene']} ({info['kind']}): {info['description']}")
+    print(f"  unknowns N = {info['n_unknowns']}  (belt {info['n_belt_dofs']} + rollers {info['n_roller_dofs']}); "
+          f"algebraic {info['n_algebraic']}, dynamic {info['n_dynamic']} (= N after elimination)")
+    print(f"  grid n_xi × n_eta = {info['n_xi']} × {info['n_eta']}, block size {info['block_size']}, "
+          f"bandwidth {info['bandwidth']}, path {info['path_length_mm']:.3f} mm, "
+          f"elements {info['element_length_mm'][0]:.3f}–{info['element_length_mm'][1]:.3f} mm")
+    print(f"  time dt = {info['dt_s']:g} s, {info['n_steps']} steps to {info['t_end_s']:g} s, CFL number "
+          f"{info['cfl']:.3f}; integrator {info['integrator']} ({info['linear_solver']} solve), "
+          f"transport {info['transport']}")
+    print(f"  outputs: {info['n_tracers']} tracers every {info['output_every']} step(s)"
+          f"{', full fields' if info['full_fields'] else ''}; pre-tension strain {info['pretension_strain']:.3g}")
+    for r in info["rollers"]:
+        print(f"  roller {r['name']!r}: {r['role']}, {r['side']}, r = {r['radius_mm']:g} mm at {r['center_mm']}, "
+              f"wrap {r['wrap_deg']:.1f}° ({r['elements']} elements), dynamic DOFs {r['dynamic_dofs'] or '-'}"
+              + (f", prescribed {r['prescribed']}" if any(r["prescribed"].values()) else ""))
+    for s in info["segments"]:
+        print(f"    {s['kind']:6s} {s['name']:24s} {s['length_mm']:10.3f} mm  {s['elements']:4d} elements")

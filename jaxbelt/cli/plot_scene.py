@@ -1,0 +1,22 @@
+"""``jaxbelt plot-scene``: draw rollers, belt path, contact and tracer points."""
+
+from ._common import SCENE_HELP, _load
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("plot-scene", help="draw rollers, belt path, contact and tracer points")
+    p.add_argument("scene", help=SCENE_HELP)
+    p.add_argument("--out", default=None, help="PNG path (default SCENE-scene.png)")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args):
+    from ..mesh import build_mesh
+    from ..plot import plot_scene
+
+    scene = _load(args.scene)
+    out = args.out or f"{scene.name}-scene.png"
+    plot_scene(scene, build_mesh(scene), out)
+    print(f"wrote {out}")
+    return 0

@@ -1,0 +1,255 @@
+"""``jaxbelt reduce``: train a reduced model (pod, dmd, dmdc, pdmd) and compare it with the full one."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from ._common import SCENE_HELP, SimulationError, UsageError, _emit, _finite, _fmt, _load, _positive, _timed
+
+REDUCE_METHODS = ("pod", "dmd", "dmdc", "pdmd")
+DEFAULT_MODES = {"pod": 20, "dmd": None, "dmdc": 30, "pdmd": 30}
+REDUCE_HELP = """\
+Train a reduced model and compare its tracer displacements with the full model's.
+
+methods:
+  pod   fully reduced POD step (solve and transport projected; jaxbelt.rom.fit_reduced_pod),
+        trained on the first --train-steps steps of SCENE, or of the --train scenes (several
+        configurations: the basis is linearised at the first one and run with SCENE's
+        parameters); predicts all --steps steps from SCENE's initial state.
+  dmd   exact DMD of SCENE's own pre-transport snapshots (one configuration): trains on the
+        first --train-steps steps, predicts the rest from the last training snapshot; modes
+        with |λ| > 1 + 1e-5 are discarded (jaxbelt.rom.DMDModel.stable; the static offset
+        lives on a mode at λ ≈ 1).
+  dmdc  DMD with control (inputs: the configuration parameters), trained on the --train scenes.
+  pdmd  parametric DMD (one DMD per --train scene, interpolated in parameter space).
+
+dmdc and pdmd predict a configuration they have not seen: --train needs at least two scenes,
+the nominal configuration plus one run per varied parameter, e.g. for a two-roller-1d-* scene
+  --train two-roller-1d two-roller-1d-train1
+(dmdc is valid at the drive speed(s) it was trained at; vary drive speeds with pdmd).
+
+The error is the tracer RMSE in mm over the predicted steps (the source's tolerance: 0.02 mm);
+the indicator (--stride K > 0) is the residual-based estimate of jaxbelt.rom.indicator. Times:
+the full run is timed after compilation, offline = snapshot runs + fit (compilation included),
+online = the reduced prediction after compilation; total speedup = full run / (offline +
+online) (the source's eq. 7.5 with one test configuration).
+"""
+
+
+def add_parser(subparsers):
+    r = subparsers.add_parser("reduce", help="train a reduced model (pod, dmd, dmdc, pdmd): accuracy and speedup vs the full one",
+                              description=REDUCE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    r.add_argument("scene", help=f"{SCENE_HELP}: the configuration to predict")
+    r.add_argument("--method", choices=REDUCE_METHODS, required=True)
+    r.add_argument("--train", nargs="+", default=None, metavar="SCENE",
+                   help="training scenes (pod: default SCENE itself; dmdc/pdmd: required, at least two: the nominal "
+                        "configuration plus one run per varied parameter)")
+    r.add_argument("--modes", type=int, default=None, metavar="N",
+                   help="reduced dimension (default: pod 20, dmdc/pdmd 30, dmd all non-negligible)")
+    r.add_argument("--train-steps", type=int, default=None, metavar="N", help="full-order steps per training scene "
+                   "(default min(200, steps/2))")
+    r.add_argument("--steps", type=int, default=None, metavar="N",
+                   help="steps to predict and compare (default: the scene's t_end / dt)")
+    r.add_argument("--stride", type=int, default=10, metavar="K",
+                   help="residual indicator every K-th step (0: skip; default 10)")
+    r.add_argument("--plot", default=None, metavar="FILE.png",
+                   help="write singular values / eigenvalues / error over time to this .png")
+    r.add_argument("--json", action="store_true", help="print a JSON summary")
+    r.set_defaults(func=run)
+    return r
+
+
+def run(args):
+    import jax
+    import jax.numpy as jnp
+
+    from .. import initial_state, rom, simulate
+    from ..model import compile_scene
+    from ..rom.indicator import residual_indicator
+
+    method = args.method
+    _positive("--modes", args.modes)
+    _positive("--steps", args.steps)
+    _positive("--train-steps", args.train_steps, 2 if method == "dmd" else 1)
+    _positive("--stride", args.stride, 0)
+    train_names = list(args.train or [])
+    if method in ("dmdc", "pdmd") and len(train_names) < 2:
+        raise UsageError(f"--method {method} needs --train with at least two scenes (the nominal configuration plus "
+                         f"one run per varied parameter), e.g. --train two-roller-1d two-roller-1d-train1")
+    if method == "dmd" and any(t != args.scene for t in train_names):
+        raise UsageError("--method dmd fits one configuration, the scene's own first --train-steps steps; "
+                         "use dmdc or pdmd (or pod) to train on other scenes")
+
+    if args.plot and not Path(args.plot).resolve().parent.is_dir():
+        raise UsageError(f"--plot {args.plot}: the folder {Path(args.plot).parent} does not exist")
+    scene = _load(args.scene)
+    test = compile_scene(scene)
+    train_names = train_names or [args.scene]
+    train_models = [test if t == args.scene else compile_scene(_load(t)) for t in train_names]
+    for name, m in zip(train_names, train_models):
+        if m.n_unknowns != test.n_unknowns or m.kind != test.kind or m.n_tracers != test.n_tracers:
+            raise UsageError(f"--train {name}: {m.kind} model with N = {m.n_unknowns} and {m.n_tracers} tracers; "
+                             f"{scene.name} has {test.kind}, N = {test.n_unknowns}, {test.n_tracers} tracers "
+                             "(training scenes need the same mesh)")
+        if m.dt != test.dt:
+            raise UsageError(f"--train {name}: dt = {m.dt:g} s, {scene.name} has dt = {test.dt:g} s")
+    if method == "pod":
+        for name, m in zip(train_names, train_models):
+            if m.transport != "shift":
+                raise UsageError(f"--method pod needs the 'shift' transport rule; {name} uses {m.transport!r}")
+    n = int(args.steps or test.n_steps)
+    m_train = int(args.train_steps or min(200, n // 2))
+    if m_train < (2 if method == "dmd" else 1):
+        raise UsageError(f"--steps = {n}: too few steps to train on (--train-steps = {m_train})")
+    if method == "dmd" and m_train >= n:
+        raise UsageError(f"--train-steps = {m_train} with --steps = {n}: dmd predicts the steps after the "
+                         "training window, so --train-steps must be smaller than --steps")
+    modes = DEFAULT_MODES[method] if args.modes is None else args.modes
+
+    # the full model, timed after its compilation
+    (_, traj), full_s = _timed(lambda: simulate(test, n_steps=n), repeat=3, budget_s=1.0)
+    if not np.all(np.isfinite(np.asarray(traj.tracer_u))):
+        raise SimulationError(f"the full simulation of {scene.name} diverged; nothing to compare with")
+    steps_full = np.rint(np.asarray(traj.t) / test.dt).astype(int)  # step number of each output row
+    C = rom.tracer_operator(test)
+    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
+    z0 = rom.state_to_z(test, initial_state(test))
+    mu = rom.parameters(test)
+
+    import time
+
+    t0 = time.perf_counter()
+    extra = {}
+    if method == "pod":
+        snaps = []
+        for m in train_models:
+            _, Zpre, Zpost = rom.collect_first_order(m, m_train)
+            snaps += [Zpre, Zpost]
+        fit = rom.fit_reduced_pod(train_models[0], jnp.concatenate(snaps, axis=1), n_modes=modes)
+        jax.block_until_ready(fit)
+        offline_s = time.perf_counter() - t0
+        xi0 = fit.project(test, initial_state(test))
+        run = jax.jit(lambda f, x, p: f.run(x, p, n))
+        out, online_s = _timed(run, fit, xi0, mu)
+        pred, start, compared = out["tracer_u"], 0, "tracer_u"
+        states = (lambda: fit.fields(jnp.concatenate([xi0[None], out["xi"]])), "post")
+        modes_used = fit.n_modes
+
+        def plot_data():
+            return dict(singular_values=fit.singular_values)
+    elif method == "dmd":
+        _, Zpre, _ = rom.collect_first_order(test, m_train)
+        full_fit = rom.fit_dmd(Zpre, rank=modes)
+        fit = full_fit.stable()
+        jax.block_until_ready(fit)
+        offline_s = time.perf_counter() - t0
+        x_start, k = Zpre[:, -1], n - m_train
+        pred_f = jax.jit(lambda f, x: f.predict(x, k, observe=Cz))
+        pred, online_s = _timed(pred_f, fit, x_start)
+        start, compared = m_train, "tracer_u_solved"
+        states = (lambda: jnp.concatenate([x_start[None], fit.predict(x_start, k)]), "pre")
+        modes_used = int(fit.eigs.shape[0])
+        extra["modes_discarded"] = int(full_fit.eigs.shape[0] - modes_used)
+
+        def plot_data():
+            return dict(singular_values=jnp.linalg.svd(Zpre[:, :-1], compute_uv=False),
+                        marked=int(full_fit.eigs.shape[0]), eigs=fit.eigs, eig_weights=fit.scaled_mode_norms(x_start))
+    else:
+        trajs = [rom.collect_first_order(m, m_train)[2] for m in train_models]
+        params = [rom.parameters(m) for m in train_models]
+        if method == "dmdc":
+            X, Y, U = rom.stack_controlled(trajs, [rom.belt_inputs(p, Z.shape[1] - 1) for p, Z in zip(params, trajs)])
+            fit = rom.fit_dmdc(X, Y, U, rank=modes)
+            jax.block_until_ready(fit)
+            offline_s = time.perf_counter() - t0
+            u = rom.belt_inputs(mu, 1)[:, 0]
+            pred_f = jax.jit(lambda f, z, u: f.predict(z, u, n, observe=Cz))
+            pred, online_s = _timed(pred_f, fit, z0, u)
+            states = (lambda: jnp.concatenate([z0[None], fit.predict(z0, u, n)]), "post")
+            modes_used = int(fit.A.shape[0])
+
+            def plot_data():
+                lam, W = np.linalg.eig(np.asarray(fit.A))
+                b = np.linalg.solve(W, np.asarray(fit.basis.T @ z0))  # amplitudes of the start state
+                return dict(singular_values=jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), compute_uv=False),
+                            eigs=lam, eig_weights=np.abs(b) * np.linalg.norm(W, axis=0))
+        else:
+            fit = rom.fit_parametric_dmd(trajs, jnp.stack(params), rank=modes)
+            jax.block_until_ready(fit)
+            offline_s = time.perf_counter() - t0
+            pred_f = jax.jit(lambda f, p: f.predict(p, n + 1, observe=Cz)[1:])
+            pred, online_s = _timed(pred_f, fit, mu)
+            states = (lambda: fit.predict(mu, n + 1), "post")
+            modes_used = int(fit.basis.shape[1])
+
+            def plot_data():
+                w = (np.abs(np.asarray(fit.amplitudes)) * np.linalg.norm(np.asarray(fit.modes), axis=1)).reshape(-1)
+                keep = w > 0  # not the padding of the per-configuration DMDs
+                return dict(singular_values=jnp.linalg.svd(jnp.concatenate(trajs, axis=1), compute_uv=False),
+                            eigs=np.asarray(fit.eigs).reshape(-1)[keep], eig_weights=w[keep])
+        start, compared = 0, "tracer_u"
+
+    # compare at the full run's output steps inside the predicted window (start, n]
+    rows = np.flatnonzero((steps_full > start) & (steps_full <= n))
+    truth = np.asarray(getattr(traj, compared))[rows]
+    pred = np.asarray(pred)[steps_full[rows] - start - 1]
+    err_t = np.sqrt(np.mean((truth - pred) ** 2, axis=1)) * 1e3
+    estimate = None
+    if args.stride > 0:
+        S, order = states
+        estimate = residual_indicator(test, S(), stride=args.stride, order=order)
+    online = max(online_s, 1e-12)
+    report = dict(
+        scene=scene.name, method=method, train=train_names, modes=modes_used, **extra, train_steps=m_train,
+        steps=n, predict_from_step=start, predict_steps=n - start, compared=compared,
+        n_unknowns=test.n_unknowns, n_tracers=test.n_tracers,
+        rmse_mm=_finite(rom.rmse(truth, pred) * 1e3), rrmse=_finite(rom.rrmse(truth, pred)),
+        max_rmse_over_time_mm=_finite(np.max(err_t)) if err_t.size else None,
+        error_estimate_mm=_finite(estimate["estimate_mm"][-1]) if estimate is not None else None,
+        stride=args.stride, n_test_configs=1,
+        timings=dict(full_run_s=full_s, offline_s=offline_s, online_s=online_s,
+                     speedup_online=full_s / online, speedup_total=1 * full_s / (offline_s + online_s)),
+    )
+    if args.plot:
+        from ..plot import plot_reduction
+
+        pd = plot_data()
+        est = {} if estimate is None else dict(  # the estimate after step k is that of state k + 1
+            estimate_t=(start + np.asarray(estimate["step"]) + 1) * test.dt,
+            estimate_mm=np.asarray(estimate["estimate_mm"]))
+        plot_reduction(dict(report, modes=pd.pop("marked", modes_used)), steps_full[rows] * test.dt, err_t, args.plot,
+                       singular_values=np.asarray(pd.pop("singular_values")), **pd, **est)
+        report["plot"] = str(args.plot)
+
+    def print_text(report):
+        print(f"reduced {scene.name} ({scene.kind}, N = {test.n_unknowns}) with {method}:")
+        _print_reduce(report)
+
+    _emit(args, report, print_text)
+    return 0
+
+
+def _print_reduce(r):
+    rows = [
+        ("scene", r["scene"]), ("method", r["method"]),
+        ("trained on", ", ".join(r["train"]) + f" ({r['train_steps']} steps each)"),
+        ("modes", str(r["modes"])
+         + (f" ({r['modes_discarded']} unstable discarded)" if r.get("modes_discarded") else "")),
+        ("predicted", f"{r['predict_steps']} steps from step {r['predict_from_step']} ({r['compared']})"),
+        ("RMSE", _fmt(r["rmse_mm"], " mm")), ("RRMSE", _fmt(r["rrmse"])),
+        ("max RMSE over time", _fmt(r["max_rmse_over_time_mm"], " mm")),
+        ("error estimate", _fmt(r["error_estimate_mm"], " mm") if r["error_estimate_mm"] is not None
+         else "-" if r["stride"] == 0 else "nan"),
+    ]
+    tm = r["timings"]
+    rows += [("full run", f"{tm['full_run_s']:.4g} s"), ("offline", f"{tm['offline_s']:.4g} s (snapshots + fit)"),
+             ("online", f"{tm['online_s']:.4g} s"), ("speedup online", _fmt(tm["speedup_online"], "×")),
+             ("speedup total", _fmt(tm["speedup_total"], "×"))]
+    if "plot" in r:
+        rows.append(("plot", r["plot"]))
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"  {k:<{w}}  {v}")

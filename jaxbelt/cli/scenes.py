@@ -1,0 +1,16 @@
+"""``jaxbelt scenes``: list the built-in scenes."""
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("scenes", help="list the built-in scenes")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args):
+    from ..scene import builtin_scene_names, load_scene
+
+    for name in builtin_scene_names():
+        sc = load_scene(name)
+        print(f"{name:32s} {sc.kind}  {sc.description}")
+    return 0

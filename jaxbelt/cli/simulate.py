@@ -1,0 +1,107 @@
+"""``jaxbelt simulate``: run a scene (``jaxbelt demo`` runs it on the default scene)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ._common import SCENE_HELP, SimulationError, UsageError, _emit, _load
+
+
+def add_parser(subparsers):
+    s = subparsers.add_parser("simulate", help="run a scene")
+    s.add_argument("scene", help=SCENE_HELP)
+    s.add_argument("--t-end", type=float, default=None, help="end time, s")
+    s.add_argument("--dt", type=float, default=None, help="time step, s (checked against CFL)")
+    s.add_argument("--integrator", choices=("naive", "direct", "eliminated"), default=None)
+    s.add_argument("--solver", choices=("structured", "dense", "reuse"), default=None,
+                   help="linear solver of the direct integrator (reuse: frozen factorisation + refinement)")
+    s.add_argument("--transport", choices=("source", "shift"), default=None,
+                   help="relabelling rule of the transport step (see jaxbelt.transport)")
+    s.add_argument("--out", default=None, help="write the trajectory to this .npz")
+    s.add_argument("--plot", default=None, help="write tracer/profile plots to this .png")
+    s.add_argument("--plot-times", default=None, help="times (s, comma-separated) of the profiles along the belt")
+    s.add_argument("--json", action="store_true", help="print a JSON summary")
+    s.add_argument("--progress", action="store_true", help="progress bar even when not on a terminal")
+    s.set_defaults(func=run)
+    return s
+
+
+def _summary(scene, model, traj, wall, compile_s):
+    t = np.asarray(traj.t)
+    tu = np.asarray(traj.tracer_u)
+    rv = np.asarray(traj.roller_velocity)
+    mass = np.asarray(traj.belt_mass)
+    tw = np.asarray(traj.transport_weights)
+    az = model.dofs.index("az")
+    return dict(
+        scene=scene.name, integrator=model.integrator, n_steps=int(round(t[-1] / model.dt)), t_end_s=float(t[-1]),
+        n_unknowns=model.n_unknowns, wall_s=wall, compile_s=compile_s,
+        tracer_u_max_abs_mm=float(np.max(np.abs(tu)) * 1e3), tracer_u_final_mm=(tu[-1] * 1e3).round(6).tolist(),
+        roller_speed_m_s={r.name: float(abs(rv[-1, j, az]) * r.radius) for j, r in enumerate(scene.rollers)},
+        belt_mass_kg=float(mass[-1]), belt_mass_rel_drift=float(np.max(np.abs(mass - mass[0])) / mass[0]),
+        transport=model.transport, transport_weight_range=[float(np.min(tw[:, 0])), float(np.max(tw[:, 1]))],
+    )
+
+
+def run(args, demo=False):
+    from .. import compile_scene, simulate_with_progress
+    from ..integrators import make_integrator
+    from ..mesh import build_mesh
+
+    scene = _load(args.scene, args.t_end, args.dt, args.integrator, getattr(args, "transport", None),
+                  getattr(args, "solver", None))
+    mesh = build_mesh(scene)
+    model = compile_scene(scene, mesh)
+    integrator = make_integrator(model.integrator, model)
+    progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
+    _, traj, timing = simulate_with_progress(model, integrator, progress=progress)
+    wall, compile_s = timing["run_s"], timing["compile_s"]
+    s = _summary(scene, model, traj, wall, compile_s)
+    if not np.all(np.isfinite(np.asarray(traj.tracer_u))):
+        k = int(np.argmax(~np.all(np.isfinite(np.asarray(traj.tracer_u)), axis=1)))
+        raise SimulationError(f"the simulation diverged (non-finite displacement at t = {float(traj.t[k]):g} s); "
+                              f"check the transport weights {s['transport_weight_range']} and the time step")
+    if args.out:
+        out = Path(args.out)
+        np.savez(
+            out, t=np.asarray(traj.t), transport_weights=np.asarray(traj.transport_weights),
+            **({"tracer_v": np.asarray(traj.tracer_v)} if traj.tracer_v is not None else {}), tracer_u=np.asarray(traj.tracer_u),
+            tracer_u_solved=np.asarray(traj.tracer_u_solved), roller_state=np.asarray(traj.roller_state),
+            roller_velocity=np.asarray(traj.roller_velocity), roller_reaction=np.asarray(traj.roller_reaction),
+            belt_mass=np.asarray(traj.belt_mass),
+            tracer_x=mesh.tracer_x, tracer_z=mesh.tracer_z, roller_names=np.array(model.roller_names),
+            roller_dofs=np.array(model.dofs), **({"u": np.asarray(traj.u)} if traj.u is not None else {}),
+        )
+        s["out"] = str(out)
+    if args.plot:
+        from ..plot import plot_run
+
+        times = None
+        if getattr(args, "plot_times", None):
+            try:
+                times = [float(v) for v in args.plot_times.split(",")]
+            except ValueError:
+                raise UsageError(f"--plot-times = {args.plot_times!r}: expected comma-separated times in s") from None
+        plot_run(traj, mesh, args.plot, times=times, title=f"{scene.name}: tracer trajectories")
+        s["plot"] = str(args.plot)
+
+    def print_text(s):
+        print(f"{'demo: ' if demo else ''}simulated {scene.name} ({scene.kind}, N = {model.n_unknowns}) for "
+              f"{s['t_end_s']:g} s in {s['n_steps']} steps with the {model.integrator} integrator: "
+              f"{wall:.2f} s run + {compile_s:.2f} s compile")
+        print(f"  max |tracer u| = {s['tracer_u_max_abs_mm']:.6g} mm; roller surface speeds "
+              + ", ".join(f"{k}: {v:.6g} m/s" for k, v in s["roller_speed_m_s"].items()))
+        print(f"  belt mass {s['belt_mass_kg']:.9g} kg, max relative drift {s['belt_mass_rel_drift']:.2e}")
+
+    _emit(args, s, print_text)
+    lo, hi = s["transport_weight_range"]
+    if lo < 0 or hi >= 1:
+        print(f"jaxbelt: warning: the {model.transport!r} transport step extrapolated (weights in [{lo:.3g}, {hi:.3g}], "
+              "outside [0, 1)); the results are not reliable. Use a smaller dt or --transport shift.", file=sys.stderr)
+        for k in ("out", "plot"):
+            if k in s:
+                print(f"  wrote {s[k]}")
+    return 0
