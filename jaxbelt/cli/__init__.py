@@ -1,4 +1,4 @@
-"""Command line: ``jaxbelt demo | scenes | info | simulate | plot-scene | reduce``.
+"""Command line: ``jaxbelt demo | scenes | info | simulate | plot-scene | reduce | sensitivity | tolerance | sweep``.
 
 One module per command. A command module provides ``add_parser(subparsers)``, which registers its
 sub-parser and sets its handler as ``func`` (``p.set_defaults(func=run)``, ``run(args) -> int``);
@@ -15,17 +15,26 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import demo, info, plot_scene, reduce, scenes, simulate
+from . import demo, info, plot_scene, reduce, scenes, sensitivity, simulate, sweep, tolerance
 from ._common import SimulationError, UsageError
 from .reduce import _print_reduce
 
-COMMANDS = (demo, scenes, info, plot_scene, simulate, reduce)  # in the order of ``jaxbelt --help``
+COMMANDS = (tolerance, sweep, sensitivity, demo, scenes, info, plot_scene, simulate, reduce)  # in the order of ``jaxbelt --help``
 
 __all__ = ["COMMANDS", "SimulationError", "UsageError", "_print_reduce", "build_parser", "main"]
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors (missing or malformed options) as one line and exit code 2."""
+
+    def error(self, message):
+        print(f"jaxbelt: error: {message}", file=sys.stderr)
+        sys.exit(2)
+
+
 def build_parser():
-    p = argparse.ArgumentParser(prog="jaxbelt", description="Differentiable conveyor-belt simulator (JAX)")
+    p = _Parser(prog="jaxbelt", description="Differentiable conveyor-belt simulator (JAX): tolerance design "
+                                              "of roller misalignments, simulation, model order reduction")
     sub = p.add_subparsers(dest="cmd", required=True)
     for command in COMMANDS:
         command.add_parser(sub)

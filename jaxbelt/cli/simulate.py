@@ -99,8 +99,10 @@ def run(args, demo=False):
     _emit(args, s, print_text)
     lo, hi = s["transport_weight_range"]
     if lo < 0 or hi >= 1:
+        advice = "a smaller dt" + (" or --transport shift" if model.transport != "shift" else "")
         print(f"jaxbelt: warning: the {model.transport!r} transport step extrapolated (weights in [{lo:.3g}, {hi:.3g}], "
-              "outside [0, 1)); the results are not reliable. Use a smaller dt or --transport shift.", file=sys.stderr)
+              f"outside [0, 1)); the results are not reliable. Use {advice}.", file=sys.stderr)
+    if not args.json:
         for k in ("out", "plot"):
             if k in s:
                 print(f"  wrote {s[k]}")

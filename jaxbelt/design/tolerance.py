@@ -185,14 +185,14 @@ def _scale_onto_limit(lin, h, limit, h_max, felt):
 
 def _shares(lin: LinearResponse, h, W: float) -> np.ndarray:
     """How much each component contributes to the worst case, at every *active* constraint
-    (within 0.1 % of ``W``): the parts ``|J_ik| h_k`` of an active row (max-type metrics; for
+    (within 1 % of ``W``): the parts ``|J_ik| h_k`` of an active row (max-type metrics; for
     RMS the row with the largest deviation at an active corner), normalised per constraint,
     then the largest share over the active constraints."""
     if lin.kind == "max":
-        rows = np.flatnonzero(np.abs(lin.r0) + np.abs(lin.J) @ h >= 0.999 * W)
+        rows = np.flatnonzero(np.abs(lin.r0) + np.abs(lin.J) @ h >= 0.99 * W)
     else:
         signs, vals = worst_corners(lin, h, 64)
-        rows = [np.argmax(np.abs(lin.r0 + lin.J @ (s * h))) for s, v in zip(signs, vals) if v >= 0.999 * W]
+        rows = [np.argmax(np.abs(lin.r0 + lin.J @ (s * h))) for s, v in zip(signs, vals) if v >= 0.99 * W]
     share = np.zeros(len(h))
     for i in rows:
         c = np.abs(lin.J[i]) * h

@@ -1,0 +1,81 @@
+"""Options and set-up shared by the tolerance-design commands (``sensitivity``, ``tolerance``,
+``sweep``): the scene, the metric and its evaluation time, the solver, and the checks that turn
+bad input into one line and exit code 2 before anything is computed or written."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+from ._common import SCENE_HELP, UsageError
+
+DESIGN_SCENE = "three-roller-tolerance"
+
+
+def add_design_arguments(p, metric_default: str, limit: bool = False):
+    p.add_argument("scene", nargs="?", default=DESIGN_SCENE,
+                   help=f"{SCENE_HELP} (default {DESIGN_SCENE}: the aligned three-roller machine, 4 s)")
+    p.add_argument("--metric", default=metric_default,
+                   help="lateral_rms | lateral_max | longitudinal_rms | lateral_peak | walk_rate "
+                        f"(default {metric_default})")
+    p.add_argument("--at", type=float, default=None, metavar="T", help="evaluation time in s (default: the scene's end)")
+    p.add_argument("--solver", default=None, help="structured (exact) | reuse (factorisation reuse); default the scene's")
+    if limit:
+        p.add_argument("--limit-um", type=float, default=20.0, help="limit on the metric, µm (default 20)")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument("--plot", default=None, metavar="FILE.png")
+    p.add_argument("--progress", action="store_true", help="progress bars and stage messages on stderr")
+
+
+def check_limit(v):
+    if not (math.isfinite(v) and v > 0):
+        raise UsageError(f"--limit-um = {v}: must be a positive number")
+
+
+def check_plot(path):
+    if path is not None and not Path(path).resolve().parent.is_dir():
+        raise UsageError(f"--plot = {path!r}: directory {str(Path(path).resolve().parent)!r} does not exist")
+
+
+def read_toml(path, option):
+    try:
+        return tomllib.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise UsageError(f"{option} = {str(path)!r}: no such file") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise UsageError(f"{option} = {str(path)!r}: not valid TOML ({e})") from None
+
+
+def load_design_model(args):
+    """The compiled model of ``args.scene`` (scene errors → exit 2)."""
+    from ..model import compile_scene
+    from ._common import _load
+
+    if args.at is not None and not (math.isfinite(args.at) and args.at > 0):
+        raise UsageError(f"--at = {args.at}: must be a positive time in s")
+    if args.solver not in (None, "structured", "reuse"):
+        raise UsageError(f"--solver = {args.solver!r}: one of structured, reuse")
+    return compile_scene(_load(args.scene, linear_solver=args.solver))
+
+
+def make_design_study(args, model, components=None):
+    """:func:`jaxbelt.design.make_study` with its ``ValueError``s as usage errors."""
+    from ..design import METRICS, make_study
+
+    if args.metric not in METRICS:
+        raise UsageError(f"--metric = {args.metric!r}: unknown (one of {', '.join(METRICS)})")
+    if args.at is not None and args.at > model.n_steps * model.dt + 1e-12:
+        raise UsageError(f"--at = {args.at}: after the scene's end ({model.n_steps * model.dt:g} s); "
+                         "lengthen [time] t_end_s")
+    try:
+        return make_study(model, args.metric, t_eval=args.at, components=components)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+
+
+def stage(args, text):
+    if args.progress:
+        import sys
+
+        print(f"jaxbelt: {text}", file=sys.stderr, flush=True)

@@ -1,0 +1,45 @@
+"""``jaxbelt sensitivity``: a metric and its gradient w.r.t. every roller misalignment component."""
+
+from __future__ import annotations
+
+from ._common import _emit
+from ._design import add_design_arguments, check_plot, load_design_model, make_design_study, stage
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("sensitivity", help="metric and its gradient w.r.t. every roller's misalignments "
+                                                  "(reverse mode through the whole run)")
+    add_design_arguments(p, "lateral_rms")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args):
+    from ..design import sensitivity_report
+
+    check_plot(args.plot)
+    model = load_design_model(args)
+    stage(args, f"aligned reference run ({model.n_unknowns} unknowns)")
+    study = make_design_study(args, model)
+    stage(args, "compiling and timing the forward run and the gradient")
+    report = sensitivity_report(study)
+    _emit(args, report, _print)
+    if args.plot:
+        from ..plot import plot_sensitivity
+
+        plot_sensitivity(report, args.plot)
+    return 0
+
+
+def _print(r):
+    print(f"{r['metric']} = {r['value_um']:.6g} µm at t = {r['t_eval_s']:g} s "
+          f"(forward {r['forward_s']:.3g} s, gradient {r['gradient_s']:.3g} s = ×{r['gradient_s'] / r['forward_s']:.2f})")
+    print(f"{'roller':14s} {'translation x, y, z [µm/mm]':>36s}   {'rotation x, y, z [µm/mrad]':>36s}")
+    for name, g in r["gradient"].items():
+        t = " ".join(f"{v:11.4g}" for v in g["translation_um_per_mm"])
+        a = " ".join(f"{v:11.4g}" for v in g["rotation_um_per_mrad"])
+        print(f"{name:14s} {t}   {a}")
+    if r["at_kink"]:
+        print("  (the machine is aligned: every metric has a kink there; shown are the one-sided slopes ≥ 0)")
+    for z in r["structural_zero"]:
+        print(f"  {z['component']}: structurally zero ({z['reason']})")

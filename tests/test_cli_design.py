@@ -1,0 +1,95 @@
+"""The tolerance-design commands: ``sensitivity``, ``tolerance``, ``sweep`` (JSON, plots, store)
+and their one-line errors for bad input."""
+
+import json
+
+import pytest
+
+from jaxbelt.cli import main
+
+SMALL = """extends = "three-roller-tolerance"
+[mesh]
+n_eta = 3
+[time]
+t_end_s = 0.2
+"""
+DIST = """[roller."roller 2"]
+rotation_mrad = {dist = "normal", sigma = [0.05, 0.05, 0.0]}
+"""
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("design_cli")
+    (d / "small.toml").write_text(SMALL)
+    (d / "dist.toml").write_text(DIST)
+    return d
+
+
+def _json(capsys, argv):
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_sensitivity_json_and_plot(files, capsys):
+    r = _json(capsys, ["sensitivity", str(files / "small.toml"), "--metric", "lateral_max", "--json",
+                       "--plot", str(files / "s.png")])
+    assert r["metric"] == "lateral_max" and r["at_kink"] and r["value_um"] < 1e-6
+    assert set(r["gradient"]) == {"roller 1", "roller 2", "roller 3"}
+    # a roller moved along its axis carries the belt with it: ~1 µm per µm
+    assert 900 < r["gradient"]["roller 3"]["translation_um_per_mm"][2] < 1100
+    assert all(g["rotation_um_per_mrad"][2] == 0.0 for g in r["gradient"].values())
+    assert r["forward_s"] > 0 and r["gradient_s"] > 0 and (files / "s.png").stat().st_size > 0
+
+
+def test_tolerance_json(files, capsys):
+    (files / "w.toml").write_text('[roller."roller 2"]\nrotation = [4.0, 1.0, 1.0]\n')
+    r = _json(capsys, ["tolerance", str(files / "small.toml"), "--components", "roller 2:rotation",
+                       "--weights", str(files / "w.toml"), "--json", "--plot", str(files / "t.png")])
+    assert r["verified"] and 0.97 * 20 <= r["worst_case_um"] <= 20
+    ax, ay = r["box"]["roller 2"]["rotation_mrad"][:2]
+    assert ax > 0 and ay > 0 and r["box"]["roller 1"]["rotation_mrad"] == [0.0, 0.0, 0.0]
+    assert r["binding"] and all(v["full_um"] <= 20 for v in r["verification"])
+
+
+def test_sweep_json_store_and_resume(files, capsys):
+    out = files / "sweep.zarr"
+    argv = ["sweep", str(files / "small.toml"), "--dist", str(files / "dist.toml"), "--samples", "24",
+            "--chunk", "8", "--limit-um", "8", "--out", str(out), "--json", "--no-form"]
+    r = _json(capsys, argv + ["--plot", str(files / "y.png")])
+    assert r["samples"] == 24 and r["full_runs"] == 24 and r["reduced_runs"] == 0
+    assert r["ci95"][0] <= r["yield"] <= r["ci95"][1]
+    again = _json(capsys, argv)  # everything already stored: resumes with nothing to run
+    assert again["yield"] == r["yield"]
+
+
+BAD = [
+    (["tolerance", "{small}", "--limit-um", "0"], "--limit-um"),
+    (["tolerance", "{small}", "--limit-um", "nan"], "--limit-um"),
+    (["sensitivity", "{small}", "--metric", "lateral_avg"], "--metric"),
+    (["tolerance", "{small}", "--components", "roller 7:rotation"], "roller 7"),
+    (["sweep", "{small}", "--dist", "{dist}", "--samples", "0"], "--samples"),
+    (["sweep", "{small}", "--dist", "{neg}"], "must not be negative"),
+    (["sweep", "{small}", "--dist", "{nan}"], "must be finite"),
+    (["sweep", "{small}", "--dist", "{gumbel}"], "unknown distribution"),
+    (["sweep", "{small}", "--dist", "{missing}"], "no such file"),
+    (["sweep", "{small}", "--dist", "{dist}", "--rom", "maybe"], "--rom"),
+    (["sensitivity", "{small}", "--at", "-1"], "--at"),
+]
+
+
+@pytest.mark.parametrize("argv,word", BAD, ids=[w for _, w in BAD])
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(files, capsys, argv, word):
+    for name, text in (("neg", "[roller.\"roller 2\"]\nrotation_mrad = {dist = \"normal\", sigma = [-0.1, 0, 0]}\n"),
+                       ("nan", "[roller.\"roller 2\"]\nrotation_mrad = {dist = \"normal\", sigma = [nan, 0, 0]}\n"),
+                       ("gumbel", "[roller.\"roller 2\"]\nrotation_mrad = {dist = \"gumbel\", sigma = [0.1, 0, 0]}\n")):
+        (files / f"{name}.toml").write_text(text)
+    paths = {k: str(files / f"{k}.toml") for k in ("small", "dist", "neg", "nan", "gumbel", "missing")}
+    out = files / "never.zarr"
+    argv = [a.format(**paths) for a in argv] + ["--plot", str(files / "never.png")]
+    if argv[0] == "sweep":
+        argv += ["--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and word in err[0] and "Traceback" not in err[0]
+    assert not out.exists() and not (files / "never.png").exists()
