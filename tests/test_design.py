@@ -262,3 +262,19 @@ def test_monte_carlo_and_form_match_openturns(study):
     p = 1 - mc["yield"]
     sd = np.sqrt(p * (1 - p) / 400 + p_ref * (1 - p_ref) / 400)
     assert abs(p - p_ref) <= 3.5 * sd + 1e-12
+
+
+@pytest.mark.parametrize("kind", ["max", "rms"])
+@pytest.mark.parametrize("offset", [0.0, 0.7])
+def test_worst_case_equals_enumerating_every_corner(kind, offset):
+    import itertools
+
+    rng = np.random.default_rng(1)
+    J = rng.normal(size=(7, 5))
+    lin = tolerance.LinearResponse(offset * rng.normal(size=7), J, kind)
+    h = rng.uniform(0.1, 1.0, size=5)
+    corners = np.array(list(itertools.product((-1.0, 1.0), repeat=5)))
+    brute = max(lin.metric(c * h) for c in corners)
+    signs, vals = tolerance.worst_corners(lin, h, 3)
+    assert np.isclose(tolerance.worst_case(lin, h), brute, rtol=1e-12)
+    assert np.isclose(lin.metric(signs[0] * h), brute, rtol=1e-12) and np.all(np.diff(vals) <= 0)

@@ -63,7 +63,7 @@ def _rms_corners(lin: LinearResponse, h) -> np.ndarray:
     if P <= ENUMERATE_MAX_P:
         return np.array(list(itertools.product((-1.0, 1.0), repeat=P)))
     Jh = lin.J * h
-    rows = np.where(np.sign(lin.r0)[:, None] * np.sign(Jh) >= 0, 1.0, -1.0)
+    rows = np.where(np.where(lin.r0 >= 0, 1.0, -1.0)[:, None] * Jh >= 0, 1.0, -1.0)
     _, _, vt = np.linalg.svd(Jh, full_matrices=False)
     cands = np.concatenate([rows, np.sign(vt[:4] + 1e-300), -np.sign(vt[:4] + 1e-300)])
     best = cands[np.argmax(np.linalg.norm(lin.r0 + (cands * h) @ lin.J.T, axis=1))]
@@ -82,8 +82,8 @@ def worst_corners(lin: LinearResponse, h, k: int = 4):
     **Returns:** ``(signs (m, P), values (m,))``: ``θ = signs * h``."""
     h = np.asarray(h, float)
     if lin.kind == "max":
-        signs = np.where(np.sign(lin.r0)[:, None] * np.sign(lin.J) >= 0, 1.0, -1.0)
-        signs[:, np.all(lin.J == 0, axis=0)] = 1.0
+        side = np.where(lin.r0 >= 0, 1.0, -1.0)[:, None]  # with r0_i = 0 either side is worst
+        signs = np.where(side * lin.J >= 0, 1.0, -1.0)
         vals = np.abs(lin.r0) + np.abs(lin.J) @ h
     else:
         signs = _rms_corners(lin, h)
@@ -242,10 +242,10 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     rng = np.random.default_rng(seed)
     target, s, history, table = 0.985 * limit_um, 1.0, [], []
     floor = float(aggregate(lin.kind, jnp.asarray(r0)))
+    rand = rng.choice([-1.0, 1.0], size=(n_random, len(h_lin)))  # the same corners in every iteration
     for it in range(max_iter):
         h = np.where(felt, s * h_lin, h_lin)
         signs, pred = worst_corners(lin, h, n_corners)
-        rand = rng.choice([-1.0, 1.0], size=(n_random, len(h)))
         corners = np.concatenate([signs, rand])
         full = np.asarray(evaluate_many(corners * h))
         pred_all = np.concatenate([pred, [lin.metric(c * h) for c in rand]])
