@@ -41,10 +41,32 @@ def build_parser():
     return p
 
 
+def enable_compilation_cache():
+    """JAX's persistent compilation cache for the command line, on by default: a second call of
+    the same command on the same scene shapes skips XLA compilation. Directory
+    ``$JAXBELT_CACHE_DIR`` or ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``);
+    ``JAXBELT_COMPILATION_CACHE=0`` switches it off. Programs using the Python API opt in
+    themselves (``jax.config.update("jax_compilation_cache_dir", ...)``)."""
+    import os
+    from pathlib import Path
+
+    import jax
+
+    if os.environ.get("JAXBELT_COMPILATION_CACHE", "1") == "0":
+        return None
+    path = os.environ.get("JAXBELT_CACHE_DIR") or str(
+        Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "jaxbelt" / "xla")
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    return path
+
+
 def main(argv=None) -> int:
     from ..scene import SceneError
 
     args = build_parser().parse_args(argv)
+    enable_compilation_cache()
     try:
         return args.func(args)
     except (SceneError, UsageError) as e:
