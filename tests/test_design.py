@@ -278,3 +278,15 @@ def test_worst_case_equals_enumerating_every_corner(kind, offset):
     signs, vals = tolerance.worst_corners(lin, h, 3)
     assert np.isclose(tolerance.worst_case(lin, h), brute, rtol=1e-12)
     assert np.isclose(lin.metric(signs[0] * h), brute, rtol=1e-12) and np.all(np.diff(vals) <= 0)
+
+
+def test_response_is_linear_in_small_misalignments(study):
+    """What the tolerance box relies on: r(θ) = r0 + J θ to 1e-6 relative at 0.05 mm / mrad."""
+    r0, J = design.response_jacobian(study)
+    f = jax.jit(lambda t: design.response(study, t))
+    scale = 0.05 * np.max(np.abs(J))  # components the metric hardly feels are held to round-off of the others
+    for k in range(study.space.size):
+        theta = np.zeros(study.space.size)
+        theta[k] = 0.05
+        dr = np.asarray(f(jnp.asarray(theta))) - r0
+        assert np.max(np.abs(dr - J @ theta)) <= 1e-6 * max(np.max(np.abs(J @ theta)), 1e-3 * scale)
