@@ -204,13 +204,18 @@ def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
     R0, Rdz = rollers.roller_constraint_rows_2d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii, mesh.z)
     is_con = np.repeat((mesh.node_roller >= 0)[:, None], 2 * mesh.n_eta, axis=1)
     M_r = rollers.roller_inertia_2d([r.mass for r in rl], radii, [r.width for r in rl])
-    return BeltModel(
+    model = BeltModel(
         x=jnp.asarray(mesh.x), ell=ell, K_diag=Kd, K_lower=Kl, K_upper=Ku, f0=f0,
         R=jnp.asarray(R0), R_dz=jnp.asarray(Rdz), is_constraint=jnp.asarray(is_con),
         m_e0=elements.quad_masses(ell, w_rows, belt.density, t), M_roller=jnp.asarray(M_r),
         **_node_geometry(mesh), **_roller_dofs(scene, mesh, rollers.DOFS_2D), **_tracers(mesh),
         **_settings(scene, rollers.DOFS_2D, "2d"),
     )
+    if scene.solver.tension_stiffening:
+        from .prestress import with_tension_stiffening
+
+        model = with_tension_stiffening(model, free, E, nu, t, mesh.length / L_belt - 1.0)
+    return model
 
 
 def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:

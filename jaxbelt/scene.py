@@ -88,6 +88,7 @@ class SolverSpec:
     linear_solver: str = "structured"  # structured | dense | reuse
     transport: str = "shift"  # shift (moving-reference relabelling) | source (eq. 3.56)
     lateral_transport: bool = False  # 2D: also transport v (lets a skewed roller steer the belt)
+    tension_stiffening: bool = True  # 2D: initial-stress (geometric) stiffness of the membrane tension
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,7 +125,7 @@ _TABLES = {
     "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements"},
     "time": {"dt_s", "t_end_s"},
     "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
-    "solver": {"integrator", "linear_solver", "transport", "lateral_transport"},
+    "solver": {"integrator", "linear_solver", "transport", "lateral_transport", "tension_stiffening"},
 }
 
 
@@ -302,6 +303,7 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
         linear_solver=_choice(solver, "linear_solver", "solver", _LINEAR, default="structured"),
         transport=_choice(solver, "transport", "solver", ("shift", "source"), default="shift"),
         lateral_transport=_choice(solver, "lateral_transport", "solver", (True, False), default=False),
+        tension_stiffening=_choice(solver, "tension_stiffening", "solver", (True, False), default=True),
     )
     if solver_spec.lateral_transport and kind == "1d":
         raise _err("solver.lateral_transport", True, "the 1D model has no lateral displacement")
