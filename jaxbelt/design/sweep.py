@@ -106,7 +106,8 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     result = {
         "metric": study.metric, "limit_um": float(limit_um), "samples": int(n), "seed": int(seed),
         "yield": passed / n, "ci95": list(wilson_interval(passed, n)), "passed": passed,
-        "full_runs": int(np.sum(code == MODEL_CODES["full"])) + (rom_info.get("validation_runs", 0) if rom_info["used"] else 0),
+        # the surrogate's training and validation runs are full runs too, used or not
+        "full_runs": int(np.sum(code == MODEL_CODES["full"])) + rom_info.get("validation_runs", 0),
         "reduced_runs": int(np.sum(code == MODEL_CODES["reduced"])), "rom": rom_info,
         "metric_values": metric,
     }
