@@ -197,7 +197,7 @@ def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
     ell = jnp.asarray(mesh.ell)
     w_rows = jnp.asarray(np.diff(mesh.z))
     free = jnp.asarray(mesh.elem_free, float)
-    Kd, Kl, Ku = elements.free_belt_stiffness_2d(ell, w_rows, free, E, nu, t)
+    Kd, Kl, Ku = elements.free_belt_stiffness_2d(ell, w_rows, free, E, nu, t, element=scene.mesh.element)
     L_belt = mesh.length if belt.length is None else belt.length
     f0 = elements.prestress_force_2d(ell, w_rows, free, E, mesh.length / L_belt - 1.0, t)
     radii = np.array([r.radius for r in rl])

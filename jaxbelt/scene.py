@@ -62,6 +62,7 @@ class MeshSpec:
     element_length: float | None = None  # m
     roller_elements: tuple[int, ...] | None = None
     free_elements: tuple[int, ...] | None = None
+    element: str = "qm6"  # 2D quad: qm6 (incompatible modes, no bending locking) | q4 (bilinear)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -114,6 +115,7 @@ _ROLES = ("drive", "idle", "tension")
 _SIDES = ("internal", "external")
 _INTEGRATORS = ("naive", "direct", "eliminated")
 _LINEAR = ("structured", "dense", "reuse")
+_ELEMENTS = ("qm6", "q4")  # jaxbelt.elements.QUAD_ELEMENTS; the default (first) is argued in quad_qm6_stiffness
 
 _TABLES = {
     "model": {"kind", "name", "description", "direction"},
@@ -122,7 +124,7 @@ _TABLES = {
         "name", "center_mm", "radius_mm", "width_mm", "mass_kg", "side", "role", "speed_m_s",
         "translation_mm", "rotation_mrad", "force_n", "torque_nm",
     },
-    "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements"},
+    "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements", "element"},
     "time": {"dt_s", "t_end_s"},
     "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
     "solver": {"integrator", "linear_solver", "transport", "lateral_transport", "tension_stiffening"},
@@ -260,7 +262,10 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
         element_length=None if el is None else el * 1e-3,
         roller_elements=_int_list(mesh, "roller_elements", "mesh", p),
         free_elements=_int_list(mesh, "free_elements", "mesh", p),
+        element=_choice(mesh, "element", "mesh", _ELEMENTS, default=_ELEMENTS[0]),
     )
+    if kind == "1d" and "element" in mesh:
+        raise _err("mesh.element", mesh["element"], "the 1D model is a string of bars; the element choice is 2D only")
     if (mesh_spec.roller_elements is None) != (mesh_spec.free_elements is None):
         raise _err("mesh.roller_elements", mesh.get("roller_elements"),
                    "give roller_elements and free_elements together")
