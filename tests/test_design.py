@@ -103,7 +103,8 @@ def test_jacobian_forward_matches_the_reverse_gradient(study):
     report = design.sensitivity_report(study, repeat=1)
     grad = np.array([p["gradient"] for p in report["parameters"]])
     rms = np.sqrt(np.mean(r0**2))
-    np.testing.assert_allclose(grad, J.T @ r0 / (len(r0) * rms), rtol=1e-9)
+    ref = J.T @ r0 / (len(r0) * rms)
+    np.testing.assert_allclose(grad, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
     assert np.isclose(report["value_um"], rms, rtol=1e-12)
     assert report["gradient"]["roller 1"]["rotation_um_per_mrad"] == [0.0, 0.0, 0.0]
     assert {z["component"] for z in report["structural_zero"]} == {"roller 1:az", "roller 2:az", "roller 3:az"}
