@@ -73,9 +73,11 @@ def _print(r):
     print(f"yield {r['yield']:.4f} (95 % Wilson interval {lo:.4f}–{hi:.4f}): {r['passed']} of {r['samples']} "
           f"configurations with {r['metric']} ≤ {r['limit_um']:g} µm")
     if "form_yield" in r:
-        print(f"FORM: β = {r['form_beta']:.3f}, yield {r['form_yield']:.6f}")
+        print(f"FORM: β = {r['form_beta']:.3f}, yield {r['form_yield']:.6f}; "
+              f"linear RSS stack-up (3σ) {r['rss_3sigma_um']:.4g} µm")
     if "is_yield" in r:
         print(f"importance sampling ({r['is_samples']} samples): yield {r['is_yield']:.6f} "
               f"(95 %: {r['is_ci95'][0]:.6f}–{r['is_ci95'][1]:.6f})")
     print(f"{r['full_runs']} full and {r['reduced_runs']} reduced runs in {r['wall_s']:.1f} s "
-          f"({r['configs_per_s']:.2f} configurations/s)")
+          f"({r['configs_per_s']:.2f} configurations/s)"
+          + (f"; reduced model ×{r['speedup_estimate']:.1f} (estimate)" if "speedup_estimate" in r else ""))

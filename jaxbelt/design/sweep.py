@@ -40,8 +40,12 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     """Monte-Carlo yield of ``study`` under ``dist`` (module docstring).
 
     **Returns:** ``{"metric", "limit_um", "samples", "yield", "ci95", "passed", "full_runs",
-    "reduced_runs", "rom", "form_yield", "form_beta", "is_yield", "is_ci95", "wall_s",
-    "configs_per_s", "metric_values" (n,)}`` (``is_*`` only when no or few samples failed)."""
+    "reduced_runs", "rom", "form_yield", "form_beta", "rss_3sigma_um", "is_yield", "is_ci95", "wall_s",
+    "configs_per_s", "speedup_estimate", "metric_values" (n,)}`` (``is_*`` only when no or few
+    samples failed; ``rss_3sigma_um``: the linear statistical stack-up, ``σ`` of a uniform law
+    ``h/√3``; ``speedup_estimate`` with a reduced model: the full model's time per configuration
+    in the validation runs, compilation included, times the configurations run, over the wall
+    time — indicative, ``benchmarks/yield_rom.py`` measures it side by side)."""
     if not (np.isfinite(limit_um) and limit_um > 0):
         raise ValueError(f"limit_um = {limit_um}: must be a positive number")
     if n < 1:
@@ -111,7 +115,17 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
         "reduced_runs": int(np.sum(code == MODEL_CODES["reduced"])), "rom": rom_info,
         "metric_values": metric,
     }
+    if rom_info["used"] and rom_info.get("n_validation"):
+        # indicative: the validation's full runs (their compilation included) per configuration
+        per_full = rom_info["validation_s"] / rom_info["n_validation"]
+        result["speedup_estimate"] = (n - done) * per_full / max(time.perf_counter() - t0, 1e-9)
     if with_form:
+        from .sensitivity import response_jacobian
+        from .tolerance import LinearResponse, rss_stackup
+
+        r0, J = response_jacobian(study)
+        sigma = [s if k == "normal" else s / np.sqrt(3.0) for k, s in zip(dist.kind, dist.scale)]
+        result["rss_3sigma_um"] = rss_stackup(LinearResponse(r0, J, study.aggregate), sigma)["three_sigma_um"]
         f = form(study, dist, limit_um)
         result.update(form_yield=f["yield"], form_beta=f["beta"], form_converged=f["converged"],
                       design_point=study.space.per_roller(f["theta_star"]))
