@@ -53,6 +53,7 @@ class BeltModel(eqx.Module):
     tracer_xi: jax.Array  # (n_tr,) local coordinate in [0, 1)
     tracer_row: jax.Array  # (n_tr,) element row (2D; 0 in 1D)
     tracer_eta: jax.Array  # (n_tr,) local lateral coordinate in [0, 1]
+    roller_half_width: jax.Array  # (p,) half of each roller's face width (along its axis), m
 
     dt: float = eqx.field(static=True)
     n_steps: int = eqx.field(static=True)
@@ -209,6 +210,7 @@ def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
         R=jnp.asarray(R0), R_dz=jnp.asarray(Rdz), is_constraint=jnp.asarray(is_con),
         m_e0=elements.quad_masses(ell, w_rows, belt.density, t), M_roller=jnp.asarray(M_r),
         **_node_geometry(mesh), **_roller_dofs(scene, mesh, rollers.DOFS_2D), **_tracers(mesh),
+        roller_half_width=jnp.asarray([0.5 * r.width for r in rl]),
         **_settings(scene, rollers.DOFS_2D, "2d"),
     )
     if scene.solver.tension_stiffening:
@@ -237,5 +239,6 @@ def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
         R=jnp.asarray(R), R_dz=jnp.zeros(R.shape), is_constraint=jnp.asarray(is_con),
         m_e0=rhoA * ell, M_roller=jnp.asarray(rollers.roller_inertia_1d([r.mass for r in rl], radii)),
         **_node_geometry(mesh), **_roller_dofs(scene, mesh, rollers.DOFS_1D), **_tracers(mesh),
+        roller_half_width=jnp.asarray([0.5 * r.width for r in rl]),
         **_settings(scene, rollers.DOFS_1D, "1d"),
     )

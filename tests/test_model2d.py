@@ -170,3 +170,23 @@ def test_roller_reactions_balance_and_vanish_at_dynamic_dofs():
     assert np.max(np.abs(total)) < 1e-3 * 200.0
     assert abs(reac[0, 5]) < 1e-3  # drive torque, N·m
     assert np.max(np.abs(reac[0, :2])) > 10.0  # the drive's support really carries the belt tension
+
+
+def test_belt_running_off_a_roller_is_reported_with_step_and_roller(tmp_path, capsys):
+    """A 400 mm belt on 402 mm rollers walks sideways on a twisted roller (lateral transport):
+    the edge margin starts at 1 mm, falls, and the CLI names the roller and the step where it
+    turns negative."""
+    from jaxbelt.cli import main
+
+    path = tmp_path / "narrow.toml"
+    path.write_text('extends = "three-roller"\n[mesh]\nn_eta = 3\n[time]\nt_end_s = 12.0\n'
+                    '[solver]\nlateral_transport = true\n'
+                    '[variant."roller 1"]\nwidth_mm = 402.0\n[variant."roller 2"]\nwidth_mm = 402.0\n'
+                    'rotation_mrad = [5.0, 0.0, 0.0]\n[variant."roller 3"]\nwidth_mm = 402.0\n')
+    assert main(["simulate", str(path), "--json"]) == 0
+    out = capsys.readouterr()
+    import json
+
+    off = json.loads(out.out)["belt_off_roller"]
+    assert off is not None and off["margin_mm"] < 0 and 0 < off["step"] <= 600
+    assert f"runs off {off['roller']!r} at step {off['step']}" in out.err

@@ -43,7 +43,22 @@ def _summary(scene, model, traj, wall, compile_s):
         roller_speed_m_s={r.name: float(abs(rv[-1, j, az]) * r.radius) for j, r in enumerate(scene.rollers)},
         belt_mass_kg=float(mass[-1]), belt_mass_rel_drift=float(np.max(np.abs(mass - mass[0])) / mass[0]),
         transport=model.transport, transport_weight_range=[float(np.min(tw[:, 0])), float(np.max(tw[:, 1]))],
+        belt_off_roller=belt_off_roller(model, traj),
     )
+
+
+def belt_off_roller(model, traj):
+    """The first recorded step at which a belt edge has left a roller's face (``edge_margin`` < 0):
+    ``{"roller", "step", "t_s", "margin_mm"}``, or ``None`` (and always in 1D)."""
+    if traj.edge_margin is None:
+        return None
+    m = np.asarray(traj.edge_margin)
+    bad = np.argwhere(m < 0)
+    if not len(bad):
+        return None
+    k, j = bad[0]
+    t = float(np.asarray(traj.t)[k])
+    return {"roller": model.roller_names[j], "step": int(round(t / model.dt)), "t_s": t, "margin_mm": float(m[k, j] * 1e3)}
 
 
 def run(args, demo=False):
@@ -97,6 +112,11 @@ def run(args, demo=False):
         print(f"  belt mass {s['belt_mass_kg']:.9g} kg, max relative drift {s['belt_mass_rel_drift']:.2e}")
 
     _emit(args, s, print_text)
+    off = s["belt_off_roller"]
+    if off:
+        print(f"jaxbelt: warning: the belt runs off {off['roller']!r} at step {off['step']} (t = {off['t_s']:g} s): "
+              f"its edge is {-off['margin_mm']:.3g} mm beyond the roller's face; later results are not physical",
+              file=sys.stderr)
     lo, hi = s["transport_weight_range"]
     if lo < 0 or hi >= 1:
         advice = "a smaller dt" + (" or --transport shift" if model.transport != "shift" else "")
