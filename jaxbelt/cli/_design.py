@@ -79,3 +79,16 @@ def stage(args, text):
         import sys
 
         print(f"jaxbelt: {text}", file=sys.stderr, flush=True)
+
+
+def finish(args, out, print_text, plot_name, *plot_args):
+    """Print ``out`` (JSON with ``--json``) and, with ``--plot``, draw ``jaxbelt.plot.<plot_name>(*plot_args,
+    args.plot)``."""
+    from ._common import _emit
+
+    _emit(args, out, print_text)
+    if args.plot:
+        from .. import plot
+
+        getattr(plot, plot_name)(*plot_args, args.plot)
+    return 0

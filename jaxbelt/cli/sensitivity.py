@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from ._common import _emit
-from ._design import add_design_arguments, check_plot, load_design_model, make_design_study, stage
+from ._design import add_design_arguments, check_plot, finish, load_design_model, make_design_study, stage
 
 
 def add_parser(subparsers):
@@ -23,12 +22,7 @@ def run(args):
     study = make_design_study(args, model)
     stage(args, "compiling and timing the forward run and the gradient")
     report = sensitivity_report(study)
-    _emit(args, report, _print)
-    if args.plot:
-        from ..plot import plot_sensitivity
-
-        plot_sensitivity(report, args.plot)
-    return 0
+    return finish(args, report, _print, "plot_sensitivity", report)
 
 
 def _print(r):

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._common import UsageError, _emit
-from ._design import (add_design_arguments, check_limit, check_plot, load_design_model, make_design_study,
+from ._common import UsageError
+from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
                       read_toml, stage)
 
 
@@ -59,13 +59,7 @@ def run(args):
     res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
                     rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
     values = res.pop("metric_values")
-    out = {k: v for k, v in res.items()}
-    _emit(args, out, _print)
-    if args.plot:
-        from ..plot import plot_yield
-
-        plot_yield(values, args.limit_um, res, args.plot)
-    return 0
+    return finish(args, res, _print, "plot_yield", values, args.limit_um, res)
 
 
 def _print(r):

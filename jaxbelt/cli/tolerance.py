@@ -4,8 +4,8 @@ verified by full runs."""
 from __future__ import annotations
 
 
-from ._common import UsageError, _emit
-from ._design import (add_design_arguments, check_limit, check_plot, load_design_model, make_design_study,
+from ._common import UsageError
+from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
                       read_toml, stage)
 
 
@@ -48,12 +48,7 @@ def run(args):
                                "verified", "binding", "unconstrained", "verification", "iterations", "rss_um")}
     out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
                           for lab, h, u, s in zip(res["labels"], res["half_widths"], res["units"], res["share"])]
-    _emit(args, out, _print)
-    if args.plot:
-        from ..plot import plot_tolerance_box
-
-        plot_tolerance_box(res, args.plot)
-    return 0
+    return finish(args, out, _print, "plot_tolerance_box", res)
 
 
 def _print(r):
