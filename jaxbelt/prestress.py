@@ -59,9 +59,8 @@ def quad_gauss_stress(ell, w, u_e, E, nu, sig_pre):
 def membrane_stress(model, u, elem_free, E, nu, eps0):
     """Gauss-point stresses (n, n_eta-1, 4, 3) of the belt displacement ``u`` (n, b) plus the
     pre-tension ``σ_xx = E ε₀``; zero on roller elements (``elem_free`` (n,) 0/1)."""
-    n, n_eta = model.n_xi, model.n_eta
     w_rows = jnp.diff(model.z0)
-    idx = _quad_dofs(n_eta)  # (n_eta-1, 8) into the column pair [u_i; u_{i+1}]
+    idx = _quad_dofs(model.n_eta)  # (n_eta-1, 8) into the column pair [u_i; u_{i+1}]
     pair = jnp.concatenate([u, jnp.roll(u, -1, axis=0)], axis=1)  # (n, 2b)
     u_e = pair[:, idx]  # (n, n_eta-1, 8)
     sig_pre = jnp.array([E * eps0, 0.0, 0.0])

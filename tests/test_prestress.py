@@ -13,7 +13,6 @@ from jaxbelt.prestress import quad_geometric_stiffness
 
 def test_geometric_stiffness_equals_scikit_fem():
     skfem = pytest.importorskip("skfem")
-    from skfem.helpers import dot
 
     ell, w, t = 0.03, 0.02, 3e-4
     sx, sz, txz = 2.0e6, -3.0e5, 4.0e5
