@@ -31,6 +31,9 @@ class Trajectory(eqx.Module):
     ``roller_velocity`` (k, p, d); ``roller_reaction`` (k, p, d) support force (N) / torque (N·m)
     at prescribed roller DOFs, residual (≈ 0) at dynamic ones; ``belt_mass`` (k,); ``transport_weights`` (k, 2) min/max
     interpolation weight of the transport step (outside [0, 1) = extrapolation);
+    ``edge_margin`` (k, p) 2D: the smallest distance (m) from a belt edge to the end of each
+    roller's face over the belt nodes on that roller, negative once the belt runs off it
+    (:func:`edge_margin`; ``None`` in 1D);
     ``u`` (k, n_xi, b) or ``None``.
     """
 
@@ -43,6 +46,7 @@ class Trajectory(eqx.Module):
     roller_reaction: jax.Array
     belt_mass: jax.Array
     transport_weights: jax.Array
+    edge_margin: jax.Array | None
     u: jax.Array | None
 
 
@@ -59,6 +63,21 @@ def tracer_values(model: BeltModel, u):
                 + xi * (1 - e) * F[c1, r] + xi * e * F[c1, r + 1])
 
     return at(u[:, 0::2]), at(u[:, 1::2])
+
+
+def edge_margin(model: BeltModel, u, chi):
+    """Per roller (p,): ``min over its belt nodes of (W_j/2 − |z_edge + v_edge − d_z,j|)`` for both
+    belt edges, in m; ``W_j`` the roller's face width, ``d_z,j`` its axial translation. Negative:
+    the belt edge has left the roller's face (MODEL.md §1 requires belt ≤ roller width at rest;
+    lateral motion can still carry it off). ``+inf`` for a roller without belt nodes."""
+    p, d = model.n_rollers, len(model.dofs)
+    dz = chi.reshape(p, d)[:, model.dofs.index("dz")]
+    v = u[:, 1::2]
+    z_edges = jnp.stack([model.z0[0] + v[:, 0], model.z0[-1] + v[:, -1]], axis=1)  # (n, 2)
+    j = jnp.maximum(model.node_roller, 0)
+    margin = model.roller_half_width[j, None] - jnp.abs(z_edges - dz[j, None])
+    margin = jnp.where((model.node_roller >= 0)[:, None], margin, jnp.inf).min(axis=1)
+    return jax.ops.segment_min(margin, j, num_segments=p)
 
 
 def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: bool = False):
@@ -92,6 +111,7 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
             roller_reaction=roller_loads(state, solved).reshape(p, d),
             belt_mass=jnp.sum(m_e),
             transport_weights=weights,
+            edge_margin=edge_margin(model, u, new.chi) if model.kind == "2d" else None,
         )
         if model.full_fields:
             rec["u"] = u
