@@ -2,11 +2,17 @@
 
 ``simulate`` is pure: ``jax.grad`` differentiates through the whole run (e.g. a tracer metric
 w.r.t. ``model.chi_static``) and ``jax.vmap`` batches it over models that differ in array
-fields (misalignments). Outputs are scan outputs, decimated by ``model.every``; full fields are
+fields (misalignments). Reverse mode costs about three forward runs
+(``benchmarks/gradient_cost.py``): the step's linear solve has its own adjoint, which reuses the
+step's factors (:func:`jaxbelt.linalg.bordered.solve_with_adjoint`), and the scan is
+checkpointed in chunks of ``~√n`` steps, so memory grows as ``√n``, not ``n``, for one extra
+forward pass. Outputs are scan outputs, decimated by ``model.every``; full fields are
 only produced when the scene asks for them (``[output] fields = "full"``).
 """
 
 from __future__ import annotations
+
+import math
 
 import equinox as eqx
 import jax
@@ -125,32 +131,66 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
     return step
 
 
-def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, n_steps: int):
+def _checkpointed_scan(body, carry, length: int, chunk: int):
+    """``lax.scan(body, carry, None, length=length)`` in chunks of ``chunk`` iterations, each
+    chunk under ``jax.checkpoint``: reverse mode keeps only the carries at chunk boundaries and
+    recomputes one chunk at a time (one extra forward pass, memory ∝ ``length / chunk`` carries
+    + ``chunk`` steps' residuals). A loop no longer than ``chunk`` is a plain scan. Outputs
+    (``None`` allowed) are stacked as by one scan; a forward-only run computes the same."""
+    if length <= chunk:
+        return lax.scan(body, carry, None, length=length)
+
+    def part(k, in_scan):  # inside a scan XLA cannot CSE the recomputation away
+        return jax.checkpoint(lambda c: lax.scan(body, c, None, length=k), prevent_cse=not in_scan)
+
+    n_chunks, rem = divmod(length, chunk)
+    carry, ys = lax.scan(lambda c, _: part(chunk, True)(c), carry, None, length=n_chunks)
+    ys = jax.tree.map(lambda a: a.reshape(n_chunks * chunk, *a.shape[2:]), ys)
+    if rem:
+        carry, ys_rem = part(rem, False)(carry)
+        ys = jax.tree.map(lambda a, b: jnp.concatenate([a, b]), ys, ys_rem)
+    return carry, ys
+
+
+def default_checkpoint_chunk(n_steps: int) -> int:
+    """Steps per checkpointed chunk of :func:`run`: ``⌈√n⌉``, so reverse-mode memory grows as
+    ``√n`` (``√n`` carries and ``√n`` steps' residuals), at the price of one extra forward pass."""
+    return max(1, math.isqrt(max(n_steps - 1, 0)) + 1)
+
+
+def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, n_steps: int,
+        checkpoint: int | None = None):
     """``n_steps`` steps from ``state``; records every ``model.every``-th step.
+
+    The loop is a two-level scan: chunks of ``checkpoint`` steps (default
+    :func:`default_checkpoint_chunk`; ``0``: none) under ``jax.checkpoint``, so reverse mode
+    through a long run stays in bounded memory; the forward result is the same.
 
     **Returns:** ``(final_state, Trajectory)``.
     """
     step = make_step(model, integrator)
     every = model.every
     n_out, tail = divmod(n_steps, every)
+    chunk = default_checkpoint_chunk(n_steps) if checkpoint is None else (checkpoint or n_steps)
+    advance = lambda s, _: (step(s)[0], None)
 
-    def chunk(s, _):
-        s = lax.fori_loop(0, every - 1, lambda i, s_: step(s_)[0], s) if every > 1 else s
+    def record(s, _):
+        s = _checkpointed_scan(advance, s, every - 1, chunk)[0] if every > 1 else s
         return step(s)
 
-    state, rec = lax.scan(chunk, state, None, length=n_out)
+    state, rec = _checkpointed_scan(record, state, n_out, max(1, chunk // every))
     if tail:
-        state = lax.fori_loop(0, tail, lambda i, s_: step(s_)[0], state)
+        state = _checkpointed_scan(advance, state, tail, chunk)[0]
     return state, Trajectory(u=rec.pop("u", None), **rec)
 
 
 @eqx.filter_jit
-def _run_jit(model, integrator, state, n_steps):
-    return run(model, integrator, state, n_steps)
+def _run_jit(model, integrator, state, n_steps, checkpoint=None):
+    return run(model, integrator, state, n_steps, checkpoint)
 
 
 def simulate(model: BeltModel, integrator: AbstractIntegrator | str | None = None,
-             state: BeltState | None = None, n_steps: int | None = None):
+             state: BeltState | None = None, n_steps: int | None = None, checkpoint: int | None = None):
     """Simulate a compiled model (jit-compiled; differentiable; vmap-able over array fields).
 
     **Arguments:**
@@ -159,13 +199,15 @@ def simulate(model: BeltModel, integrator: AbstractIntegrator | str | None = Non
       ``None`` for the scene's choice.
     - ``state``: start state; default :func:`jaxbelt.initial_state` (static equilibrium).
     - ``n_steps``: default ``model.n_steps`` (``t_end / dt``).
+    - ``checkpoint``: steps per checkpointed chunk for reverse mode (:func:`run`); default
+      ``⌈√n_steps⌉``, ``0`` for none.
 
     **Returns:** ``(final_state, Trajectory)``.
     """
     integrator = resolve_integrator(integrator, model)
     if state is None:
         state = initial_state(model)
-    return _run_jit(model, integrator, state, int(model.n_steps if n_steps is None else n_steps))
+    return _run_jit(model, integrator, state, int(model.n_steps if n_steps is None else n_steps), checkpoint)
 
 
 def simulate_with_progress(model: BeltModel, integrator=None, n_steps: int | None = None,

@@ -2,9 +2,13 @@
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import pytest
 
 import jaxbelt as jb
+from jaxbelt.linalg import bordered_solve, join
+from jaxbelt.linalg.bordered import factor_solve_transposed, factorise
+from test_linalg import _random
 
 
 @pytest.fixture(scope="module")
@@ -64,3 +68,146 @@ def test_grad_2d_wrt_each_misalignment_component(model2d, dof):
     e = jnp.zeros_like(chi0).at[k].set(h)
     fd = (_metric2d(model2d, chi0 + e) - _metric2d(model2d, chi0 - e)) / (2 * h)
     assert abs(float(g - fd)) <= 1e-5 * abs(float(fd)) + 1e-12
+
+
+# --- the solve's own adjoint and the checkpointed scan ---------------------------------------
+
+
+
+def _rel(x, ref):
+    return float(jnp.linalg.norm(x - ref) / jnp.linalg.norm(ref))
+
+
+@pytest.mark.parametrize("method", ["thomas", "cyclic-reduction"])
+def test_adjoint_solve_equals_dense_transposed_solve(method):
+    """The transposed solve with A's factors, and reverse mode through ``bordered_solve`` (its
+    right-hand-side cotangent is ``A⁻ᵀ x̄``), equal a dense ``jnp.linalg`` solve with ``Aᵀ``."""
+    A, cb, cr = _random(9, 4, 6)
+    ref = jnp.linalg.solve(A.to_dense().T, join(cb, cr))
+    assert _rel(join(*factor_solve_transposed(factorise(A, method), cb, cr)), ref) < 1e-12
+    _, pullback = jax.vjp(lambda rb, rr: bordered_solve(A, rb, rr, method), jnp.zeros_like(cb), jnp.zeros_like(cr))
+    assert _rel(join(*pullback((cb, cr))), ref) < 1e-12
+
+
+def test_reverse_mode_reuses_the_factors():
+    """The pullback of ``bordered_solve`` neither refactorises nor differentiates the
+    factorisation: outside its transposed ``custom_linear_solve`` (the transposed sweeps with the
+    forward pass's factors) there is no sequential sweep, LU or triangular solve, only the
+    matrix cotangent's products. Differentiating ``factor_solve(factorise(A))`` has them all."""
+    from jaxbelt.linalg.bordered import factor_solve
+
+    A, rb, rr = _random(12, 4, 6)
+
+    def outside_solves(f):
+        _, pullback = jax.vjp(f, A, rb)
+        names = set()
+
+        def walk(jaxpr):
+            for eqn in jaxpr.eqns:
+                names.add(eqn.primitive.name)
+                if eqn.primitive.name != "custom_linear_solve":
+                    for p in eqn.params.values():
+                        for sub in p if isinstance(p, (tuple, list)) else (p,):
+                            sub = getattr(sub, "jaxpr", sub)
+                            if hasattr(sub, "eqns"):
+                                walk(sub)
+
+        walk(jax.make_jaxpr(pullback)(f(A, rb)).jaxpr)
+        return names
+
+    factorisation = {"scan", "while", "lu", "triangular_solve"}
+    names = outside_solves(lambda A, rb: bordered_solve(A, rb, rr, "thomas"))
+    assert "custom_linear_solve" in names and not names & factorisation
+    assert outside_solves(lambda A, rb: factor_solve(factorise(A, "thomas"), rb, rr)) & factorisation
+
+
+def _coarse_2d(name):
+    from helpers import scene_with
+
+    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), name))
+
+
+# scene, steps, chi_static components with an effect (drive, idle, tension roller; translations
+# and rotations), components of dynamic DOFs (no static effect: zero gradient)
+_FD_CASES = {
+    "1d-drive-idle": (lambda: jb.load_model("two-roller-1d"), 60, [0, 1, 2], [3]),
+    "1d-tension": (lambda: jb.load_model("two-roller-1d-tension"), 60, [0, 1], [2, 3]),
+    # roller 1 drive (0-4), roller 2 tension (7-10; dx dynamic), roller 3 idle (12-16); α_z: 5, 11, 17
+    "2d-tension": (lambda: _coarse_2d("three-roller-tension"), 30, [0, 1, 2, 3, 4, 7, 8, 9, 10, 12, 13, 14, 15, 16],
+                   [6, 11, 17]),
+}
+
+
+def _tracer_metric(model, n_steps, solver):
+    def metric(chi):
+        m = model.replace(chi_static=chi)
+        _, tr = jb.simulate(m, jb.make_integrator("direct", m, solver), n_steps=n_steps)
+        v = 0.0 if tr.tracer_v is None else jnp.sum(tr.tracer_v**2) * 1e6 + jnp.mean(tr.tracer_v) * 1e3
+        return jnp.mean(tr.tracer_u[-1]) * 1e3 + jnp.sum(tr.tracer_u[-1] ** 2) * 1e6 + v
+
+    return metric
+
+
+@pytest.mark.parametrize("solver", ["structured", "reuse"])
+@pytest.mark.parametrize("case", list(_FD_CASES))
+def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, solver):
+    """Reverse mode through the whole run (custom adjoint solve, checkpointed scan) against
+    central differences (h = 1e-6 m or rad) around a random misalignment, every component."""
+    make, n_steps, active, inactive = _FD_CASES[case]
+    model = make()
+    d = len(model.dofs)
+    scale = np.where(np.arange(model.chi_static.size) % d < min(d - 1, 3), 1e-3, 3e-4)
+    chi0 = model.chi_static + jnp.asarray(np.random.default_rng(0).uniform(-1, 1, model.chi_static.size) * scale)
+    metric = _tracer_metric(model, n_steps, solver)
+    g = jax.jit(jax.grad(metric))(chi0)
+    f = jax.jit(metric)
+    h = 1e-6
+    gmax = float(jnp.max(jnp.abs(g)))
+    for k in active + inactive:
+        e = jnp.zeros_like(chi0).at[k].set(h)
+        fd = float((f(chi0 + e) - f(chi0 - e)) / (2 * h))
+        if k in active:
+            assert abs(float(g[k]) - fd) < 1e-6 * abs(fd), (k, float(g[k]), fd)
+        else:
+            assert abs(float(g[k])) <= 1e-12 * gmax and abs(fd) <= 1e-9 * gmax, (k, float(g[k]), fd)
+
+
+def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
+    """Chunked ``jax.checkpoint`` with ``every = 3`` and a tail of 2 steps: 1-step chunks (nested
+    inside each record, the tail checkpointed too) give the same trajectory and gradient as no
+    checkpointing, 6-step chunks (2 records, and a remainder chunk of 1) the same trajectory."""
+    model = jb.load_model("two-roller-1d").replace(every=3)
+    state = jb.initial_state(model)
+
+    def metric(t, checkpoint):
+        _, tr = jb.simulate(model.with_misalignment(translation=t), state=state, n_steps=17, checkpoint=checkpoint)
+        return jnp.sum(tr.tracer_u**2) * 1e6 + jnp.mean(tr.roller_velocity), tr
+
+    def check(tr, ref):
+        for a, b in zip(jax.tree.leaves(tr), jax.tree.leaves(ref)):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13 * float(jnp.max(jnp.abs(b))))
+
+    t0 = jnp.array([0.0, 1e-3])
+    value_and_grad = lambda checkpoint: jax.jit(jax.value_and_grad(lambda t: metric(t, checkpoint), has_aux=True))(t0)
+    (_, ref), ref_g = value_and_grad(0)
+    assert ref.t.shape == (5,)
+    (_, tr), g = value_and_grad(1)
+    check(tr, ref)
+    np.testing.assert_allclose(np.asarray(g), np.asarray(ref_g), rtol=1e-10)
+    check(metric(t0, 6)[1], ref)
+
+
+def test_checkpointing_bounds_reverse_mode_memory():
+    """XLA's temporary memory for the gradient of a 400-step run: the checkpointed scan (20-step
+    chunks) needs a fraction of what storing every step's residuals takes."""
+    model = jb.load_model("two-roller-1d")
+
+    def temp_bytes(checkpoint):
+        def metric(chi):
+            m = model.replace(chi_static=chi)
+            _, tr = jb.timeloop.run(m, jb.DirectBackwardEuler(), jb.initial_state(m), 400, checkpoint)
+            return jnp.sum(tr.tracer_u[-1] ** 2)
+
+        return jax.jit(jax.grad(metric)).lower(model.chi_static).compile().memory_analysis().temp_size_in_bytes
+
+    assert temp_bytes(None) < temp_bytes(0) / 4

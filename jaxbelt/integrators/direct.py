@@ -13,7 +13,11 @@ class DirectBackwardEuler(AbstractIntegrator):
     """Solve ``(M + Δt² K) ẍ = F - K (x + Δt ẋ)``, then ``ẋ += Δt ẍ``, ``x += Δt ẋ``.
 
     ``linear_solver = "structured"`` uses the exact bordered block-cyclic solve
-    (:func:`jaxbelt.linalg.bordered_solve`), ``"dense"`` the dense reference.
+    (:func:`jaxbelt.linalg.bordered_solve`), ``"dense"`` the dense reference. Derivatives of the
+    structured solve do not go through its factorisation: it carries its own adjoint, a
+    transposed solve with the step's factors (:func:`jaxbelt.linalg.bordered.solve_with_adjoint`),
+    and the matrix derivative comes from the structured mat-vec; the dense reference is
+    differentiated by JAX's rules for ``jnp.linalg.solve``.
     """
 
     linear_solver: str = eqx.field(static=True, default="structured")

@@ -10,14 +10,21 @@ $$ x_{k+1} = x_k + F_0^{-1} (r - A x_k), $$
 each iteration costing one structured mat-vec and one pair of block triangular sweeps. With
 ``refine`` iterations the result converges to the exact solve; its error against the exact mode
 is measured in ``benchmarks/solver_2d.py`` and ``tests/test_reuse.py``.
+
+Derivatives treat the refined solution as the exact ``A⁻¹ r`` (implicit-function rule,
+:func:`jaxbelt.linalg.bordered.solve_with_adjoint`): the adjoint solve is the same refinement
+transposed, ``λ_{k+1} = λ_k + F_0^{-T} (x̄ - Aᵀ λ_k)``, with the frozen factors and the current
+matrix's transposed mat-vec; the frozen factors are never differentiated.
 """
 
 from __future__ import annotations
 
 import equinox as eqx
+from jax import lax
 
 from ..assembly import dae_apply, dae_matrices, dae_rhs, roller_R
-from ..linalg.bordered import BorderedFactorisation, factor_solve, factorise
+from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
+                              solve_with_adjoint)
 from ..state import initial_state
 from ._base import AbstractIntegrator
 
@@ -33,7 +40,7 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
         state = initial_state(model) if state is None else state
         R = roller_R(model, state.u)
         K, M = dae_matrices(model, state.m_e, R)
-        return cls(factorise(M + K.scale(model.dt**2)), refine)
+        return cls(lax.stop_gradient(factorise(M + K.scale(model.dt**2))), refine)
 
     def solve_step(self, model, state):
         dt = model.dt
@@ -45,14 +52,24 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
 
         F_b, F_r = dae_rhs(model, state.u, state.chi, R)
         (Kp_b, Kp_r), _ = dae_apply(model, state.m_e, R, state.u + dt * state.u_dot, state.chi + dt * state.chi_dot)
-        r_b, r_r = F_b - Kp_b, F_r - Kp_r
-        a_b, a_r = factor_solve(self.factors, r_b, r_r)
-        for _ in range(self.refine):
-            y_b, y_r = A_matvec(a_b, a_r)
-            d_b, d_r = factor_solve(self.factors, r_b - y_b, r_r - y_r)
-            a_b, a_r = a_b + d_b, a_r + d_r
+        a_b, a_r = solve_with_adjoint(
+            A_matvec, F_b - Kp_b, F_r - Kp_r,
+            lambda matvec, rb, rr: _refined(lambda *r: factor_solve(self.factors, *r), matvec, rb, rr, self.refine),
+            lambda vecmat, rb, rr: _refined(lambda *r: factor_solve_transposed(self.factors, *r), vecmat, rb, rr,
+                                            self.refine),
+        )
         ud, chid = state.u_dot + dt * a_b, state.chi_dot + dt * a_r
         return eqx.tree_at(
             lambda s: (s.u, s.u_dot, s.chi, s.chi_dot), state,
             (state.u + dt * ud, ud, state.chi + dt * chid, chid),
         )
+
+
+def _refined(solve0, matvec, r_b, r_r, refine: int):
+    """``refine`` steps of iterative refinement of ``solve0(r)`` against ``matvec``."""
+    a_b, a_r = solve0(r_b, r_r)
+    for _ in range(refine):
+        y_b, y_r = matvec(a_b, a_r)
+        d_b, d_r = solve0(r_b - y_b, r_r - y_r)
+        a_b, a_r = a_b + d_b, a_r + d_r
+    return a_b, a_r

@@ -19,10 +19,14 @@ columns, ``D``: roller rows × belt columns, ``E``: roller × roller).
 elimination (a sequential ``lax.scan``); ``T⁻¹`` is applied to the ``s`` border columns and a
 dense ``s × s`` Schur complement closes the system. :func:`factorise` keeps all of it, so
 :func:`factor_solve` re-solves for a new right-hand side with matrix products only (the
-factorisation-reuse integrator). Everything is ordinary ``jnp`` code: it jit-compiles, vmaps
-and is differentiable by JAX's own rules. Neither interior method pivots across blocks; after
-row equilibration the belt blocks of ``M + Δt² K`` are diagonally dominant (lumped mass plus
-stiffness, identity rows for the no-slip constraints), which is what makes that safe.
+factorisation-reuse integrator). Everything is ordinary ``jnp`` code: it jit-compiles and
+vmaps. Derivatives do not go through the factorisation: :func:`bordered_solve` is a
+``custom_linear_solve`` (:func:`solve_with_adjoint`) whose tangent solve and adjoint solve
+(:func:`factor_solve_transposed`) reuse the step's factors, and whose matrix derivative comes from
+the structured mat-vec — reverse mode costs one transposed solve per solve and keeps only the
+factors. Neither interior method pivots across blocks; after row equilibration the belt blocks
+of ``M + Δt² K`` are diagonally dominant (lumped mass plus stiffness, identity rows for the
+no-slip constraints), which is what makes that safe.
 """
 
 from __future__ import annotations
@@ -194,15 +198,16 @@ class BorderedFactorisation(eqx.Module):
     """Factors of a row-equilibrated bordered block-cyclic matrix, for repeated solves.
 
     ``interior``: factors of the block-tridiagonal interior ``T`` (cyclic reduction or Thomas);
-    ``y_G = T⁻¹ G`` for the border columns, the (row-equilibrated) matrix ``A`` for the border
-    rows' couplings, and the LU of the ``(b + q)²`` Schur complement. A solve with them costs
-    ``O(n b (b + q))``."""
+    ``y_G = T⁻¹ G`` for the border columns, the border rows' couplings to the interior ``H =
+    (U_0, L_0, D[1:])`` (row-equilibrated; :func:`_border_times`), and the LU of the
+    ``(b + q)²`` Schur complement. A solve with them costs ``O(n b (b + q))``; they are all that
+    reverse mode keeps per step for the adjoint solve."""
 
     row_b: jax.Array
     row_r: jax.Array
     interior: CyclicReductionFactors | ThomasFactors
     y_G: jax.Array
-    A: BorderedBlockCyclic
+    H: tuple
     S_lu: jax.Array
     S_piv: jax.Array
 
@@ -223,11 +228,17 @@ def _border_parts(A):
     return G, Z
 
 
-def _border_times(A, Y):
-    """``H Y`` for interior values ``Y`` (n-1, b, k) without forming ``H``: block 0's rows see
-    interior blocks 1 and n-1 only (``U_0``, ``L_0``), the roller rows see ``D``."""
-    top = A.upper[0] @ Y[0] + A.lower[0] @ Y[-1]
-    rollers = jnp.einsum("nqb,nbk->qk", A.D[1:], Y)
+def _border_rows(A):
+    """``H``, the border rows' couplings to the interior blocks ``1..n-1``, in sparse form: block
+    0's rows see interior blocks 1 and n-1 only (``U_0``, ``L_0``), the roller rows see ``D``."""
+    return A.upper[0], A.lower[0], A.D[1:]
+
+
+def _border_times(H, Y):
+    """``H Y`` for interior values ``Y`` (n-1, b, k) without forming ``H`` (:func:`_border_rows`)."""
+    U0, L0, D = H
+    top = U0 @ Y[0] + L0 @ Y[-1]
+    rollers = jnp.einsum("nqb,nbk->qk", D, Y)
     return jnp.concatenate([top, rollers], axis=0)
 
 
@@ -257,8 +268,9 @@ def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFact
         y_G = bcr_apply(interior, G)
     else:
         interior, y_G = thomas_factor(As.diag[1:], As.lower[1:], As.upper[1:], G)
-    S_lu, S_piv = lu_factor(Z - _border_times(As, y_G))
-    return BorderedFactorisation(row_b, row_r, interior, y_G, As, S_lu, S_piv)
+    H = _border_rows(As)
+    S_lu, S_piv = lu_factor(Z - _border_times(H, y_G))
+    return BorderedFactorisation(row_b, row_r, interior, y_G, H, S_lu, S_piv)
 
 
 def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
@@ -268,21 +280,59 @@ def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
     rb, rr = rhs_belt * F.row_b, rhs_roll * F.row_r
     b = rb.shape[1]
     y_r = _apply_interior(F.interior, rb[1:, :, None])[:, :, 0]
-    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - _border_times(F.A, y_r[:, :, None])[:, 0])
+    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - _border_times(F.H, y_r[:, :, None])[:, 0])
     x_int = y_r - jnp.einsum("nbs,s->nb", F.y_G, x_border)
     return jnp.concatenate([x_border[None, :b], x_int], axis=0), x_border[b:]
+
+
+def factor_solve_transposed(F: BorderedFactorisation, rhs_belt, rhs_roll):
+    """Solve ``Aᵀ x = r`` with the factors of ``A`` (the adjoint solve; no refactorisation).
+
+    :func:`factor_solve` is linear in its right-hand side, so its transpose — ``jax.linear_transpose``
+    of the same sweeps, run backwards: the interior's reversed Thomas/cyclic-reduction scans,
+    the Schur complement's transposed LU and the row scales last — applies ``(A⁻¹)ᵀ = A⁻ᵀ``."""
+    spec = (jax.ShapeDtypeStruct(rhs_belt.shape, rhs_belt.dtype), jax.ShapeDtypeStruct(rhs_roll.shape, rhs_roll.dtype))
+    return jax.linear_transpose(lambda rb, rr: factor_solve(F, rb, rr), *spec)((rhs_belt, rhs_roll))
+
+
+def solve_with_adjoint(matvec, rhs_belt, rhs_roll, solve, solve_transposed):
+    """``x = A⁻¹ r`` by ``solve``, differentiated by the implicit-function rule, not through ``solve``.
+
+    ``matvec(x_b, x_r) = A x`` carries the dependence of ``A`` on the parameters;
+    ``solve(matvec, r_b, r_r)`` applies ``A⁻¹`` and ``solve_transposed(vecmat, r_b, r_r)``
+    ``A⁻ᵀ`` (``vecmat = Aᵀ ·``, for refinement; each gets the product it may use as its first
+    argument). Forward mode solves ``A ẋ = ṙ - Ȧ x``, reverse mode ``Aᵀ λ = x̄`` and pulls
+    ``-λ xᵀ`` back through ``matvec``; whatever the solves close over (factors) is a constant,
+    never differentiated (``jax.lax.custom_linear_solve``). The right-hand side goes in as one
+    flat vector: ``custom_linear_solve`` fails on a tangent that is zero in one part only (a
+    right-hand side whose belt rows do not depend on the parameters, e.g. the first step from
+    a fixed state)."""
+    n, b = rhs_belt.shape
+
+    def flat(f):
+        return lambda op, r: join(*f(lambda xb, xr: split(op(join(xb, xr)), n, b), *split(r, n, b)))
+
+    x = lax.custom_linear_solve(lambda v: join(*matvec(*split(v, n, b))), join(rhs_belt, rhs_roll),
+                                solve=flat(solve), transpose_solve=flat(solve_transposed))
+    return split(x, n, b)
 
 
 def bordered_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array,
                    method: str | None = None):
     """Exact solve of ``A x = r`` exploiting the structure (module docstring).
 
+    Differentiable at the cost of solves: :func:`factorise` runs once, on ``stop_gradient(A)``;
+    the derivative comes from :func:`solve_with_adjoint`, the adjoint solve reuses the same
+    factors (:func:`factor_solve_transposed`).
+
     **Arguments:** ``A``; ``rhs_belt`` (n, b); ``rhs_roll`` (q,); ``method`` of the interior.
     **Returns:** ``(x_belt (n, b), x_roll (q,))``.
     """
     if A.n_blocks < 3:
         return dense_solve(A, rhs_belt, rhs_roll)
-    return factor_solve(factorise(A, method), rhs_belt, rhs_roll)
+    F = factorise(lax.stop_gradient(A), method)
+    return solve_with_adjoint(A.matvec, rhs_belt, rhs_roll, lambda _, rb, rr: factor_solve(F, rb, rr),
+                              lambda _, rb, rr: factor_solve_transposed(F, rb, rr))
 
 
 def dense_solve(A: BorderedBlockCyclic, rhs_belt: jax.Array, rhs_roll: jax.Array):
