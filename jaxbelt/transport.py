@@ -29,6 +29,19 @@ Decisions where the source is silent (documented here, tested in ``tests/``):
   interpolated and ``R_r χ`` of the node added back; across a contact line (upwind node on a
   free span) the plain value is used. Without misalignment (or in the source's variant) this
   changes nothing, since ``R_r χ`` is then the same rigid rotation at every node of a roller.
+* **Entry lines and the normal-entry law** (2D, ``lateral_transport = true``). Material that
+  crosses an *entry* contact line (free span upstream, roller downstream) keeps its lateral
+  position relative to the roller surface *continued tangentially* past the contact line:
+  ``v_entry ← a v_up + (1 - a) v_entry + s σ``, ``σ`` the lateral slope of the roller's
+  circumferential lines at the contact line (its skew as the entering span sees it), ``s`` the
+  distance transported.
+  In steady walk at rate ``c`` this is Shelton's normal-entry law ``c = V (σ − y')``, i.e. the
+  belt's Eulerian slope is continuous across the entry line. Plain values across the line (the
+  rule before) give ``c = −V y'`` instead: the belt enters a skewed roller as if it were
+  aligned, held there by a concentrated lateral friction force that a real contact (finite
+  friction per area) cannot supply, and a tight belt on a skewed roller hardly walks
+  (``docs/lateral.md`` §4). Only ``v`` is continued: the longitudinal ``u`` keeps the plain
+  value, so the 1D model and the source's variant are unchanged.
 * **Rotations** about the roller axes (``α_z``) are reset to zero (the roller's 'mean').
 
 Two relabelling rules (``[solver] transport``):
@@ -93,6 +106,28 @@ def roller_relative_correction(model: BeltModel, a, fwd, r):
     return jnp.where(same, a * (r - upwind_values(r, fwd)), 0.0)
 
 
+def entry_line_correction(model: BeltModel, a, fwd, r):
+    """``a ℓ_up σ`` at entry contact-line nodes, else 0 (all (n, b)).
+
+    An entry node lies on a roller whose upwind neighbour does not; ``σ`` is the slope of the
+    roller-surface displacement ``r`` along the arc at the node, from a one-sided three-point
+    difference over the next two nodes of the same roller (second order: a chord would put a
+    spurious skew ``α ℓ / 2r`` on a twisted roller), continued over the upwind element of length
+    ``ℓ_up`` (module docstring, normal-entry law)."""
+    rollers = jnp.broadcast_to(model.node_roller[:, None], r.shape)
+    up = upwind_values(rollers, fwd)
+    entry = (rollers >= 0) & (up != rollers)
+    ell = model.ell[:, None]
+    ell_up = jnp.where(fwd, jnp.roll(ell, 1, axis=0), ell)
+    h1 = jnp.where(fwd, ell, jnp.roll(ell, 1, axis=0))
+    h2 = jnp.where(fwd, jnp.roll(ell, -1, axis=0), jnp.roll(ell, 2, axis=0))
+    r1 = jnp.where(fwd, jnp.roll(r, -1, axis=0), jnp.roll(r, 1, axis=0))
+    r2 = jnp.where(fwd, jnp.roll(r, -2, axis=0), jnp.roll(r, 2, axis=0))
+    slope = (-(2 * h1 + h2) / (h1 * (h1 + h2)) * r + (h1 + h2) / (h1 * h2) * r1
+             - h1 / (h2 * (h1 + h2)) * r2)
+    return jnp.where(entry, a * ell_up * slope, 0.0)
+
+
 def _x_dofs(model: BeltModel, f):
     """The longitudinal components (n, n_eta) of a belt field (n, b)."""
     return f if model.kind == "1d" else f[:, 0::2]
@@ -133,6 +168,9 @@ def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=
         fwd = jnp.repeat(fwd_x, 2, axis=1)
     r = roller_surface_displacement(model, chi, roller_R(model, u) if R is None else R)
     u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, r)
+    if model.kind == "2d" and model.lateral_transport:  # normal entry: lateral DOFs only
+        v_mask = jnp.tile(jnp.array([0.0, 1.0]), model.n_eta)
+        u_new = u_new + v_mask * entry_line_correction(model, a, fwd, r)
     mean = s if shift else jnp.mean(_x_dofs(model, u_new))
     x_mask = jnp.ones(u.shape[1]) if model.kind == "1d" else jnp.tile(jnp.array([1.0, 0.0]), model.n_eta)
     u_new = u_new - mean * x_mask
