@@ -13,7 +13,8 @@ beam limit (1/3 of it). Also: a twist (about x) against the per-pass shift ``2 r
 a mesh-convergence check, tension stiffening off, and the three-roller scene's tilt of roller 2
 split into skew and twist per span. Writes ``results/lateral_theory.json`` and ``.png``.
 
-``python benchmarks/lateral_theory.py [--quick]`` (quick: three K L points, coarse meshes).
+``python benchmarks/lateral_theory.py [--quick | --shape]`` (quick: three K L points, coarse
+meshes; shape: only the steady span shape against the reference's, ``results/lateral_span_shape.json``).
 """
 
 import sys
@@ -122,6 +123,40 @@ def three_roller(alpha=2e-4, n_eta=9, n_xi=208, dt=0.01, t_end=20.0):
     return row
 
 
+def span_shape(w_mm=50, eps0=5e-3, alpha=1e-3, n_xis=(200, 400)):
+    """Steady lateral span shape: the centre-line tracers of both spans at the end of the run
+    (walk offset removed) against the reference's Timoshenko span shape, on two meshes."""
+    import jax.numpy as jnp
+
+    rows = []
+    for n_xi in n_xis:
+        sc = scene(w_mm, eps0, n_xi=n_xi, dt=round(0.8 * L_LOOP / n_xi, 5), t_end=16.0)
+        mesh = jb.build_mesh(sc)
+        rot = np.zeros((2, 3))
+        rot[1, 1] = alpha
+        _, tr = jb.simulate(jb.compile_scene(sc, mesh).with_misalignment(rotation=jnp.asarray(rot)))
+        v = np.asarray(tr.tracer_v[-1])
+        EI, kGA = th.belt_section(w_mm * 1e-3, T_B, E, NU)
+        _, shape = th.walk_rate(th.scene_geometry(sc)[0], rot, E * eps0 * w_mm * 1e-3 * T_B, EI, kGA,
+                                return_shape=True)
+        starts = np.cumsum([0.0] + [seg.length for seg in mesh.path.segments])
+        xs, mv, rv = [], [], []
+        for k, seg in enumerate(mesh.path.segments):
+            if seg.kind != "free":
+                continue
+            span = sum(q.kind == "free" for q in mesh.path.segments[:k])
+            on = (mesh.tracer_x >= starts[k]) & (mesh.tracer_x <= starts[k + 1])
+            xs += list(mesh.tracer_x[on])
+            mv += list(v[on])
+            rv += [shape(span, x - starts[k])[0] for x in mesh.tracer_x[on]]
+        mv, rv = np.array(mv) - np.mean(mv), np.array(rv) - np.mean(rv)
+        rows.append({"n_xi": n_xi, "x_m": xs, "model_mm": (mv * 1e3).tolist(), "reference_mm": (rv * 1e3).tolist(),
+                     "range_mm": float(np.ptp(rv) * 1e3), "max_error_over_range": float(np.max(np.abs(mv - rv)) / np.ptp(rv))})
+        print(f"span shape n_xi {n_xi}: range {rows[-1]['range_mm']:.3f} mm, max error "
+              f"{100 * rows[-1]['max_error_over_range']:.2f} % of it", flush=True)
+    return rows
+
+
 def main(quick=False):
     if quick:
         cases = [(50, 2.5e-5), (50, 5e-3), (10, 2e-2)]
@@ -186,4 +221,8 @@ def plot(rows, off, name):
 
 
 if __name__ == "__main__":
-    main(quick="--quick" in sys.argv)
+    if "--shape" in sys.argv:  # the span-shape comparison alone
+        write("lateral_span_shape", {"scene": "two rollers, w = 50 mm, eps0 = 5e-3, K L = 4.9, roller 2 skewed 1 mrad",
+                                     "rows": span_shape()})
+    else:
+        main(quick="--quick" in sys.argv)

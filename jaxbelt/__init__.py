@@ -25,7 +25,9 @@ from .scene import SceneError as SceneError
 from .scene import builtin_scene_names as builtin_scene_names
 from .scene import load_scene as load_scene
 from .scene import scene_from_dict as scene_from_dict
+from .timeloop import NonFiniteStateError as NonFiniteStateError
 from .timeloop import Trajectory as Trajectory
+from .timeloop import check_finite as check_finite
 from .timeloop import simulate as simulate
 from .timeloop import simulate_with_progress as simulate_with_progress
 from .state import BeltState as BeltState

@@ -90,3 +90,65 @@ def with_tension_stiffening(model, elem_free, E, nu, t, eps0):
     sig = membrane_stress(model, u0, elem_free, E, nu, eps0)
     Kd, Kl, Ku = geometric_stiffness_blocks(model, sig, t)
     return model.replace(K_diag=model.K_diag + Kd, K_lower=model.K_lower + Kl, K_upper=model.K_upper + Ku)
+
+
+def span_forces(scene, mesh, model) -> list[dict]:
+    """Net membrane force of every free span in the static solution of ``model`` (its own
+    misalignments), N: ``t Σ_rows w_row σ̄_xx`` in 2D (σ̄ the element's Gauss-point mean, plane
+    stress, pre-tension included), ``E A (u' + ε₀)`` in 1D, averaged over the span's elements.
+
+    **Returns:** per span ``{"span": "roller a → roller b", "force_n", "strain", "x_m"}`` with
+    ``strain = force / (E A)`` and ``x_m`` the span's mid-point along the belt."""
+    import numpy as np
+
+    from .state import initial_state
+
+    belt = scene.belt
+    L_belt = mesh.length if belt.length is None else belt.length
+    eps0 = mesh.length / L_belt - 1.0
+    u = initial_state(model).u
+    free = np.asarray(mesh.elem_free, bool)
+    if model.kind == "1d":
+        ell = np.asarray(mesh.ell)
+        ux = np.asarray(u[:, 0])
+        force = belt.youngs_modulus * belt.area * ((np.roll(ux, -1) - ux) / ell + eps0)
+    else:
+        sig = np.asarray(membrane_stress(model, u, free.astype(float), belt.youngs_modulus,
+                                         belt.poisson_ratio, eps0))  # (n, n_eta-1, 4, 3)
+        w_rows = np.diff(np.asarray(mesh.z))
+        force = belt.thickness * (sig[..., 0].mean(axis=2) * w_rows[None, :]).sum(axis=1)
+    names = [r.name for r in scene.rollers]
+    starts = list(mesh.segment_starts) + [mesh.n_xi]
+    out = []
+    for k, seg in enumerate(mesh.path.segments):
+        if seg.kind != "free":
+            continue
+        cols = np.arange(starts[k], starts[k + 1])
+        cols = cols[free[cols]]
+        a = seg.index
+        f = float(force[cols].mean())
+        out.append({"span": f"{names[a]} → {names[(a + 1) % len(names)]}", "force_n": f,
+                    "strain": f / (belt.youngs_modulus * belt.area),
+                    "x_m": float(mesh.x[cols].mean() + 0.5 * mesh.ell[cols].mean())})
+    return out
+
+
+SLACK_STRAIN = 1e-6  # net compressive strain above round-off of the static solution
+
+
+def slack_spans(scene, mesh, model) -> list[dict]:
+    """The spans of :func:`span_forces` under net compression (strain below ``−SLACK_STRAIN``):
+    the belt is longer than its path there and would sag or lift off; the linear model carries
+    the compression like a tension, so its lateral and longitudinal answers are not a real
+    belt's. Decision: warn (CLI: stderr line with "slack", JSON ``slack``), do not refuse — the
+    source's own scenes have no pre-tension, and a roller moved a few mm inwards already puts a
+    span under slight compression; how much is acceptable is the user's call."""
+    return [s for s in span_forces(scene, mesh, model) if s["strain"] < -SLACK_STRAIN]
+
+
+def slack_message(slack: list[dict]) -> str:
+    """One line naming the slack spans, their compressive force and strain."""
+    parts = [f"{s['span']} ({s['force_n']:.3g} N, strain {s['strain']:.2e}, around x = {s['x_m']:.3f} m)"
+             for s in slack]
+    return ("slack belt: net compression in the static solution of " + "; ".join(parts)
+            + " — the belt is longer than its path there; add pre-tension (belt.length_mm) or a tension roller")

@@ -40,6 +40,10 @@ class Trajectory(eqx.Module):
     ``edge_margin`` (k, p) 2D: the smallest distance (m) from a belt edge to the end of each
     roller's face over the belt nodes on that roller, negative once the belt runs off it
     (:func:`edge_margin`; ``None`` in 1D);
+    ``nonfinite`` (k,) int8 NaN/inf guard: 0 while the state is finite, else the first part of
+    it that is not (:data:`NONFINITE_CAUSES`: 1 belt displacement, 2 belt velocity, 3 roller
+    state) — evaluated inside the scan, read once at the end (:func:`check_finite`), no host sync
+    per step;
     ``u`` (k, n_xi, b) or ``None``.
     """
 
@@ -53,7 +57,47 @@ class Trajectory(eqx.Module):
     belt_mass: jax.Array
     transport_weights: jax.Array
     edge_margin: jax.Array | None
+    nonfinite: jax.Array
     u: jax.Array | None
+
+
+NONFINITE_CAUSES = {1: "belt displacement", 2: "belt velocity", 3: "roller state"}
+
+
+class NonFiniteStateError(FloatingPointError):
+    """The simulated state became NaN or infinite (the step, its time and which part)."""
+
+
+def nonfinite_code(u, u_dot, chi, chi_dot):
+    """0 if the state is finite, else the code (:data:`NONFINITE_CAUSES`) of its first bad part."""
+    fin = lambda a: jnp.all(jnp.isfinite(a))  # noqa: E731
+    return jnp.where(~fin(u), 1, jnp.where(~fin(u_dot), 2, jnp.where(~(fin(chi) & fin(chi_dot)), 3, 0))).astype(jnp.int8)
+
+
+def first_nonfinite(traj: "Trajectory"):
+    """``(k, t, cause)`` of the first recorded step whose state is not finite, or ``None``."""
+    import numpy as np
+
+    code = np.asarray(traj.nonfinite)
+    bad = np.flatnonzero(code)
+    if bad.size == 0:
+        return None
+    k = int(bad[0])
+    return k, float(np.asarray(traj.t)[k]), NONFINITE_CAUSES[int(code[k])]
+
+
+def check_finite(traj: "Trajectory", dt: float | None = None):
+    """Raise :class:`NonFiniteStateError` naming the step, its time and the cause if the run's
+    state became NaN/inf; nothing otherwise. Skipped (returns) when ``traj`` holds tracers (inside
+    ``jit``/``grad``/``vmap`` the check belongs to the caller)."""
+    if isinstance(traj.nonfinite, jax.core.Tracer):
+        return
+    hit = first_nonfinite(traj)
+    if hit is not None:
+        k, t, cause = hit
+        step = round(t / dt) if dt else k + 1
+        raise NonFiniteStateError(f"the simulation diverged: non-finite {cause} at step {step} (t = {t:g} s); "
+                                  "check the time step against the CFL limit, the transport weights and the scene")
 
 
 def tracer_values(model: BeltModel, u):
@@ -118,6 +162,7 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
             belt_mass=jnp.sum(m_e),
             transport_weights=weights,
             edge_margin=edge_margin(model, u, new.chi) if model.kind == "2d" else None,
+            nonfinite=nonfinite_code(u, ud, new.chi, new.chi_dot),
         )
         if model.full_fields:
             rec["u"] = u
@@ -190,7 +235,8 @@ def _run_jit(model, integrator, state, n_steps, checkpoint=None):
 
 
 def simulate(model: BeltModel, integrator: AbstractIntegrator | str | None = None,
-             state: BeltState | None = None, n_steps: int | None = None, checkpoint: int | None = None):
+             state: BeltState | None = None, n_steps: int | None = None, checkpoint: int | None = None,
+             check: bool = True):
     """Simulate a compiled model (jit-compiled; differentiable; vmap-able over array fields).
 
     **Arguments:**
@@ -201,20 +247,27 @@ def simulate(model: BeltModel, integrator: AbstractIntegrator | str | None = Non
     - ``n_steps``: default ``model.n_steps`` (``t_end / dt``).
     - ``checkpoint``: steps per checkpointed chunk for reverse mode (:func:`run`); default
       ``⌈√n_steps⌉``, ``0`` for none.
+    - ``check``: raise :class:`NonFiniteStateError` (step, time, cause) if the state became
+      NaN/inf — a flag computed inside the scan and read once here; skipped under
+      ``jit``/``grad``/``vmap``, where ``Trajectory.nonfinite`` carries it to the caller.
 
     **Returns:** ``(final_state, Trajectory)``.
     """
     integrator = resolve_integrator(integrator, model)
     if state is None:
         state = initial_state(model)
-    return _run_jit(model, integrator, state, int(model.n_steps if n_steps is None else n_steps), checkpoint)
+    out = _run_jit(model, integrator, state, int(model.n_steps if n_steps is None else n_steps), checkpoint)
+    if check:
+        check_finite(out[1], model.dt)
+    return out
 
 
 def simulate_with_progress(model: BeltModel, integrator=None, n_steps: int | None = None,
-                           chunk: int = 200, progress: bool = True):
+                           chunk: int = 200, progress: bool = True, check: bool = True):
     """:func:`simulate` in jit-compiled chunks with a progress bar (for the CLI and long runs).
 
-    Chunks are whole multiples of ``model.every``; the result equals one :func:`simulate` call.
+    Chunks are whole multiples of ``model.every``; the result equals one :func:`simulate` call
+    (``check`` as there).
     Compilation is done ahead of the run so the two can be timed apart.
 
     **Returns:** ``(final_state, Trajectory, timing)`` with ``timing = {"compile_s", "run_s"}``.
@@ -241,4 +294,6 @@ def simulate_with_progress(model: BeltModel, integrator=None, n_steps: int | Non
             bar.update(k)
     run_s = time.perf_counter() - t0
     traj = jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=0), *parts)
+    if check:
+        check_finite(traj, model.dt)
     return state, traj, {"compile_s": compile_s, "run_s": run_s}

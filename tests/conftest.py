@@ -4,8 +4,8 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-# No persistent compilation cache in the test suite (the CLI would switch it on when asked to:
-# JAXBELT_COMPILATION_CACHE=1): one full-suite run with it on died in a segfault, see README.
+# No persistent compilation cache in the test suite (the CLI has it on by default): tests must
+# not depend on what an earlier run left in ~/.cache.
 os.environ["JAXBELT_COMPILATION_CACHE"] = "0"
 
 

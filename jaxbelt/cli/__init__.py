@@ -42,22 +42,23 @@ def build_parser():
 
 
 def enable_compilation_cache():
-    """JAX's persistent compilation cache for the command line, *opt-in* with
-    ``JAXBELT_COMPILATION_CACHE=1``: a second call of the same command on the same scene shapes
-    then skips XLA compilation (``sensitivity`` on a small scene: 41 s → 7.7 s). Directory
-    ``$JAXBELT_CACHE_DIR`` or ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``).
+    """JAX's persistent compilation cache for the command line, on by default
+    (``JAXBELT_COMPILATION_CACHE=0`` switches it off): a second call of the same command on the
+    same scene shapes skips XLA compilation (``sensitivity`` on a small scene: 41 s → 7.7 s).
+    Directory ``$JAXBELT_CACHE_DIR`` or ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``).
 
-    Decision: off by default. With it on, one run of the whole test suite (a single process
-    compiling several hundred programs, some re-loaded from the cache) died in a segfault inside
-    a ROM gradient test that passes with and without the cache when run alone; deserialising
-    large CPU executables is a known source of such crashes in XLA. A crash is worse than a
-    recompile, so the cache stays opt-in until that is understood."""
+    It was opt-in for a while: one whole-test-suite run with it on died in a segfault. The cause
+    was not the cache: the same run dies without it, because one process that compiles hundreds of
+    programs passes the kernel's limit on memory mappings (``vm.max_map_count``, 65530; every CPU
+    executable holds its own), and the next compile crashes. The test suite now frees compiled
+    programs between modules (``tests/conftest.py``); a CLI command compiles a few dozen. The test
+    suite itself runs with the cache off, so tests never depend on what an earlier run left."""
     import os
     from pathlib import Path
 
     import jax
 
-    if os.environ.get("JAXBELT_COMPILATION_CACHE", "0") != "1":
+    if os.environ.get("JAXBELT_COMPILATION_CACHE", "1") == "0":
         return None
     path = os.environ.get("JAXBELT_CACHE_DIR") or str(
         Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "jaxbelt" / "xla")

@@ -172,10 +172,8 @@ def run(args):
             modes_used = int(fit.A.shape[0])
 
             def plot_data():
-                lam, W = np.linalg.eig(np.asarray(fit.A))
-                b = np.linalg.solve(W, np.asarray(fit.basis.T @ z0))  # amplitudes of the start state
                 return dict(singular_values=jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), compute_uv=False),
-                            eigs=lam, eig_weights=np.abs(b) * np.linalg.norm(W, axis=0))
+                            eigs=fit.eigs, eig_weights=fit.scaled_mode_norms(z0))
         else:
             fit = rom.fit_parametric_dmd(trajs, jnp.stack(params), rank=modes)
             jax.block_until_ready(fit)

@@ -63,6 +63,7 @@ def belt_off_roller(model, traj):
 
 def run(args, demo=False):
     from .. import compile_scene, simulate_with_progress
+    from ..timeloop import first_nonfinite
     from ..integrators import make_integrator
     from ..mesh import build_mesh
 
@@ -71,14 +72,22 @@ def run(args, demo=False):
     mesh = build_mesh(scene)
     model = compile_scene(scene, mesh)
     integrator = make_integrator(model.integrator, model)
+    from ..prestress import slack_message, slack_spans
+
+    slack = slack_spans(scene, mesh, model)
+    if slack:  # before the run: the user learns it even if the run is long
+        print(f"jaxbelt: warning: {slack_message(slack)}; the linear model carries compression like "
+              "tension, so the results are not a real belt's", file=sys.stderr)
     progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
-    _, traj, timing = simulate_with_progress(model, integrator, progress=progress)
+    _, traj, timing = simulate_with_progress(model, integrator, progress=progress, check=False)
     wall, compile_s = timing["run_s"], timing["compile_s"]
     s = _summary(scene, model, traj, wall, compile_s)
-    if not np.all(np.isfinite(np.asarray(traj.tracer_u))):
-        k = int(np.argmax(~np.all(np.isfinite(np.asarray(traj.tracer_u)), axis=1)))
-        raise SimulationError(f"the simulation diverged (non-finite displacement at t = {float(traj.t[k]):g} s); "
-                              f"check the transport weights {s['transport_weight_range']} and the time step")
+    s["slack"] = slack
+    hit = first_nonfinite(traj)
+    if hit is not None:
+        k, t, cause = hit
+        raise SimulationError(f"the simulation diverged (non-finite {cause} at step {round(t / model.dt)}, "
+                              f"t = {t:g} s); check the transport weights {s['transport_weight_range']} and the time step")
     if args.out:
         out = Path(args.out)
         np.savez(

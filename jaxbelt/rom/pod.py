@@ -69,12 +69,14 @@ def pod_basis(X, n_modes: int | None = None, energy_tol: float | None = None, ru
     basis is differentiable w.r.t. ``X`` (:func:`truncated_svd`); the rules that look at the
     singular values need concrete data, so under ``jax.grad`` give ``n_modes``."""
     X = jnp.asarray(X)
+    if not isinstance(X, jax.core.Tracer):  # concrete data: one SVD gives the values and the basis
+        U, s, _ = jnp.linalg.svd(X, full_matrices=False)
+        return U[:, :choose_modes(np.asarray(s), n_modes, energy_tol, rule)], s
+    # traced (grad/jit): the differentiable truncated SVD, and the values apart for the caller
     s = jnp.linalg.svd(jax.lax.stop_gradient(X), compute_uv=False)
-    if n_modes is not None and energy_tol is None and rule is None:
-        r = int(min(n_modes, min(X.shape)))
-    else:
-        r = choose_modes(np.asarray(s), n_modes, energy_tol, rule)
-    return truncated_svd(X, r)[0], s
+    if n_modes is None or energy_tol is not None or rule is not None:
+        raise ValueError("under jax.grad or jit give n_modes: the mode rules need concrete singular values")
+    return truncated_svd(X, int(min(n_modes, min(X.shape))))[0], s
 
 
 def choose_modes(s, n_modes=None, energy_tol=None, rule=None) -> int:
