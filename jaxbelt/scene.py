@@ -131,6 +131,19 @@ _TABLES = {
 }
 
 
+# Range of static roller rotations (rad), from benchmarks/linearity_range.py on three-roller: the
+# response's linearity error grows as ≈ 0.64 α (skew) and 0.30 α (tilt about x): 0.3–0.6 % at
+# 10 mrad, 1.5–3.2 % at 50 mrad, 3–6 % at 100 mrad. Translations stay linear to 0.15 % at 100 mm
+# (a large inward one is caught as a slack belt instead, jaxbelt.prestress.slack_spans).
+ROTATION_WARN = 10e-3
+ROTATION_REFUSE = 50e-3
+
+
+class MisalignmentWarning(UserWarning):
+    """A scene's static misalignment is inside the model's range but where its linearisation
+    starts to cost accuracy (see ``ROTATION_WARN``)."""
+
+
 def _err(key: str, value: Any, why: str) -> SceneError:
     return SceneError(f"{key} = {value!r}: {why}")
 
@@ -353,6 +366,18 @@ def _roller(r: dict, j: int, kind: str) -> RollerSpec:
     if rotation[2] != 0.0:
         raise _err(f"{where}.rotation_mrad", [a * 1e3 for a in rotation],
                    "a static rotation about the roller axis (z) is meaningless; it is the drive/idle DOF")
+    tilt = max(abs(a) for a in rotation)
+    if tilt > ROTATION_REFUSE:
+        raise _err(f"{where}.rotation_mrad", [a * 1e3 for a in rotation],
+                   f"beyond the model's range of {ROTATION_REFUSE * 1e3:g} mrad: its belt kinematics are linear in "
+                   "the misalignment increments (3 % linearity error of the response at 50 mrad, "
+                   "benchmarks/linearity_range.py)")
+    if tilt > ROTATION_WARN:
+        import warnings
+
+        warnings.warn(f"{where}.rotation_mrad = {[a * 1e3 for a in rotation]}: above {ROTATION_WARN * 1e3:g} mrad "
+                      f"the linearised response is off by more than ~0.6 % (benchmarks/linearity_range.py)",
+                      MisalignmentWarning, stacklevel=2)
     if kind == "1d":
         # The 1D model (MODEL.md §2) carries per roller only the x translation and the z rotation.
         if translation[1] != 0.0 or translation[2] != 0.0:

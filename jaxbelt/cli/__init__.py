@@ -71,7 +71,20 @@ def enable_compilation_cache():
 def main(argv=None) -> int:
     from ..scene import SceneError
 
+    import warnings
+
+    from ..scene import MisalignmentWarning
+
+    default_show = warnings.showwarning
+
+    def one_line(message, category, *a, **k):  # the scene's range warnings as one line, others as usual
+        if issubclass(category, MisalignmentWarning):
+            print(f"jaxbelt: warning: {message}", file=sys.stderr)
+        else:
+            default_show(message, category, *a, **k)
+
     args = build_parser().parse_args(argv)
+    warnings.showwarning = one_line
     enable_compilation_cache()
     try:
         return args.func(args)
