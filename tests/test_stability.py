@@ -194,3 +194,84 @@ def test_linearity_error_grows_with_the_skew_as_measured():
     e1, e10 = err(1e-3), err(1e-2)
     assert 3e-3 < e10 < 1e-2
     assert e1 == pytest.approx(e10 / 10, rel=0.1)
+
+
+# --- float32 and the reduced models at the edges -------------------------------------------------
+
+def test_float32_end_to_end_error_is_small():
+    """JAXBELT_X64=0 runs the whole model in float32 (a subprocess: x64 is process-wide); on
+    two-roller-1d-train1 over 400 steps the tracers differ from float64 by < 1e-3 of the response
+    (benchmarks/float32.py: 4.4e-4 over 1000 steps, 6.4e-4 on three-roller-t72 over 5000)."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import numpy as np, jaxbelt as jb\n"
+            "m = jb.compile_scene(jb.load_scene('two-roller-1d-train1'))\n"
+            "_, tr = jb.simulate(m, n_steps=400)\n"
+            "print(tr.tracer_u.dtype)\n"
+            "print(' '.join(repr(float(x)) for x in np.asarray(tr.tracer_u[-1])))\n")
+    r = subprocess.run([sys.executable, "-c", code], env={**os.environ, "JAXBELT_X64": "0"},
+                       capture_output=True, text=True, check=True)
+    dtype, values = r.stdout.strip().splitlines()[-2:]
+    assert dtype == "float32"
+    u32 = np.array([float(v) for v in values.split()])
+    _, tr = jb.simulate(jb.compile_scene(jb.load_scene("two-roller-1d-train1")), n_steps=400)
+    u64 = np.asarray(tr.tracer_u[-1])
+    assert np.max(np.abs(u32 - u64)) < 1e-3 * np.max(np.abs(u64))
+
+
+def _linear_trajectory(n=8, m=60, seed=1, growth=None):
+    rng = np.random.default_rng(seed)
+    Q = np.linalg.qr(rng.normal(size=(n, n)))[0]
+    lam = np.linspace(0.6, 0.97, n) if growth is None else np.r_[np.linspace(0.6, 0.95, n - 1), growth]
+    A = Q @ np.diag(lam) @ Q.T
+    X = np.zeros((n, m))
+    X[:, 0] = rng.normal(size=n)
+    for k in range(m - 1):
+        X[:, k + 1] = A @ X[:, k]
+    return A, lam, X
+
+
+def test_dmd_on_duplicated_rank_deficient_and_noisy_snapshots():
+    from jaxbelt.rom import fit_dmd
+
+    A, lam, X = _linear_trajectory()
+    # duplicated state rows (a rank-deficient snapshot matrix, N = 16, rank 8): same eigenvalues
+    d = fit_dmd(jnp.asarray(np.vstack([X, X])))
+    assert np.allclose(np.sort(np.abs(np.asarray(d.eigs))), np.sort(lam), atol=1e-8)
+    pred = np.asarray(d.predict(jnp.asarray(np.vstack([X, X])[:, 0]), 10))
+    assert np.all(np.isfinite(pred)) and np.allclose(pred[:, :8], X[:, 1:11].T, atol=1e-8)
+    # zero rows (unexcited DOFs) change nothing
+    d0 = fit_dmd(jnp.asarray(np.vstack([X, np.zeros((5, X.shape[1]))])))
+    assert np.allclose(np.sort(np.abs(np.asarray(d0.eigs))), np.sort(lam), atol=1e-8)
+    # noise of 1e-6 of the largest snapshot entry: the slowest mode (which dominates the late
+    # snapshots) stays within 1e-4, the next within 2e-3; the fast ones, decayed below the noise
+    # after a few steps, are biased by up to ~2e-2 (DMD's known noise bias) — finite and stable
+    rng = np.random.default_rng(3)
+    dn = fit_dmd(jnp.asarray(X + 1e-6 * np.abs(X).max() * rng.normal(size=X.shape)), rank=8)
+    got = np.sort(np.abs(np.asarray(dn.eigs)))
+    assert abs(got[-1] - lam.max()) < 1e-4 and abs(got[-2] - np.sort(lam)[-2]) < 2e-3
+    assert np.allclose(got, np.sort(lam), atol=3e-2) and np.all(got < 1.0)
+
+
+def test_dmd_growing_mode_is_found_and_dropped_by_stable():
+    from jaxbelt.rom import fit_dmd
+
+    _, lam, X = _linear_trajectory(growth=1.02)
+    d = fit_dmd(jnp.asarray(X))
+    assert np.max(np.abs(np.asarray(d.eigs))) == pytest.approx(1.02, abs=1e-8)
+    s = d.stable()
+    assert np.max(np.abs(np.asarray(s.eigs))) < 1.0 and len(s.eigs) == len(lam) - 1
+
+
+def test_pod_asking_for_more_modes_than_snapshots_keeps_all_and_is_exact():
+    """n_modes beyond min(N, m) is clamped to the snapshots' rank: the basis then spans every
+    snapshot and reproduces it to round-off (documented in pod_basis)."""
+    from jaxbelt.rom import pod_basis
+
+    _, _, X = _linear_trajectory(n=30, m=12)
+    V, s = pod_basis(jnp.asarray(X), n_modes=50)
+    V = np.asarray(V)
+    assert V.shape == (30, 12) and len(s) == 12
+    assert np.allclose(V @ (V.T @ X), X, atol=1e-12 * np.abs(X).max())
