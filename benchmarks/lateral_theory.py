@@ -67,9 +67,8 @@ def simulated_walk(sc, rotation):
 
 
 def references(sc, rotation):
-    T = E * (sc.belt.width * sc.belt.thickness) * (L_LOOP / sc.belt.length - 1.0) if sc.belt.length else 0.0
-    return {"timoshenko": th.scene_walk_rate(sc, rotation, tension=T),
-            "euler_bernoulli": th.scene_walk_rate(sc, rotation, tension=T, shear=False)}
+    return {"timoshenko": th.scene_walk_rate(sc, rotation),
+            "euler_bernoulli": th.scene_walk_rate(sc, rotation, shear=False)}
 
 
 def skew_row(w_mm, eps0, alpha=1e-3, **kw):
@@ -139,18 +138,8 @@ def span_shape(w_mm=50, eps0=5e-3, alpha=1e-3, n_xis=(200, 400)):
         EI, kGA = th.belt_section(w_mm * 1e-3, T_B, E, NU)
         _, shape = th.walk_rate(th.scene_geometry(sc)[0], rot, E * eps0 * w_mm * 1e-3 * T_B, EI, kGA,
                                 return_shape=True)
-        starts = np.cumsum([0.0] + [seg.length for seg in mesh.path.segments])
-        xs, mv, rv = [], [], []
-        for k, seg in enumerate(mesh.path.segments):
-            if seg.kind != "free":
-                continue
-            span = sum(q.kind == "free" for q in mesh.path.segments[:k])
-            on = (mesh.tracer_x >= starts[k]) & (mesh.tracer_x <= starts[k + 1])
-            xs += list(mesh.tracer_x[on])
-            mv += list(v[on])
-            rv += [shape(span, x - starts[k])[0] for x in mesh.tracer_x[on]]
-        mv, rv = np.array(mv) - np.mean(mv), np.array(rv) - np.mean(rv)
-        rows.append({"n_xi": n_xi, "x_m": xs, "model_mm": (mv * 1e3).tolist(), "reference_mm": (rv * 1e3).tolist(),
+        xs, mv, rv = th.span_tracer_shapes(mesh, v, shape)
+        rows.append({"n_xi": n_xi, "x_m": xs.tolist(), "model_mm": (mv * 1e3).tolist(), "reference_mm": (rv * 1e3).tolist(),
                      "range_mm": float(np.ptp(rv) * 1e3), "max_error_over_range": float(np.max(np.abs(mv - rv)) / np.ptp(rv))})
         print(f"span shape n_xi {n_xi}: range {rows[-1]['range_mm']:.3f} mm, max error "
               f"{100 * rows[-1]['max_error_over_range']:.2f} % of it", flush=True)

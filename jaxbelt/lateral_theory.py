@@ -166,6 +166,25 @@ def walk_rate(geom: LoopGeometry, alpha, tension, EI, kGA=np.inf, speed=1.0, ret
     return c, shape
 
 
+def span_tracer_shapes(mesh, tracer_v, shape):
+    """The tracers on the free spans: their positions along the belt (m), the model's lateral
+    displacements ``tracer_v`` there and the reference ``shape`` (from :func:`walk_rate` with
+    ``return_shape``) at the same points, both with their mean removed (the walk's offset and the
+    reference's gauge)."""
+    starts = np.cumsum([0.0] + [seg.length for seg in mesh.path.segments])
+    xs, model, ref = [], [], []
+    for k, seg in enumerate(mesh.path.segments):
+        if seg.kind != "free":
+            continue
+        span = sum(q.kind == "free" for q in mesh.path.segments[:k])
+        on = (mesh.tracer_x >= starts[k]) & (mesh.tracer_x <= starts[k + 1])
+        xs += list(mesh.tracer_x[on])
+        model += list(np.asarray(tracer_v)[on])
+        ref += [shape(span, x - starts[k])[0] for x in mesh.tracer_x[on]]
+    model, ref = np.array(model), np.array(ref)
+    return np.array(xs), model - model.mean(), ref - ref.mean()
+
+
 def belt_section(width, thickness, youngs_modulus, poisson_ratio, kappa=SHEAR_COEFFICIENT):
     """``(EI, κGA)`` of a belt strip in plane stress: ``E t w³ / 12`` and ``κ E/(2(1+ν)) w t``."""
     EI = youngs_modulus * thickness * width**3 / 12.0
@@ -173,8 +192,8 @@ def belt_section(width, thickness, youngs_modulus, poisson_ratio, kappa=SHEAR_CO
     return EI, kGA
 
 
-def scene_geometry(scene) -> LoopGeometry:
-    """The :class:`LoopGeometry` of a :class:`jaxbelt.scene.Scene`'s belt path."""
+def scene_geometry(scene) -> tuple[LoopGeometry, float]:
+    """The :class:`LoopGeometry` of a :class:`jaxbelt.scene.Scene`'s belt path, and the path length (m)."""
     from .geometry import belt_path
 
     rl = scene.rollers
@@ -192,8 +211,7 @@ def scene_walk_rate(scene, rotation=None, tension=None, shear=True):
     b = scene.belt
     EI, kGA = belt_section(b.width, b.thickness, b.youngs_modulus, b.poisson_ratio)
     if tension is None:
-        eps0 = 0.0 if b.length is None else max(path_length / b.length - 1.0, 0.0)
-        tension = b.youngs_modulus * eps0 * b.width * b.thickness
+        tension = b.youngs_modulus * b.pre_strain(path_length) * b.area
     if rotation is None:
         rotation = np.array([r.rotation for r in rl])
     V = next(r.speed for r in rl if r.role == "drive")

@@ -199,8 +199,8 @@ def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
     w_rows = jnp.asarray(np.diff(mesh.z))
     free = jnp.asarray(mesh.elem_free, float)
     Kd, Kl, Ku = elements.free_belt_stiffness_2d(ell, w_rows, free, E, nu, t, element=scene.mesh.element)
-    L_belt = mesh.length if belt.length is None else belt.length
-    f0 = elements.prestress_force_2d(ell, w_rows, free, E, mesh.length / L_belt - 1.0, t)
+    eps0 = belt.pre_strain(mesh.length)
+    f0 = elements.prestress_force_2d(ell, w_rows, free, E, eps0, t)
     radii = np.array([r.radius for r in rl])
     R0, Rdz = rollers.roller_constraint_rows_2d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii, mesh.z)
     is_con = np.repeat((mesh.node_roller >= 0)[:, None], 2 * mesh.n_eta, axis=1)
@@ -216,7 +216,7 @@ def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
     if scene.solver.tension_stiffening:
         from .prestress import with_tension_stiffening
 
-        model = with_tension_stiffening(model, free, E, nu, t, mesh.length / L_belt - 1.0)
+        model = with_tension_stiffening(model, free, E, nu, t, eps0)
     return model
 
 
@@ -228,8 +228,7 @@ def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
     ell = jnp.asarray(mesh.ell)
     free = jnp.asarray(mesh.elem_free, float)
     Kd, Kl, Ku = elements.free_belt_stiffness_1d(ell, free, EA)
-    L_belt = mesh.length if belt.length is None else belt.length
-    eps0 = mesh.length / L_belt - 1.0  # uniform pre-strain of a belt shorter than its path
+    eps0 = belt.pre_strain(mesh.length)  # uniform pre-strain of a belt shorter than its path
     f0 = elements.prestress_force_1d(free, EA, eps0)
     radii = np.array([r.radius for r in rl])
     R = rollers.roller_constraint_rows_1d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii)

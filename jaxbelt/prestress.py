@@ -104,8 +104,7 @@ def span_forces(scene, mesh, model) -> list[dict]:
     from .state import initial_state
 
     belt = scene.belt
-    L_belt = mesh.length if belt.length is None else belt.length
-    eps0 = mesh.length / L_belt - 1.0
+    eps0 = belt.pre_strain(mesh.length)
     u = initial_state(model).u
     free = np.asarray(mesh.elem_free, bool)
     if model.kind == "1d":

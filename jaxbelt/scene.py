@@ -38,6 +38,11 @@ class BeltSpec:
     def area(self) -> float:
         return self.width * self.thickness
 
+    def pre_strain(self, path_length: float) -> float:
+        """Uniform pre-strain ``ε₀ = L_path / L_belt − 1`` of a belt shorter than its path (0 without
+        ``length``)."""
+        return 0.0 if self.length is None else path_length / self.length - 1.0
+
 
 @dataclasses.dataclass(frozen=True)
 class RollerSpec:

@@ -1,6 +1,8 @@
+import gc
 import os
 
 import jax
+import pytest
 
 jax.config.update("jax_enable_x64", True)
 
@@ -33,10 +35,6 @@ def pytest_unconfigure(config):
     if path:
         shutil.rmtree(path, ignore_errors=True)
 
-
-import gc
-
-import pytest
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -171,17 +171,7 @@ def test_steady_span_shape_equals_the_reference(two_roller_model):
     v = np.asarray(tr.tracer_v[-1])
     _, shape = th.walk_rate(th.scene_geometry(sc)[0], rot(1, 1), E * 5e-3 * 0.05 * T_B,
                             *th.belt_section(0.05, T_B, E, NU), return_shape=True)
-    starts = np.cumsum([0.0] + [s.length for s in mesh.path.segments])
-    model_v, ref_v = [], []
-    for k, seg in enumerate(mesh.path.segments):
-        if seg.kind != "free":
-            continue
-        span = sum(s.kind == "free" for s in mesh.path.segments[:k])
-        on = (mesh.tracer_x >= starts[k]) & (mesh.tracer_x <= starts[k + 1])
-        model_v += list(v[on])
-        ref_v += [shape(span, x - starts[k])[0] for x in mesh.tracer_x[on]]
-    model_v, ref_v = np.array(model_v), np.array(ref_v)
-    assert len(model_v) == 10
-    d_model, d_ref = model_v - model_v.mean(), ref_v - ref_v.mean()
+    _, d_model, d_ref = th.span_tracer_shapes(mesh, v, shape)
+    assert len(d_model) == 10
     assert np.ptp(d_ref) > 1e-4  # a shape worth comparing (α = 1 mrad: ~0.5 mm)
     assert np.max(np.abs(d_model - d_ref)) < 0.03 * np.ptp(d_ref)

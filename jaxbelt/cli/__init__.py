@@ -69,11 +69,9 @@ def enable_compilation_cache():
 
 
 def main(argv=None) -> int:
-    from ..scene import SceneError
-
     import warnings
 
-    from ..scene import MisalignmentWarning
+    from ..scene import MisalignmentWarning, SceneError
 
     default_show = warnings.showwarning
 
@@ -84,10 +82,11 @@ def main(argv=None) -> int:
             default_show(message, category, *a, **k)
 
     args = build_parser().parse_args(argv)
-    warnings.showwarning = one_line
     enable_compilation_cache()
     try:
-        return args.func(args)
+        with warnings.catch_warnings():  # restores showwarning when the command returns
+            warnings.showwarning = one_line
+            return args.func(args)
     except (SceneError, UsageError) as e:
         print(f"jaxbelt: error: {e}", file=sys.stderr)
         return 2

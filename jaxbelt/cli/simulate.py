@@ -63,7 +63,7 @@ def belt_off_roller(model, traj):
 
 def run(args, demo=False):
     from .. import compile_scene, simulate_with_progress
-    from ..timeloop import first_nonfinite
+    from ..timeloop import NonFiniteStateError, check_finite
     from ..integrators import make_integrator
     from ..mesh import build_mesh
 
@@ -83,11 +83,10 @@ def run(args, demo=False):
     wall, compile_s = timing["run_s"], timing["compile_s"]
     s = _summary(scene, model, traj, wall, compile_s)
     s["slack"] = slack
-    hit = first_nonfinite(traj)
-    if hit is not None:
-        k, t, cause = hit
-        raise SimulationError(f"the simulation diverged (non-finite {cause} at step {round(t / model.dt)}, "
-                              f"t = {t:g} s); check the transport weights {s['transport_weight_range']} and the time step")
+    try:
+        check_finite(traj, model.dt)
+    except NonFiniteStateError as e:
+        raise SimulationError(f"{e} (transport weights {s['transport_weight_range']})") from None
     if args.out:
         out = Path(args.out)
         np.savez(

@@ -77,7 +77,7 @@ def default_refinement(model) -> int:
     iterations. There the step matrix changes only through the lever arm of the static lateral
     deflection. With lateral transport the belt can walk and the lever arms keep growing, and
     with the source's transport rule the element masses change: there the refinement stays on."""
-    return 0 if model.transport == "shift" and not getattr(model, "lateral_transport", False) else 2
+    return 0 if model.transport == "shift" and not model.lateral_transport else 2
 
 
 def _refined(solve0, matvec, r_b, r_r, refine: int):

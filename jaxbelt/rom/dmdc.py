@@ -61,16 +61,17 @@ class DMDcModel(eqx.Module):
         """DMD modes ``Û W`` of the reduced operator (projected modes)."""
         return self.basis.astype(complex) @ jnp.linalg.eig(self.A)[1]
 
-    def amplitudes(self, x_start):
-        """Mode amplitudes ``b = W⁻¹ Ûᵀ x_start`` of a start state (the free response's)."""
-        W = jnp.linalg.eig(self.A)[1]
+    def amplitudes(self, x_start, W=None):
+        """Mode amplitudes ``b = W⁻¹ Ûᵀ x_start`` of a start state (the free response's); ``W``
+        the eigenvectors of ``Ã`` if already at hand."""
+        W = jnp.linalg.eig(self.A)[1] if W is None else W
         return jnp.linalg.solve(W, (self.basis.T @ x_start).astype(W.dtype))
 
     def scaled_mode_norms(self, x_start):
         """``‖φ_i b_i‖`` for every mode of the free response from ``x_start`` (as
         :meth:`jaxbelt.rom.DMDModel.scaled_mode_norms`; ``Û`` orthonormal, so ``‖φ_i‖ = ‖w_i‖``)."""
         W = jnp.linalg.eig(self.A)[1]
-        return jnp.linalg.norm(W, axis=0) * jnp.abs(self.amplitudes(x_start))
+        return jnp.linalg.norm(W, axis=0) * jnp.abs(self.amplitudes(x_start, W))
 
     @property
     def B_full(self):
