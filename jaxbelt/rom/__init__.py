@@ -22,6 +22,7 @@ from .pod import fit_pod as fit_pod
 from .pod import pod_basis as pod_basis
 from .reduced import ReducedStep as ReducedStep
 from .reduced import fit_reduced_pod as fit_reduced_pod
+from .reduced import fit_reduced_pod_ranks as fit_reduced_pod_ranks
 from .reduced import parameters as parameters
 from .reduced import with_parameters as with_parameters
 from .snapshots import collect_first_order as collect_first_order

@@ -138,6 +138,20 @@ class ReducedStep(eqx.Module):
         """Full scaled first-order states ``V ξ`` (n, 2N) — offline/diagnostic use only."""
         return xis @ self.basis.T
 
+    def truncate(self, r: int) -> "ReducedStep":
+        """The model of the first ``r`` modes. Every operator is a Galerkin projection linear in
+        each basis column (``A = Vᵀ S V``, ``G = Vᵀ (∂transport) V``, …), so the rank-``r``
+        operators are exactly the leading blocks of these: one offline projection serves every
+        rank ≤ :attr:`n_modes` (no recompilation per rank)."""
+        r = int(r)
+        if not 1 <= r <= self.n_modes:
+            raise ValueError(f"truncate: r = {r} outside 1 … {self.n_modes}")
+        sq = lambda M: M[:r, :r]
+        return ReducedStep(basis=self.basis[:, :r], A=sq(self.A), B=self.B[:r], d=self.d[:r], c=self.c[:r],
+                           Z=sq(self.Z), G=sq(self.G), H=self.H[:r], h=self.h[:r],
+                           C_tracer=self.C_tracer[:, :r], C_lateral=self.C_lateral[:, :r],
+                           singular_values=self.singular_values)
+
 
 def reduced_operators(model, V, integrator=None, ref_state=None, mu_ref=None):
     """Project the full step onto ``V`` (2N, r): the operators of :class:`ReducedStep`.
@@ -199,3 +213,12 @@ def fit_reduced_pod(model, snapshots, integrator=None, ref_state=None, mu_ref=No
     nominal one for multi-configuration training)."""
     V, s = pod_basis(jnp.asarray(snapshots), **choice)
     return ReducedStep(basis=V, singular_values=s, **reduced_operators(model, V, integrator, ref_state, mu_ref))
+
+
+def fit_reduced_pod_ranks(model, snapshots, ranks, integrator=None, ref_state=None, mu_ref=None) -> dict:
+    """``{r: ReducedStep}`` for every ``r`` in ``ranks`` from one SVD and one projection at the
+    largest rank (:meth:`ReducedStep.truncate`): the offline cost of a rank study is that of its
+    largest model, compiled once."""
+    ranks = sorted({int(r) for r in ranks})
+    top = fit_reduced_pod(model, snapshots, integrator, ref_state, mu_ref, n_modes=ranks[-1])
+    return {r: top.truncate(r) for r in ranks}

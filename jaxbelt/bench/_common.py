@@ -1,0 +1,63 @@
+"""Timing and output helpers shared by the benchmark modules."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import jax
+
+
+def machine() -> dict:
+    """What the figures ran on (written into every result file)."""
+    return {"platform": platform.platform(), "python": platform.python_version(), "jax": jax.__version__,
+            "device": str(jax.devices()[0]), "cpu_count": os.cpu_count(),
+            "openblas_num_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
+            "x64": bool(jax.config.jax_enable_x64)}
+
+
+def clock(fn, *args):
+    """``(seconds, result)`` of one call, waiting for JAX's asynchronous dispatch."""
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(fn(*args))
+    return time.perf_counter() - t0, out
+
+
+def interleaved_best(candidates: dict, rounds: int, inner: int | dict = 1, progress=None) -> dict:
+    """Best-of-``rounds`` seconds per call for each of ``candidates`` (name → zero-argument
+    callable), timed in interleaved rounds (A, B, C, A, B, C, …) so that a change of the machine's
+    load hits every candidate alike; within a round a candidate is called ``inner`` times
+    (an int, or a dict by name) and its fastest call kept."""
+    best = {k: float("inf") for k in candidates}
+    for r in range(rounds):
+        for name, fn in candidates.items():
+            k = inner.get(name, 1) if isinstance(inner, dict) else inner
+            for _ in range(k):
+                t, _ = clock(fn)
+                best[name] = min(best[name], t)
+        if progress:
+            progress(r + 1, rounds)
+    return best
+
+
+def write_json(out_dir: Path, name: str, payload: dict) -> Path:
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"{name}.json"
+    path.write_text(json.dumps({"machine": machine(), **payload}, indent=2))
+    return path
+
+
+def compiled_bytes(compiled) -> int | None:
+    """Arguments + outputs + temporaries of a compiled XLA program (its memory analysis), or None
+    where the backend does not report it."""
+    compiled = getattr(compiled, "compiled", compiled)  # equinox's filter_jit wraps jax's Compiled
+    try:
+        ma = compiled.memory_analysis()
+        return int(ma.argument_size_in_bytes + ma.output_size_in_bytes + ma.temp_size_in_bytes
+                   - ma.alias_size_in_bytes)
+    except Exception:  # pragma: no cover - backend without memory analysis
+        return None

@@ -1,0 +1,269 @@
+"""jaxbelt against the baselines a user would pick, side by side in one process, ratios in one run.
+
+On the default 2D scene (``three-roller-t72``, N = 3762), every figure per step:
+
+* **SciPy SuperLU on the same matrix**: the assembled, row-equilibrated step matrix of the first
+  step (:class:`~jaxbelt.bench.scipy_reference.ScipyBelt`), factor + solve and solve-only with a
+  kept factor, the column ordering the best of ``MMD_AT_PLUS_A`` and ``COLAMD`` (timed, not
+  assumed);
+* **a numpy + SuperLU implementation of the whole step** (assembly, solve, transport), factor
+  every step and factor once — like for like with jaxbelt's exact and reuse modes;
+* **jaxbelt exact** (structured block solver, factorisation every step) and **reuse** (frozen
+  factors, the default refinement), each a jit-compiled 200-step ``lax.scan`` divided by 200.
+
+All candidates are timed in interleaved rounds and the best of each kept (the machine's load
+changes the SuperLU figure by ×1.5 from one minute to the next). Besides: the whole 100 s run in
+the reuse mode; the compilation (cold, and a second process with the persistent cache warm; the
+compile time against the number of steps); the per-configuration cost of ``vmap`` batches of
+1, 8, 64, 256 configurations through the sweep's own path; the accelerator figures of earlier runs
+where they exist; the source's reported speedups as a reference row.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from ._common import clock, interleaved_best, write_json
+
+SCENE = "three-roller-t72"
+
+#: The source's reported speedups (its §7.4 and eq. 7.5; MATLAB, its own full model), for reference.
+SOURCE_SPEEDUPS = {
+    "DMD online, after the snapshots (source §7.4)": 7.2,
+    "DMD total over 5000 steps from 400 snapshots (source eq. 7.5)": 4.8,
+    "POD trained on several configurations, total (source §7.4)": 2.0,
+    "POD, solving the system only (source §8)": "2–3",
+}
+
+
+def _log(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def per_step(model, rounds: int, steps: int = 200, scipy_steps: int = 5) -> dict:
+    """Per-step milliseconds of every candidate, interleaved rounds, best of ``rounds``."""
+    import scipy.sparse.linalg as spla
+
+    import jaxbelt as jb
+    from ..integrators import ReusedFactorisationBackwardEuler, make_integrator
+    from ..timeloop import _run_jit
+    from .scipy_reference import ScipyBelt
+
+    s0 = jax.block_until_ready(jb.initial_state(model))
+    integ = {"exact": make_integrator("direct", model, "structured"),
+             "reuse": ReusedFactorisationBackwardEuler.for_model(model)}
+    runs = {k: _run_jit.lower(model, v, s0, steps).compile() for k, v in integ.items()}
+
+    sc = ScipyBelt(model)
+    st = [np.asarray(x) for x in (s0.u, s0.u_dot, s0.chi, s0.chi_dot, s0.m_e)]
+    A = sc.matrices(st[4], sc.R(st[0]))
+    scale = 1.0 / abs(A).max(axis=1).toarray().ravel()
+    import scipy.sparse as sp
+
+    As = (sp.diags(scale) @ A).tocsc()
+    b = np.random.default_rng(0).standard_normal(As.shape[0])
+    orderings = ("MMD_AT_PLUS_A", "COLAMD")
+    factor_t = interleaved_best({o: (lambda o=o: spla.splu(As, permc_spec=o)) for o in orderings}, 2, 2)
+    order = min(factor_t, key=factor_t.get)
+    kept_lu = spla.splu(As, permc_spec=order)
+    kept = sc.kept_factor(st[0], st[4], order)
+    # the reference is checked, not trusted: its trajectory against jaxbelt's exact one
+    s = st
+    for _ in range(scipy_steps):
+        s = list(sc.step(*s, permc_spec=order))
+    _, ref = runs["exact"](model, integ["exact"], s0, steps)
+    tu, _ = jb.timeloop.tracer_values(model, jax.numpy.asarray(s[0]))
+    ref_diff_mm = float(np.abs(np.asarray(tu) - np.asarray(ref.tracer_u[scipy_steps - 1])).max() * 1e3)
+
+    def scipy_steps_fn(kept_factor):
+        def go():
+            s = st
+            for _ in range(scipy_steps):
+                s = sc.step(*s, permc_spec=order, kept=kept_factor)
+            return s[0]
+        return go
+
+    cands = {
+        "jaxbelt exact step": lambda: runs["exact"](model, integ["exact"], s0, steps)[0].u,
+        "jaxbelt reuse step": lambda: runs["reuse"](model, integ["reuse"], s0, steps)[0].u,
+        "SuperLU factor + solve (matrix given)": lambda: spla.splu(As, permc_spec=order).solve(b),
+        "SuperLU solve, kept factor (matrix given)": lambda: kept_lu.solve(b),
+        "numpy + SuperLU step, factor every step": scipy_steps_fn(None),
+        "numpy + SuperLU step, factor once": scipy_steps_fn(kept),
+    }
+    per_call = {"jaxbelt exact step": steps, "jaxbelt reuse step": steps,
+                "numpy + SuperLU step, factor every step": scipy_steps, "numpy + SuperLU step, factor once": scipy_steps}
+    inner = {"SuperLU factor + solve (matrix given)": 3, "SuperLU solve, kept factor (matrix given)": 20}
+    best = interleaved_best(cands, rounds, inner, lambda r, n: _log(f"  per-step round {r}/{n}"))
+    ms = {k: 1e3 * t / per_call.get(k, 1) for k, t in best.items()}
+    lu_fs = ms["SuperLU factor + solve (matrix given)"]
+    lu_s = ms["SuperLU solve, kept factor (matrix given)"]
+    ratios = {
+        "exact step vs SuperLU factor + solve alone (speedup)": lu_fs / ms["jaxbelt exact step"],
+        "exact step vs numpy + SuperLU step, factor every step (speedup)":
+            ms["numpy + SuperLU step, factor every step"] / ms["jaxbelt exact step"],
+        "reuse step in SuperLU kept-factor solves": ms["jaxbelt reuse step"] / lu_s,
+        "reuse step vs numpy + SuperLU step, factor once (speedup)":
+            ms["numpy + SuperLU step, factor once"] / ms["jaxbelt reuse step"],
+    }
+    return {"ms_per_step": ms, "ratios": ratios, "superlu_ordering": order,
+            "superlu_factor_s_by_ordering": factor_t, "rounds": rounds, "jaxbelt_steps_per_call": steps,
+            "scipy_reference_max_tracer_diff_vs_jaxbelt_mm": ref_diff_mm, "scipy_reference_steps_checked": scipy_steps}
+
+
+def whole_run(model, repeat: int) -> dict:
+    """The whole run (``model.n_steps``) in the reuse mode, compile apart, best of ``repeat``."""
+    from ..integrators import ReusedFactorisationBackwardEuler
+    from ..state import initial_state
+    from ..timeloop import _run_jit
+
+    integ = ReusedFactorisationBackwardEuler.for_model(model)
+    s0 = initial_state(model)
+    t0 = time.perf_counter()
+    run = _run_jit.lower(model, integ, s0, model.n_steps).compile()
+    comp = time.perf_counter() - t0
+    best = min(clock(lambda: run(model, integ, s0, model.n_steps)[0].u)[0] for _ in range(repeat))
+    return {"n_steps": int(model.n_steps), "t_end_s": float(model.n_steps * model.dt), "run_s": best,
+            "compile_s": comp, "ms_per_step": 1e3 * best / model.n_steps}
+
+
+_COMPILE_CHILD = r"""
+import json, sys, time
+t0 = time.perf_counter()
+import jax, jaxbelt as jb
+from jaxbelt.cli import enable_compilation_cache
+from jaxbelt.timeloop import _run_jit
+from jaxbelt.integrators import ReusedFactorisationBackwardEuler
+enable_compilation_cache()
+m = jb.load_model(sys.argv[1])
+integ = ReusedFactorisationBackwardEuler.for_model(m)
+s0 = jax.block_until_ready(jb.initial_state(m))
+t_ready = time.perf_counter()
+out = {}
+for n in map(int, sys.argv[2].split(",")):
+    t1 = time.perf_counter()
+    low = _run_jit.lower(m, integ, s0, n)
+    t2 = time.perf_counter()
+    low.compile()
+    out[n] = {"trace_lower_s": t2 - t1, "compile_s": time.perf_counter() - t2}
+print(json.dumps({"setup_s": t_ready - t0, "by_steps": out}))
+"""
+
+
+def compilation(steps=(50, 5000)) -> dict:
+    """Compile time of a whole run (reuse mode) in fresh processes: cold (empty persistent cache)
+    and warm (a second process, the cache the first one left), for each number of steps."""
+    with tempfile.TemporaryDirectory(prefix="jaxbelt-bench-cache-") as d:
+        env = {**os.environ, "JAXBELT_CACHE_DIR": d, "JAXBELT_COMPILATION_CACHE": "1"}
+        out = {}
+        for label in ("cold", "warm"):
+            r = subprocess.run([sys.executable, "-c", _COMPILE_CHILD, SCENE, ",".join(map(str, steps))],
+                               env=env, capture_output=True, text=True)
+            if r.returncode:
+                raise RuntimeError(f"compilation child failed: {r.stderr.strip().splitlines()[-1:]}")
+            out[label] = json.loads(r.stdout.strip().splitlines()[-1])
+    return out
+
+
+def vmap_batches(batches, steps: int, repeat: int) -> dict:
+    """Per-configuration cost of ``vmap`` batches through the sweep's path
+    (:func:`jaxbelt.design.evaluate_configs`) on the design scene, exact and reuse solvers."""
+    import jaxbelt as jb
+    from .. import design
+    from ..integrators import make_integrator
+
+    rows = {}
+    for solver in ("structured", "reuse"):
+        model = jb.load_model("three-roller-tolerance")
+        study = design.make_study(model, "lateral_max", t_eval=steps * model.dt,
+                                  integrator=make_integrator("direct", model, solver))
+        rng = np.random.default_rng(0)
+        for b in batches:
+            thetas = 0.01 * rng.standard_normal((b, study.space.size))
+            first, _ = clock(lambda: design.evaluate_configs(study, thetas, chunk=b))
+            best = min(clock(lambda: design.evaluate_configs(study, thetas, chunk=b))[0] for _ in range(repeat))
+            rows[f"{solver}/{b}"] = {"solver": "exact" if solver == "structured" else "reuse", "batch": b,
+                                     "compile_s": max(first - best, 0.0), "run_s": best,
+                                     "ms_per_config_step": 1e3 * best / (b * steps)}
+            _log(f"  vmap {solver:10s} batch {b:4d}: {rows[f'{solver}/{b}']['ms_per_config_step']:.3f} ms "
+                 "per configuration-step")
+    return {"scene": "three-roller-tolerance", "steps": steps, "rows": rows,
+            "why_exact_gains_nothing": (
+                "the exact step is 97 % block factorisation (benchmarks/step_profile.py), a sequential "
+                "scan over 104 dense 36 x 36 blocks whose flops a batch multiplies one for one: on a CPU, "
+                "vmap turns each block LU into a batch of LUs at the same cost per matrix, so only the "
+                "scan's per-iteration overhead (a few % of the exact step) is shared; the reuse step is "
+                "overhead-bound (block sweeps of 36 x 36 triangular solves), so batching shares most of it")}
+
+
+def accelerator_figures(results_dir: Path) -> dict | None:
+    """Figures of earlier accelerator runs (``benchmarks/gpu_2d.py``) kept in ``results_dir``."""
+    out = {}
+    for name in ("gpu_2d_gpu", "full_run_2d_gpu"):
+        p = Path(results_dir) / f"{name}.json"
+        if p.exists():
+            out[name] = json.loads(p.read_text())
+    return out or None
+
+
+def run(out_dir: Path, quick: bool = False, results_dir: Path | None = None) -> dict:
+    """All baselines; writes ``baselines[_quick].json`` and ``.png`` into ``out_dir``."""
+    import jaxbelt as jb
+
+    t_start = time.perf_counter()
+    model = jb.load_model(SCENE)
+    _log(f"baselines on {SCENE} (N = {model.n_unknowns}), {'quick' if quick else 'full'}")
+    payload = {"scene": SCENE, "n_unknowns": int(model.n_unknowns), "quick": quick}
+    payload["per_step"] = per_step(model, rounds=3 if quick else 6)
+    _log("  whole run")
+    payload["whole_run_reuse"] = whole_run(model, repeat=1 if quick else 3)
+    _log("  compilation (two fresh processes)")
+    payload["compilation"] = compilation()
+    payload["vmap"] = vmap_batches((1, 8, 64) if quick else (1, 8, 64, 256), steps=10 if quick else 20,
+                                   repeat=1 if quick else 2)
+    payload["accelerator_earlier_runs"] = accelerator_figures(results_dir or out_dir)
+    payload["source_reported_speedups"] = SOURCE_SPEEDUPS
+    payload["wall_s"] = time.perf_counter() - t_start
+    name = "baselines" + ("_quick" if quick else "")
+    path = write_json(out_dir, name, payload)
+    plot(payload, Path(out_dir) / f"{name}.png")
+    _log(f"wrote {path}")
+    return payload
+
+
+def plot(payload: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ms = payload["per_step"]["ms_per_step"]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.2), constrained_layout=True)
+    names = list(ms)
+    colors = ["tab:blue" if n.startswith("jaxbelt") else "tab:gray" for n in names]
+    a.barh(names, [ms[n] for n in names], color=colors)
+    for i, n in enumerate(names):
+        a.text(ms[n], i, f" {ms[n]:.2f} ms", va="center")
+    a.set_xscale("log")
+    a.set_xlabel("ms per step (log), 2-core CPU, best of interleaved rounds")
+    a.set_title(f"{payload['scene']} (N = {payload['n_unknowns']}): jaxbelt (blue) vs SciPy SuperLU")
+    rows = payload["vmap"]["rows"]
+    for solver in ("exact", "reuse"):
+        r = sorted((x for x in rows.values() if x["solver"] == solver), key=lambda x: x["batch"])
+        b.loglog([x["batch"] for x in r], [x["ms_per_config_step"] for x in r], "o-", label=solver)
+    b.set_xlabel("configurations per vmap batch")
+    b.set_ylabel("ms per configuration-step")
+    b.set_title("sweep cost per configuration against the batch size")
+    b.grid(alpha=0.3, which="both")
+    b.legend()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
