@@ -8,6 +8,8 @@ cyclic block-tridiagonal format of :mod:`jaxbelt.linalg`.
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -156,6 +158,7 @@ def _quad_dofs(n_eta):
                             b + 2 * j + 2, b + 2 * j + 3], axis=1)
 
 
+@functools.partial(jax.jit, static_argnames=("element",))
 def free_belt_stiffness_2d(ell, w_rows, elem_free, E, nu, t, element="q4"):
     """Blocks (n, b, b) of ``K_f`` for the plane-stress belt; element matrices of all
     ``n_xi × (n_eta - 1)`` quads at once with ``vmap``. ``element``: ``"q4"`` (bilinear,
@@ -171,6 +174,7 @@ def free_belt_stiffness_2d(ell, w_rows, elem_free, E, nu, t, element="q4"):
     return column_pair_to_blocks(Kc)
 
 
+@jax.jit
 def prestress_force_2d(ell, w_rows, elem_free, E, eps0, t):
     """Nodal internal force ``f₀`` (n, b) of the pre-tension on the free elements."""
     n, n_eta = ell.shape[0], w_rows.shape[0] + 1

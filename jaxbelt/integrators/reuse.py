@@ -41,9 +41,7 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
         """Factors of ``model``'s first step. ``refine`` defaults to :func:`default_refinement`."""
         refine = default_refinement(model) if refine is None else int(refine)
         state = initial_state(model) if state is None else state
-        R = roller_R(model, state.u)
-        K, M = dae_matrices(model, state.m_e, R)
-        return cls(lax.stop_gradient(factorise(M + K.scale(model.dt**2))), refine)
+        return cls(lax.stop_gradient(_first_step_factors(model, state)), refine)
 
     def solve_step(self, model, state):
         dt = model.dt
@@ -66,6 +64,16 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
             lambda s: (s.u, s.u_dot, s.chi, s.chi_dot), state,
             (state.u + dt * ud, ud, state.chi + dt * chid, chid),
         )
+
+
+@eqx.filter_jit
+def _first_step_factors(model, state) -> BorderedFactorisation:
+    """The structured factors of ``M + Δt² K`` at ``state``, as one compiled program (op by op it
+    took ~6 s of dispatch and per-primitive compiles before a run could start; compiled once it
+    is kept by the persistent compilation cache)."""
+    R = roller_R(model, state.u)
+    K, M = dae_matrices(model, state.m_e, R)
+    return factorise(M + K.scale(model.dt**2))
 
 
 def default_refinement(model) -> int:
