@@ -339,7 +339,7 @@ def plot(payload, path: Path) -> None:
              ("bytes", "lateral_max_um", "memory of the compiled run (MiB)", "max lateral tracer error (µm)"),
              ("time_s", "longitudinal_final_um", "wall time of the run (s)", "longitudinal tracer error at T (µm)")]
     for ax, (xk, yk, xl, yl) in zip(axes, specs):
-        pts = []
+        pts, seen = [], set()
         for name, r in rows.items():
             if r.get(xk) is None:
                 continue
@@ -348,7 +348,8 @@ def plot(payload, path: Path) -> None:
             pts.append((x, y, name))
             ax.loglog(x, y, markers[r["family"]], color=f"C{fams.index(r['family'])}", ms=7,
                       mfc="none" if r.get("projected") else None,
-                      label=r["family"] if r["family"] not in [p.get_label() for p in ax.lines[:-1]] else None)
+                      label=None if r["family"] in seen else r["family"])
+            seen.add(r["family"])
         front = _front([(p[0], p[1]) for p in pts])
         fp = sorted((pts[i] for i in front), key=lambda p: p[0])
         ax.step([p[0] for p in fp], [p[1] for p in fp], "k--", where="post", lw=0.8, alpha=0.6)

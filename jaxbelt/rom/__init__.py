@@ -14,6 +14,7 @@ from .dmdc import interpolation_weights as interpolation_weights
 from .dmdc import stack_controlled as stack_controlled
 from .metrics import rmse as rmse
 from .metrics import rrmse as rrmse
+from .modal import fit_modal as fit_modal
 from .modal import forcing_order as forcing_order
 from .modal import modal_basis as modal_basis
 from .pod import PODGalerkin as PODGalerkin
