@@ -8,9 +8,9 @@ import os as _os
 
 # One OpenBLAS thread unless the user chose otherwise: the LAPACK calls behind jnp.linalg (SVD,
 # QR, eig of the reduced models; SciPy's OpenBLAS, which jaxlib's CPU kernels use) spin extra
-# threads against XLA's own pool, and on a busy 2-core machine a 448 x 100 SVD took 0.6 s
-# instead of 2 ms, a DMD prediction 1.1 s instead of 2 ms (measured with the test suite running
-# beside it). Read when that OpenBLAS loads: it has no effect if SciPy was imported before jaxbelt.
+# threads against XLA's own pool: on a busy 2-core machine a 448 x 100 SVD takes 20 ms instead of
+# 2 ms (benchmarks/openblas_threads.py, load 5). Read when that OpenBLAS loads (lazily, at the first
+# LAPACK call): it has no effect if SciPy's LAPACK was used before jaxbelt was imported.
 _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import jax as _jax
