@@ -26,6 +26,12 @@ methods:
   dmdc  DMD with control (inputs: the configuration parameters), trained on the --train scenes.
   pdmd  parametric DMD (one DMD per --train scene, interpolated in parameter space).
 
+--train-ranges FILE.toml trains one model over a box of misalignments instead of --train scenes:
+the file has the sweep's --dist format (uniform half-widths give the box, a normal law ±3σ), the
+box is centred on SCENE's aligned machine, and the training runs are the axial design — the
+aligned machine and each component at ± its half-width (jaxbelt.rom.axial_design); SCENE's own
+misalignment is the configuration predicted (a warning if it lies outside the box).
+
 dmdc and pdmd predict a configuration they have not seen: --train needs at least two scenes,
 the nominal configuration plus one run per varied parameter, e.g. for a two-roller-1d-* scene
   --train two-roller-1d two-roller-1d-train1
@@ -52,6 +58,9 @@ def add_parser(subparsers):
     r.add_argument("--train", nargs="+", default=None, metavar="SCENE",
                    help="training scenes (pod: default SCENE itself; dmdc/pdmd: required, at least two: the nominal "
                         "configuration plus one run per varied parameter)")
+    r.add_argument("--train-ranges", default=None, metavar="FILE.toml",
+                   help="train over a box of misalignments around SCENE's aligned machine (the sweep's --dist "
+                        "format; uniform half-widths give the box, normal laws ±3σ): the axial design, 2P + 1 runs")
     r.add_argument("--modes", type=int, default=None, metavar="N",
                    help="reduced dimension (default: pod 20, dmdc/pdmd 30, dmd all non-negligible)")
     r.add_argument("--train-steps", type=int, default=None, metavar="N", help="full-order steps per training scene "
@@ -81,7 +90,12 @@ def run(args):
     _positive("--train-steps", args.train_steps, 2 if method == "dmd" else 1)
     _positive("--stride", args.stride, 0)
     train_names = list(args.train or [])
-    if method in ("dmdc", "pdmd") and len(train_names) < 2:
+    if args.train_ranges is not None:
+        if train_names:
+            raise UsageError("--train and --train-ranges exclude each other (scenes, or a box of misalignments)")
+        if method == "dmd":
+            raise UsageError("--method dmd fits one configuration; use pod, dmdc or pdmd with --train-ranges")
+    elif method in ("dmdc", "pdmd") and len(train_names) < 2:
         raise UsageError(f"--method {method} needs --train with at least two scenes (the nominal configuration plus "
                          f"one run per varied parameter), e.g. --train two-roller-1d two-roller-1d-train1")
     if method == "dmd" and any(t != args.scene for t in train_names):
@@ -92,8 +106,27 @@ def run(args):
         raise UsageError(f"--plot {args.plot}: the folder {Path(args.plot).parent} does not exist")
     scene = _load(args.scene)
     test = compile_scene(scene)
-    train_names = train_names or [args.scene]
-    train_models = [test if t == args.scene else compile_scene(_load(t)) for t in train_names]
+    if args.train_ranges is not None:
+        import warnings
+
+        from ..design.sampling import distribution_from_dict
+        from ._design import read_toml
+
+        try:
+            dist = distribution_from_dict(read_toml(args.train_ranges, "--train-ranges"), test)
+        except ValueError as e:
+            raise UsageError(f"--train-ranges {args.train_ranges}: {e}") from None
+        box = rom.box_from_distribution(dist)
+        train_models, _, space = rom.axial_design(test, dist.labels, box)
+        where, unvaried = rom.position_in_box(test, space, box)
+        if np.any(np.abs(where) > 1 + 1e-9) or unvaried:
+            worst = space.labels()[int(np.argmax(np.abs(where)))]
+            warnings.warn(f"{scene.name} lies outside the training box ({worst} at {np.max(np.abs(where)):.2f} of its "
+                          f"half-width" + (f"; not varied: {', '.join(unvaried)}" if unvaried else "") + ")")
+        train_names = [f"axial design over {args.train_ranges} ({len(train_models)} runs, {space.size} components)"]
+    else:
+        train_names = train_names or [args.scene]
+        train_models = [test if t == args.scene else compile_scene(_load(t)) for t in train_names]
     for name, m in zip(train_names, train_models):
         if m.n_unknowns != test.n_unknowns or m.kind != test.kind or m.n_tracers != test.n_tracers:
             raise UsageError(f"--train {name}: {m.kind} model with N = {m.n_unknowns} and {m.n_tracers} tracers; "

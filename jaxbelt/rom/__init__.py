@@ -32,3 +32,6 @@ from .snapshots import first_order as first_order
 from .snapshots import state_to_z as state_to_z
 from .snapshots import tracer_operator as tracer_operator
 from .snapshots import z_to_state as z_to_state
+from .training import axial_design as axial_design
+from .training import box_from_distribution as box_from_distribution
+from .training import position_in_box as position_in_box
