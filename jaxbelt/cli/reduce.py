@@ -257,6 +257,11 @@ def run(args):
                             eigs=np.asarray(fit.eigs).reshape(-1)[keep], eig_weights=w[keep])
         start, compared = 0, "tracer_u"
 
+    if not np.all(np.isfinite(np.asarray(pred))):
+        bad = int(np.argmax(~np.all(np.isfinite(np.asarray(pred).reshape(len(pred), -1)), axis=1)))
+        raise SimulationError(f"the {method} reduced model ({modes_used} modes) diverged: its prediction is not finite "
+                              f"from step {start + bad + 1}; the projected step is unstable at this rank — use fewer "
+                              "modes (the fully reduced POD step of three-roller at 80 modes: benchmarks/rom_box_2d.py)")
     # compare at the full run's output steps inside the predicted window (start, n]
     rows = np.flatnonzero((steps_full > start) & (steps_full <= n))
     truth = np.asarray(getattr(traj, compared))[rows]
