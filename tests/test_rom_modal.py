@@ -33,15 +33,15 @@ def test_modal_integrator_with_all_modes_is_the_full_model_and_converges_with_mo
     from jaxbelt.rom import fit_modal, rmse
 
     m = jb.load_model("two-roller-1d-train1")
-    _, ref = jb.simulate(m, "eliminated", n_steps=150)
+    _, ref = jb.simulate(m, "eliminated", n_steps=100)
     dyn, _ = algebraic_partition(m)
     full = fit_modal(m, len(dyn), order="frequency")
-    _, tr = jb.simulate(m, full, n_steps=150)
+    _, tr = jb.simulate(m, full, n_steps=100)
     assert float(jnp.max(jnp.abs(tr.tracer_u - ref.tracer_u))) < 1e-10  # the whole span: exact
-    errs = {o: [float(rmse(ref.tracer_u, jb.simulate(m, fit_modal(m, r, order=o), n_steps=150)[1].tracer_u))
-                for r in (10, 40, 100)] for o in ("forcing", "frequency")}
+    errs = {o: [float(rmse(ref.tracer_u, jb.simulate(m, fit_modal(m, r, order=o), n_steps=100)[1].tracer_u))
+                for r in (10, 100)] for o in ("forcing", "frequency")}
     for o, e in errs.items():
-        assert e[2] < e[0], (o, e)
+        assert e[1] < e[0], (o, e)
 
 
 def test_fit_modal_rejects_bad_input():

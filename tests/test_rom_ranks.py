@@ -12,12 +12,12 @@ from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ra
 def training():
     m = jb.load_model("two-roller-1d-train1")
     _, Zp, Zq = collect_first_order(m, 120)
-    return m, jnp.concatenate([Zp, Zq], axis=1)
+    Z = jnp.concatenate([Zp, Zq], axis=1)
+    return m, Z, fit_reduced_pod_ranks(m, Z, (4, 12, 8))
 
 
 def test_truncated_operators_equal_a_fit_at_that_rank(training):
-    m, Z = training
-    many = fit_reduced_pod_ranks(m, Z, (4, 12, 8))
+    m, Z, many = training
     assert sorted(many) == [4, 8, 12]
     for r in (4, 8):
         direct = fit_reduced_pod(m, Z, n_modes=r)
@@ -32,9 +32,8 @@ def test_truncated_operators_equal_a_fit_at_that_rank(training):
 
 
 def test_truncate_rejects_ranks_out_of_range(training):
-    m, Z = training
-    rom = fit_reduced_pod(m, Z, n_modes=5)
+    rom = training[2][4]
     with pytest.raises(ValueError, match="outside"):
-        rom.truncate(6)
+        rom.truncate(5)
     with pytest.raises(ValueError, match="outside"):
         rom.truncate(0)
