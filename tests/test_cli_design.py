@@ -1,7 +1,11 @@
 """The tolerance-design commands: ``sensitivity``, ``tolerance``, ``sweep`` (JSON, plots, store)
-and their one-line errors for bad input."""
+and their one-line errors for bad input.
+
+On a coarse scene (two grid lines across, 12 steps: a whole number of the scan's checkpoint
+chunks, so each compiled run holds one copy of the step)."""
 
 import json
+import math
 
 import pytest
 
@@ -9,9 +13,9 @@ from jaxbelt.cli import main
 
 SMALL = """extends = "three-roller-tolerance"
 [mesh]
-n_eta = 3
+n_eta = 2
 [time]
-t_end_s = 0.2
+t_end_s = 0.24
 """
 DIST = """[roller."roller 2"]
 rotation_mrad = {dist = "normal", sigma = [0.05, 0.05, 0.0]}
@@ -43,6 +47,8 @@ def test_sensitivity_json_and_plot(files, capsys):
 
 
 def test_tolerance_json(files, capsys):
+    """The tolerance box verified by full runs (the fast version of
+    test_design.py::test_box_on_the_default_scene_is_verified_by_full_runs)."""
     (files / "w.toml").write_text('[roller."roller 2"]\nrotation = [4.0, 1.0, 1.0]\n')
     r = _json(capsys, ["tolerance", str(files / "small.toml"), "--components", "roller 2:rotation",
                        "--weights", str(files / "w.toml"), "--json", "--plot", str(files / "t.png")])
@@ -50,6 +56,9 @@ def test_tolerance_json(files, capsys):
     ax, ay = r["box"]["roller 2"]["rotation_mrad"][:2]
     assert ax > 0 and ay > 0 and r["box"]["roller 1"]["rotation_mrad"] == [0.0, 0.0, 0.0]
     assert r["binding"] and all(v["full_um"] <= 20 for v in r["verification"])
+    assert max(v["full_um"] for v in r["verification"]) == r["worst_case_um"]
+    assert set(r["binding"]) <= {"roller 2:ax", "roller 2:ay"}
+    assert all(h["half_width"] >= 0 and math.isfinite(h["half_width"]) for h in r["half_widths"])
 
 
 def test_sweep_json_store_and_resume(files, capsys):

@@ -1,6 +1,11 @@
 """Tolerance design: parameters, metrics, gradients (= central differences), the tolerance box
 (analytic on a linear model, verified by full runs), Monte Carlo (= a brute-force loop), FORM,
-importance sampling, the sweep store."""
+importance sampling, the sweep store.
+
+Most tests share one coarse study (``study``: 12 steps, a whole number of the scan's checkpoint
+chunks, so each compiled run holds one copy of the step) and reuse its compiled programs: the
+value and gradient, the forward Jacobian, the vmapped batches of 8 configurations, the jitted
+metric."""
 
 import jax
 import jax.numpy as jnp
@@ -14,18 +19,29 @@ from jaxbelt.design import sampling, tolerance
 from jaxbelt.design.store import load_sweep
 
 
-def coarse(name):
-    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), name))
+def coarse(name, n_eta=3):
+    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=n_eta), name))
 
 
 @pytest.fixture(scope="module")
 def model2d():
-    return coarse("three-roller-t72")  # misaligned base: the metric is smooth at theta = 0
+    # misaligned base: the metric is smooth at theta = 0; two grid lines across (the belt edges,
+    # N = 434): the studies below run ~2000 configurations
+    return coarse("three-roller-t72", n_eta=2)
 
 
 @pytest.fixture(scope="module")
 def study(model2d):
-    return design.make_study(model2d, "lateral_rms", t_eval=0.2, components="roller 2:rotation,roller 3:dx,roller 3:dz")
+    return design.make_study(model2d, "lateral_rms", t_eval=0.24, components="roller 2:rotation,roller 3:dx,roller 3:dz")
+
+
+CHUNK = 8  # every batched evaluation of the study: one compiled vmap of 8 configurations
+
+
+@pytest.fixture(scope="module")
+def metric_fn(study):
+    """The study's metric, jit-compiled once for the module."""
+    return jax.jit(lambda t: design.metric_value(study, t))
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -43,6 +59,11 @@ def test_parameter_space_excludes_structural_zeros(model2d):
     sp1 = design.parameter_space(tension)
     assert all(lab.endswith(":dx") for lab in sp1.labels())
     assert any("force/torque-loaded" in why for _, why in sp1.structural)
+    # 2D: the tension roller's x is set by its load, not a parameter; its other components are
+    sp2 = design.parameter_space(coarse("three-roller-tension"), "roller 1,roller 2,roller 3:dz,roller 3:ax")
+    assert "roller 2:dx" not in sp2.labels() and {"roller 2:dy", "roller 2:ax"} <= set(sp2.labels())
+    assert sp2.size == 5 + 4 + 2
+    assert any(jc == (1, "dx") and "force/torque-loaded" in why for jc, why in sp2.structural)
 
 
 def test_study_rejects_bad_metric_and_time(model2d):
@@ -80,8 +101,15 @@ def _fd_check(study, theta, h):
     return grad
 
 
+@pytest.mark.slow
 def test_gradient_2d_drive_idle_tension_translations_and_rotations():
-    """Roller 1 drives, roller 2 is a tension roller (pulled along x), roller 3 idles."""
+    """Roller 1 drives, roller 2 is a tension roller (pulled along x), roller 3 idles.
+
+    Slow (three compiled 2D programs of its own). Fast: the design gradient against central
+    differences (test_gradient_1d_translations) and against the forward-mode Jacobian in 2D
+    (test_jacobian_forward_matches_the_reverse_gradient); the 2D gradient through drive, tension
+    and idle rollers against central differences (test_grad, case 2d-tension); the tension
+    roller's x out of the parameters (test_parameter_space_excludes_structural_zeros)."""
     model = coarse("three-roller-tension")
     model = model.replace(chi_static=model.chi_static.at[jnp.array([1, 9, 14])].set(jnp.array([1e-3, 2e-4, 5e-4])))
     st = design.make_study(model, "lateral_rms", t_eval=0.16,
@@ -148,7 +176,10 @@ def test_rss_stackup_of_one_row():
     assert np.isclose(tolerance.rss_stackup(lin, [1.0, 1.0])["three_sigma_um"], 15.0)
 
 
+@pytest.mark.slow
 def test_box_on_the_default_scene_is_verified_by_full_runs():
+    """The full-size scene (slow). Fast: the same box and verification on the coarse scene,
+    through the CLI (test_cli_design.py::test_tolerance_json)."""
     model = jb.load_model("three-roller")  # the aligned nominal machine, N = 3762
     st = design.make_study(model, "lateral_max", t_eval=0.1, components="roller 2:rotation,roller 3:dz")
     res = design.tolerance_box(st, 20.0, n_random=2, n_corners=2)
@@ -167,13 +198,12 @@ def _dist(study, kinds=("normal", "uniform", "normal", "uniform"), scales=(0.2, 
     return sampling.Distribution(tuple(study.space.labels()), kinds[: study.space.size], scales[: study.space.size])
 
 
-def test_monte_carlo_equals_a_brute_force_loop(study):
+def test_monte_carlo_equals_a_brute_force_loop(study, metric_fn):
     dist = _dist(study)
     limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
-    mc = design.monte_carlo(study, dist, 12, limit, seed=5, chunk=8)
+    mc = design.monte_carlo(study, dist, 12, limit, seed=5, chunk=CHUNK)  # two chunks, the last padded
     u = sampling.standard_normal_samples(12, 4, 5)
-    f = jax.jit(lambda t: design.metric_value(study, t))
-    loop = np.array([float(f(dist.transform(jnp.asarray(ui)))) for ui in u])
+    loop = np.array([float(metric_fn(dist.transform(jnp.asarray(ui)))) for ui in u])
     np.testing.assert_allclose(mc["metric"], loop, rtol=1e-10)  # batched vs one at a time: round-off
     assert mc["passed"] == int(np.sum(loop <= limit))
     lo, hi = mc["ci95"]
@@ -207,14 +237,21 @@ def test_distribution_file_validation(model2d):
             design.distribution_from_dict(data, model2d)
 
 
-def test_form_and_importance_sampling_agree_with_monte_carlo(study):
-    dist = _dist(study)
+@pytest.fixture(scope="module")
+def limit_13(study):
+    """A limit 1.3 times the nominal metric, and a 400-sample Monte Carlo against it (shared by
+    the FORM / importance-sampling and the OpenTURNS comparisons)."""
     limit = 1.3 * float(design.metric_value(study, jnp.zeros(4)))
+    return limit, design.monte_carlo(study, _dist(study), 400, limit, seed=11, chunk=CHUNK)
+
+
+def test_form_and_importance_sampling_agree_with_monte_carlo(study, limit_13):
+    dist = _dist(study)
+    limit, mc = limit_13
     f = design.form(study, dist, limit)
     assert f["converged"] and f["beta"] > 0
     assert np.isclose(float(design.metric_value(study, jnp.asarray(f["theta_star"]))), limit, rtol=1e-6)
-    is_ = design.importance_sampling(study, dist, limit, f["u_star"], n=400, chunk=200)
-    mc = design.monte_carlo(study, dist, 400, limit, seed=11, chunk=200)
+    is_ = design.importance_sampling(study, dist, limit, f["u_star"], n=400, chunk=CHUNK)
     assert is_["ci95"][0] - 0.03 <= mc["yield"] <= is_["ci95"][1] + 0.03
 
 
@@ -222,27 +259,26 @@ def test_sweep_store_resumes_and_extends(study, tmp_path):
     dist = _dist(study)
     limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
     out = tmp_path / "sweep.zarr"
-    first = design.run_sweep(study, dist, 8, limit, chunk=8, out=out, with_form=False)
-    again = design.run_sweep(study, dist, 16, limit, chunk=8, out=out, with_form=False)
-    fresh = design.run_sweep(study, dist, 16, limit, chunk=8, with_form=False)
+    first = design.run_sweep(study, dist, 8, limit, chunk=CHUNK, out=out, with_form=False)
+    again = design.run_sweep(study, dist, 16, limit, chunk=CHUNK, out=out, with_form=False)
+    fresh = design.run_sweep(study, dist, 16, limit, chunk=CHUNK, with_form=False)
     np.testing.assert_allclose(again["metric_values"], fresh["metric_values"], rtol=1e-12)
     np.testing.assert_allclose(again["metric_values"][:8], first["metric_values"], rtol=1e-12)
     ds = load_sweep(out)
     assert ds.sizes["config"] == 16 and ds.sizes["tracer"] == study.ref_u.shape[1]
     with pytest.raises(ValueError, match="another sweep"):
-        design.run_sweep(study, dist, 8, 2 * limit, chunk=8, out=out, with_form=False)
+        design.run_sweep(study, dist, 8, 2 * limit, chunk=CHUNK, out=out, with_form=False)
 
 
-def test_monte_carlo_and_form_match_openturns(study):
+def test_monte_carlo_and_form_match_openturns(study, metric_fn, limit_13):
     """The same limit state (metric > limit under the same input laws) through OpenTURNS' FORM
     (Abdo–Rackwitz) and its Monte Carlo."""
     ot = pytest.importorskip("openturns")
     dist = _dist(study)
-    limit = 1.3 * float(design.metric_value(study, jnp.zeros(4)))
-    f = jax.jit(lambda t: design.metric_value(study, t))
-    df = jax.jit(jax.grad(lambda t: design.metric_value(study, t)))
-    fun = ot.PythonFunction(4, 1, lambda x: [float(f(jnp.asarray(x)))],
-                            gradient=lambda x: [[float(v)] for v in df(jnp.asarray(x))])
+    limit, mc = limit_13
+    df = lambda x: design.value_and_gradient(study, jnp.asarray(x))[1]  # noqa: E731  (reverse mode)
+    fun = ot.PythonFunction(4, 1, lambda x: [float(metric_fn(jnp.asarray(x)))],
+                            gradient=lambda x: [[float(v)] for v in df(x)])
     marginals = [ot.Normal(0.0, s) if k == "normal" else ot.Uniform(-s, s) for k, s in zip(dist.kind, dist.scale)]
     X = ot.RandomVector(ot.JointDistribution(marginals))
     event = ot.ThresholdEvent(ot.CompositeRandomVector(fun, X), ot.Greater(), limit)
@@ -259,7 +295,6 @@ def test_monte_carlo_and_form_match_openturns(study):
     mc_ref.setMaximumCoefficientOfVariation(0.0)
     mc_ref.run()
     p_ref = mc_ref.getResult().getProbabilityEstimate()
-    mc = design.monte_carlo(study, dist, 400, limit, seed=11, chunk=200)
     p = 1 - mc["yield"]
     sd = np.sqrt(p * (1 - p) / 400 + p_ref * (1 - p_ref) / 400)
     assert abs(p - p_ref) <= 3.5 * sd + 1e-12
@@ -284,10 +319,9 @@ def test_worst_case_equals_enumerating_every_corner(kind, offset):
 def test_response_is_linear_in_small_misalignments(study):
     """What the tolerance box relies on: r(θ) = r0 + J θ to 1e-6 relative at 0.05 mm / mrad."""
     r0, J = design.response_jacobian(study)
-    f = jax.jit(lambda t: design.response(study, t))
     scale = 0.05 * np.max(np.abs(J))  # components the metric hardly feels are held to round-off of the others
     for k in range(study.space.size):
         theta = np.zeros(study.space.size)
         theta[k] = 0.05
-        dr = np.asarray(f(jnp.asarray(theta))) - r0
+        dr = design.response_jacobian(study, theta)[0] - r0  # r(θ), from the same compiled program
         assert np.max(np.abs(dr - J @ theta)) <= 1e-6 * max(np.max(np.abs(J @ theta)), 1e-3 * scale)
