@@ -1,4 +1,7 @@
-"""The structured bordered block-cyclic solver against dense references."""
+"""The structured bordered block-cyclic solver against dense references.
+
+The solves run jit-compiled, as inside a simulation (one program per shape instead of a few
+hundred op-by-op compilations)."""
 
 import jax
 import jax.numpy as jnp
@@ -8,6 +11,9 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.assembly import dae_matrices
 from jaxbelt.linalg import BorderedBlockCyclic, bordered_solve, dense_solve, join
+
+
+solve = jax.jit(bordered_solve, static_argnums=3)
 
 
 def _random(n, b, q, seed=0):
@@ -26,7 +32,7 @@ def _random(n, b, q, seed=0):
 @pytest.mark.parametrize("n,b,q", [(3, 1, 2), (12, 1, 4), (9, 4, 6), (20, 6, 18)])
 def test_structured_equals_dense(n, b, q, method):
     A, rb, rr = _random(n, b, q)
-    xb, xr = bordered_solve(A, rb, rr, method)
+    xb, xr = solve(A, rb, rr, method)
     x_ref = jnp.linalg.solve(A.to_dense(), join(rb, rr))
     np.testing.assert_allclose(np.asarray(join(xb, xr)), np.asarray(x_ref), rtol=1e-10, atol=1e-12)
 
@@ -47,8 +53,9 @@ def test_cyclic_reduction_equals_thomas_on_interiors():
         D = jnp.asarray(rng.normal(size=(m, 4, 4)) + 8 * np.eye(4))
         L, U = jnp.asarray(rng.normal(size=(m, 4, 4))), jnp.asarray(rng.normal(size=(m, 4, 4)))
         r = jnp.asarray(rng.normal(size=(m, 4, 3)))
-        np.testing.assert_allclose(np.asarray(bcr_apply(bcr_factor(D, L, U), r)),
-                                   np.asarray(thomas_apply(thomas_factor(D, L, U), r)), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(np.asarray(jax.jit(lambda *a: bcr_apply(bcr_factor(*a[:3]), a[3]))(D, L, U, r)),
+                                   np.asarray(jax.jit(lambda *a: thomas_apply(thomas_factor(*a[:3]), a[3]))(D, L, U, r)),
+                                   rtol=1e-10, atol=1e-12)
 
 
 def test_belt_matrix_structured_equals_dense():
@@ -57,12 +64,13 @@ def test_belt_matrix_structured_equals_dense():
     A = M + K.scale(model.dt**2)
     rng = np.random.default_rng(2)
     rb, rr = jnp.asarray(rng.normal(size=(model.n_xi, 1))), jnp.asarray(rng.normal(size=4))
-    x1 = join(*bordered_solve(A, rb, rr))
-    x2 = join(*dense_solve(A, rb, rr))
+    dense = jax.jit(dense_solve)
+    x1 = join(*solve(A, rb, rr, "thomas"))
+    x2 = join(*dense(A, rb, rr))
     assert float(jnp.linalg.norm(x1 - x2) / jnp.linalg.norm(x2)) < 1e-10
     # also the static K (initial condition)
-    x1 = join(*bordered_solve(K, rb, rr))
-    x2 = join(*dense_solve(K, rb, rr))
+    x1 = join(*solve(K, rb, rr, "thomas"))
+    x2 = join(*dense(K, rb, rr))
     assert float(jnp.linalg.norm(x1 - x2) / jnp.linalg.norm(x2)) < 1e-10
 
 
@@ -74,8 +82,8 @@ def test_gradient_through_structured_solve_matches_dense():
         xb, xr = solve(A2, rb * (1 + scale), rr)
         return jnp.sum(xb**2) + jnp.sum(xr**3)
 
-    g1 = jax.grad(loss)(0.1, bordered_solve)
-    g2 = jax.grad(loss)(0.1, dense_solve)
+    g1 = jax.jit(jax.grad(loss), static_argnums=1)(0.1, bordered_solve)
+    g2 = jax.jit(jax.grad(loss), static_argnums=1)(0.1, dense_solve)
     assert float(g1) == pytest.approx(float(g2), rel=1e-9)
 
 
