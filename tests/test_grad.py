@@ -26,8 +26,13 @@ def _metric(model, translation, n_steps=56):
     return jnp.mean(tr.tracer_u**2) * 1e6 + jnp.mean(tr.tracer_u[-1]) * 1e3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k", [0, 1])
 def test_grad_wrt_roller_translation_matches_central_differences(model, k):
+    """Slow (programs of its own). Fast: case 1d-drive-idle of
+    test_grad_wrt_drive_idle_tension_rollers_matches_central_differences checks the x translation
+    of both rollers against central differences (and test_grad_through_eliminated_and_naive
+    differentiates through ``with_misalignment`` on this scene)."""
     t0 = jnp.array([0.0, 1e-3])
     g = jax.grad(lambda t: _metric(model, t))(t0)[k]
     h = 1e-7
@@ -62,9 +67,14 @@ def _metric2d(model, chi, n_steps=9):
     return jnp.mean(tr.tracer_u[-1]) * 1e3 + jnp.sum(tr.tracer_v**2) * 1e6 + jnp.mean(tr.tracer_v) * 1e3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dof", [0, 1, 2, 3, 4])
 def test_grad_2d_wrt_each_misalignment_component(model2d, dof):
-    """Roller 2's dx, dy, dz, αx, αy (index 6 + dof) around a misaligned configuration."""
+    """Roller 2's dx, dy, dz, αx, αy (index 6 + dof) around a misaligned configuration.
+
+    Slow (programs of its own). Fast: case 2d-tension of
+    test_grad_wrt_drive_idle_tension_rollers_matches_central_differences checks every translation
+    and rotation of a drive, a tension and an idle roller in 2D against central differences."""
     chi0 = model2d.chi_static.at[1].set(1e-3).at[9].set(3e-4).at[14].set(1e-3)
     k = 6 + dof
     g = jax.grad(lambda c: _metric2d(model2d, c))(chi0)[k]
@@ -88,9 +98,16 @@ def test_adjoint_solve_equals_dense_transposed_solve(method):
     right-hand-side cotangent is ``A⁻ᵀ x̄``), equal a dense ``jnp.linalg`` solve with ``Aᵀ``."""
     A, cb, cr = _random(9, 4, 6)
     ref = jnp.linalg.solve(A.to_dense().T, join(cb, cr))
-    assert _rel(join(*factor_solve_transposed(factorise(A, method), cb, cr)), ref) < 1e-12
-    _, pullback = jax.vjp(lambda rb, rr: bordered_solve(A, rb, rr, method), jnp.zeros_like(cb), jnp.zeros_like(cr))
-    assert _rel(join(*pullback((cb, cr))), ref) < 1e-12
+    # jit-compiled, as inside a run (one program each, not a few hundred op-by-op compilations)
+    transposed = jax.jit(lambda A, cb, cr: join(*factor_solve_transposed(factorise(A, method), cb, cr)))
+    assert _rel(transposed(A, cb, cr), ref) < 1e-12
+
+    @jax.jit
+    def reverse_mode(A, cb, cr):
+        _, pullback = jax.vjp(lambda rb, rr: bordered_solve(A, rb, rr, method), jnp.zeros_like(cb), jnp.zeros_like(cr))
+        return join(*pullback((cb, cr)))
+
+    assert _rel(reverse_mode(A, cb, cr), ref) < 1e-12
 
 
 def test_reverse_mode_reuses_the_factors():
@@ -100,10 +117,21 @@ def test_reverse_mode_reuses_the_factors():
     matrix cotangent's products. Differentiating ``factor_solve(factorise(A))`` has them all."""
     from jaxbelt.linalg.bordered import factor_solve
 
-    A, rb, rr = _random(12, 4, 6)
+    A, rb, rr = _random(9, 4, 6)
+
+    def pullback_jaxpr(f):
+        """The pullback's jaxpr, traced abstractly (nothing is compiled or run)."""
+        out = {}
+
+        def trace(A, rb):
+            y, pullback = jax.vjp(f, A, rb)
+            out["jaxpr"] = jax.make_jaxpr(pullback)(y).jaxpr
+            return y
+
+        jax.eval_shape(trace, A, rb)
+        return out["jaxpr"]
 
     def outside_solves(f):
-        _, pullback = jax.vjp(f, A, rb)
         names = set()
 
         def walk(jaxpr):
@@ -116,7 +144,7 @@ def test_reverse_mode_reuses_the_factors():
                             if hasattr(sub, "eqns"):
                                 walk(sub)
 
-        walk(jax.make_jaxpr(pullback)(f(A, rb)).jaxpr)
+        walk(pullback_jaxpr(f))
         return names
 
     factorisation = {"scan", "while", "lu", "triangular_solve"}
