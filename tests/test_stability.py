@@ -67,9 +67,9 @@ def test_nonfinite_state_stops_with_step_and_cause():
 
 
 def test_long_run_keeps_mass_and_mean_displacement():
-    """20 000 steps (100 s; the 100 000-step version is marked slow): no drift of the belt mass or
+    """10 000 steps (50 s; the 100 000-step version is marked slow): no drift of the belt mass or
     of the mean tracer displacement once the belt has settled."""
-    model = jb.compile_scene(scene_1d(time={"t_end_s": 100.0}, output={"every": 100}))
+    model = jb.compile_scene(scene_1d(time={"t_end_s": 50.0}, output={"every": 100}))
     _, tr = jb.simulate(model)
     m = np.asarray(tr.belt_mass)
     assert np.max(np.abs(m / m[0] - 1)) < 1e-12
@@ -277,20 +277,27 @@ def test_pod_asking_for_more_modes_than_snapshots_keeps_all_and_is_exact():
     assert np.allclose(V @ (V.T @ X), X, atol=1e-12 * np.abs(X).max())
 
 
-@pytest.mark.parametrize("n_eta", [2, 33])
-def test_very_coarse_and_very_fine_grids_across_the_width(n_eta):
-    """three-roller-t72 with 2 and 33 points across (N = 1266 … 6882), 20 steps: finite, mass
-    conserved, and the tracers within 10 % of the default 18-point grid's (the corner-limited
-    convergence of test_validation makes the coarse grid the worst)."""
+def _t72_run(n_eta):
     import dataclasses
 
-    def run(k):
-        sc = jb.load_scene("three-roller-t72")
-        sc = sc.replace(mesh=dataclasses.replace(sc.mesh, n_eta=k), solver=dataclasses.replace(sc.solver, linear_solver="reuse"))
-        _, tr = jb.simulate(jb.compile_scene(sc), n_steps=20)
-        return tr
+    sc = jb.load_scene("three-roller-t72")
+    sc = sc.replace(mesh=dataclasses.replace(sc.mesh, n_eta=n_eta), solver=dataclasses.replace(sc.solver, linear_solver="reuse"))
+    _, tr = jb.simulate(jb.compile_scene(sc), n_steps=20)
+    return tr
 
-    tr, ref = run(n_eta), run(18)
+
+@pytest.fixture(scope="module")
+def t72_default_grid():
+    return _t72_run(18)
+
+
+@pytest.mark.parametrize("n_eta", [2, pytest.param(33, marks=pytest.mark.slow)])
+def test_very_coarse_and_very_fine_grids_across_the_width(n_eta, t72_default_grid):
+    """three-roller-t72 with 2 and 33 points across (N = 1266 … 6882), 20 steps: finite, mass
+    conserved, and the tracers within 10 % of the default 18-point grid's (the corner-limited
+    convergence of test_validation makes the coarse grid the worst). The fine grid (N = 6882, a
+    size check) is slow; test_validation's n_η = 3/5/9 convergence runs refine the width fast."""
+    tr, ref = _t72_run(n_eta), t72_default_grid
     m = np.asarray(tr.belt_mass)
     assert np.max(np.abs(m / m[0] - 1)) < 1e-13
     for a, b in ((tr.tracer_u, ref.tracer_u), (tr.tracer_v, ref.tracer_v)):
