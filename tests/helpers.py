@@ -38,3 +38,15 @@ def span_strains(model, mesh, u):
 
 def central_difference(f, x, h):
     return (f(x + h) - f(x - h)) / (2 * h)
+
+
+def whole_chunks(n_steps: int) -> int:
+    """The smallest run length ``≥ n_steps`` that is a whole number of the time loop's checkpoint
+    chunks (``jaxbelt.timeloop.default_checkpoint_chunk``): its compiled scan then holds one copy
+    of the step, not a second one for the remainder (about a third less to compile)."""
+    from jaxbelt.timeloop import default_checkpoint_chunk
+
+    n = n_steps
+    while n > default_checkpoint_chunk(n) and n % default_checkpoint_chunk(n):
+        n += 1
+    return n

@@ -92,7 +92,7 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
-from helpers import scene_with, span_strains
+from helpers import scene_with, span_strains, whole_chunks
 from jaxbelt.assembly import dae_apply
 from jaxbelt.timeloop import tracer_values
 
@@ -152,7 +152,8 @@ def wave_scene(kind="1d", h_mm=5.0, c_dt_mm=2.0, speed=REST, width_mm=50.0, nu=N
 
 
 def wave_steps(model):
-    return round((FAR_MM + 2 * SIGMA_MM) * 1e-3 / (C0 * model.dt))
+    """Until the pulse has passed the far tracers (rounded up to whole checkpoint chunks)."""
+    return whole_chunks(round((FAR_MM + 2 * SIGMA_MM) * 1e-3 / (C0 * model.dt)))
 
 
 def moving_state(model, mesh, speed, extra_u):
