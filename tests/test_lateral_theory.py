@@ -112,26 +112,31 @@ def two_roller_model():
     return jb.compile_scene(two_roller())
 
 
-def _walk(model, rotation):
-    _, tr = jb.simulate(model.with_misalignment(rotation=jnp.asarray(rotation)))
+def _walk(tr):
     t, v = np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1)
     n = len(t)
     return float(np.polyfit(t[n // 2:], v[n // 2:], 1)[0])
 
 
-def test_skew_walk_equals_the_timoshenko_loop(two_roller_model):
+@pytest.fixture(scope="module")
+def skew_run(two_roller_model):
+    """Roller 2 skewed by 1 mrad, 1600 steps (16 s): the trajectory of two tests below."""
+    return jb.simulate(two_roller_model.with_misalignment(rotation=jnp.asarray(rot(1, 1))))[1]
+
+
+def test_skew_walk_equals_the_timoshenko_loop(skew_run):
     """K L = 4.9 (50 mm belt, ε₀ = 5e-3): the walk on a skewed roller is neither the string's nor
     the beam's; the 2D model gives the reference's within 2 % on this mesh (0.1 % at n_ξ = 400,
     benchmarks/lateral_theory.py)."""
     sc = two_roller()
-    c = _walk(two_roller_model, rot(1, 1))
+    c = _walk(skew_run)
     ref = th.scene_walk_rate(sc, rot(1, 1))
     assert c == pytest.approx(ref, rel=0.02)
     assert abs(c / (-1e-3 * SPAN / L_LOOP)) < 0.7  # far from the string limit at this K L
 
 
 def test_twist_walk_equals_the_per_pass_shift(two_roller_model):
-    c = _walk(two_roller_model, rot(1, 0))
+    c = _walk(jb.simulate(two_roller_model.with_misalignment(rotation=jnp.asarray(rot(1, 0))))[1])
     assert c == pytest.approx(2 * R * 1e-3 / L_LOOP, rel=0.01)
 
 
@@ -162,13 +167,12 @@ def test_entry_line_correction_is_the_roller_skew_at_the_contact_line(axis):
     assert np.count_nonzero(np.abs(corr[:, 1::2]) > 1e-15) <= 2 * m.n_eta  # entry nodes only
 
 
-def test_steady_span_shape_equals_the_reference(two_roller_model):
+def test_steady_span_shape_equals_the_reference(skew_run):
     """Beyond the rate: in steady walk the lateral shape of both spans (tracers on the centre line,
     the walk's offset removed) is the reference's Timoshenko span shape within 3 % of its range."""
     sc = two_roller()
     mesh = jb.build_mesh(sc)
-    _, tr = jb.simulate(two_roller_model.with_misalignment(rotation=jnp.asarray(rot(1, 1))))
-    v = np.asarray(tr.tracer_v[-1])
+    v = np.asarray(skew_run.tracer_v[-1])
     _, shape = th.walk_rate(th.scene_geometry(sc)[0], rot(1, 1), E * 5e-3 * 0.05 * T_B,
                             *th.belt_section(0.05, T_B, E, NU), return_shape=True)
     _, d_model, d_ref = th.span_tracer_shapes(mesh, v, shape)
