@@ -1,7 +1,9 @@
 """Factorisation reuse: frozen factors, matrix-free products, agreement with the exact mode."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxbelt as jb
 from jaxbelt.assembly import dae_apply, dae_matrices, roller_R
@@ -9,26 +11,32 @@ from jaxbelt.linalg.bordered import bordered_solve, factor_solve, factorise
 from helpers import scene_with
 
 
-def _model():
-    m = jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), "three-roller-t72"))
-    return m
+@pytest.fixture(scope="module")
+def m():
+    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), "three-roller-t72"))
 
 
-def test_factor_solve_equals_structured_solve():
-    m = _model()
+@pytest.fixture(scope="module")
+def state4(m):
+    """The state after 4 steps (a whole number of checkpoint chunks: one compiled step)."""
+    return jb.simulate(m, n_steps=4)[0]
+
+
+def test_factor_solve_equals_structured_solve(m):
     s = jb.initial_state(m)
     K, M = dae_matrices(m, s.m_e, roller_R(m, s.u))
     A = M + K.scale(m.dt**2)
     rng = np.random.default_rng(1)
     rb, rr = jnp.asarray(rng.normal(size=(m.n_xi, m.block))), jnp.asarray(rng.normal(size=m.n_roller_dofs))
-    x1, x2 = factor_solve(factorise(A), rb, rr), bordered_solve(A, rb, rr)
+    # jit-compiled, as inside a run (one program each, not op by op)
+    x1 = jax.jit(lambda A, rb, rr: factor_solve(factorise(A), rb, rr))(A, rb, rr)
+    x2 = jax.jit(bordered_solve)(A, rb, rr)
     for a, b in zip(x1, x2):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-9, atol=1e-12 * float(jnp.max(jnp.abs(b))))
 
 
-def test_matrix_free_products_equal_assembled():
-    m = _model()
-    s, _ = jb.simulate(m, n_steps=5)
+def test_matrix_free_products_equal_assembled(m, state4):
+    s = state4
     R = roller_R(m, s.u)
     K, M = dae_matrices(m, s.m_e, R)
     rng = np.random.default_rng(2)
@@ -38,8 +46,7 @@ def test_matrix_free_products_equal_assembled():
         np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(want)) + 1))
 
 
-def test_reuse_mode_tracks_exact_mode():
-    m = _model()
+def test_reuse_mode_tracks_exact_mode(m):
     _, exact = jb.simulate(m, jb.make_integrator("direct", m, "structured"), n_steps=100)
     _, reuse = jb.simulate(m, jb.make_integrator("direct", m, "reuse"), n_steps=100)
     rmse_u = float(jnp.sqrt(jnp.mean((exact.tracer_u - reuse.tracer_u) ** 2)))
@@ -47,11 +54,10 @@ def test_reuse_mode_tracks_exact_mode():
     assert rmse_u < 1e-12 and rmse_v < 1e-12  # m, i.e. < 1e-9 mm
 
 
-def test_step_matrix_equals_M_plus_dt2_K():
+def test_step_matrix_equals_M_plus_dt2_K(m, state4):
     from jaxbelt.assembly import step_matrix
 
-    m = _model()
-    s, _ = jb.simulate(m, n_steps=3)
+    s = state4
     R = roller_R(m, s.u)
     K, M = dae_matrices(m, s.m_e, R)
     np.testing.assert_allclose(np.asarray(step_matrix(m, s.m_e, R, m.dt).to_dense()),

@@ -12,7 +12,7 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.integrators import make_integrator
 from jaxbelt.transport import upwind_weights
-from helpers import span_strains
+from helpers import span_strains, whole_chunks
 
 
 def test_weights_are_exact_linear_interpolation_of_displaced_positions():
@@ -42,7 +42,7 @@ def _steady_strain(transport, dt, refine=1):
     mesh = jb.build_mesh(sc)
     model = jb.compile_scene(sc, mesh)
     integ = make_integrator("direct", model)
-    s, tr = jb.simulate(model, integ, n_steps=int(round(6.0 / dt)))
+    s, tr = jb.simulate(model, integ, n_steps=whole_chunks(int(round(6.0 / dt))))  # ~6 s, whole checkpoint chunks
     solved = integ.solve_step(model, s)
     eps = span_strains(model, mesh, solved.u)
     w = np.asarray(tr.roller_velocity)[-1, :, 1]
@@ -82,10 +82,10 @@ def test_plain_interpolation_on_arcs_erases_a_translation(monkeypatch):
 
     model = jb.load_model("two-roller-1d-idle-translated")
     mesh = jb.build_mesh(jb.load_scene("two-roller-1d-idle-translated"))
-    s, _ = jb.simulate(model, n_steps=1000)
+    s, _ = jb.simulate(model, n_steps=1024)  # 1024 and 992: whole checkpoint chunks
     kept = span_strains(model, mesh, jb.DirectBackwardEuler().solve_step(model, s).u)[0]
     monkeypatch.setattr(T, "roller_relative_correction", lambda *a: 0.0)
-    s, _ = jb.simulate(model, n_steps=999)  # a new n_steps (static) forces a fresh trace
+    s, _ = jb.simulate(model, n_steps=992)  # a new n_steps (static) forces a fresh trace
     lost = span_strains(model, mesh, jb.DirectBackwardEuler().solve_step(model, s).u)[0]
     assert np.all(np.abs(lost) < 1e-9)
     np.testing.assert_allclose(kept, 1e-3 / (0.275 + np.pi * 0.05), rtol=1e-9)
