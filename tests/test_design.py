@@ -3,9 +3,10 @@
 importance sampling, the sweep store.
 
 Most tests share one coarse study (``study``: 12 steps, a whole number of the scan's checkpoint
-chunks, so each compiled run holds one copy of the step) and reuse its compiled programs: the
-value and gradient, the forward Jacobian, the vmapped batches of 8 configurations, the jitted
-metric."""
+chunks, so each compiled run holds one copy of the step; the factorisation-reuse solver, which
+test_reuse.py and test_grad.py check against the exact one, 4× faster here) and reuse its
+compiled programs: the value and gradient, the forward Jacobian, the vmapped batches of 8
+configurations, the jitted metric. The 1D gradient check runs the scene's exact solver."""
 
 import jax
 import jax.numpy as jnp
@@ -32,7 +33,8 @@ def model2d():
 
 @pytest.fixture(scope="module")
 def study(model2d):
-    return design.make_study(model2d, "lateral_rms", t_eval=0.24, components="roller 2:rotation,roller 3:dx,roller 3:dz")
+    return design.make_study(model2d, "lateral_rms", t_eval=0.24, components="roller 2:rotation,roller 3:dx,roller 3:dz",
+                             integrator=jb.make_integrator("direct", model2d, "reuse"))
 
 
 CHUNK = 8  # every batched evaluation of the study: one compiled vmap of 8 configurations
@@ -80,9 +82,10 @@ def test_metrics_are_zero_for_the_aligned_machine_and_match_their_definitions(st
     k = study.n_steps - 1
     assert np.isclose(float(design.metric_value(study, jnp.zeros(4))), float(jnp.sqrt(jnp.mean(dv[k] ** 2))), rtol=1e-12)
     aligned = design.make_study(study.model.replace(chi_static=jnp.zeros_like(study.base)), "lateral_max",
-                                t_eval=study.t_eval, components="roller 2:rotation")
+                                t_eval=study.t_eval, components="roller 2:rotation", integrator=study.integrator)
     assert float(design.metric_value(aligned, jnp.zeros(2))) == 0.0
-    peak = design.make_study(study.model, "lateral_peak", t_eval=study.t_eval, components="roller 2:rotation")
+    peak = design.make_study(study.model, "lateral_peak", t_eval=study.t_eval, components="roller 2:rotation",
+                             integrator=study.integrator)
     dv2 = design.tracer_deviation(peak, jnp.zeros(2))[1]
     assert np.isclose(float(design.metric_value(peak, jnp.zeros(2))), float(jnp.max(jnp.abs(dv2[-peak.window:]))))
     assert float(design.metric_value(peak, jnp.zeros(2), smooth=True)) >= float(design.metric_value(peak, jnp.zeros(2)))
