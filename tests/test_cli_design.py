@@ -2,7 +2,8 @@
 and their one-line errors for bad input.
 
 On a coarse scene (two grid lines across, 12 steps: a whole number of the scan's checkpoint
-chunks, so each compiled run holds one copy of the step)."""
+chunks, so each compiled run holds one copy of the step); ``sensitivity``, ``tolerance`` and
+``sweep`` with ``--solver reuse`` (the factorisation-reuse solver: cheaper to compile and to run)."""
 
 import json
 import math
@@ -36,8 +37,8 @@ def _json(capsys, argv):
 
 
 def test_sensitivity_json_and_plot(files, capsys):
-    r = _json(capsys, ["sensitivity", str(files / "small.toml"), "--metric", "lateral_max", "--json",
-                       "--plot", str(files / "s.png")])
+    r = _json(capsys, ["sensitivity", str(files / "small.toml"), "--metric", "lateral_max", "--solver", "reuse",
+                       "--json", "--plot", str(files / "s.png")])
     assert r["metric"] == "lateral_max" and r["at_kink"] and r["value_um"] < 1e-6
     assert set(r["gradient"]) == {"roller 1", "roller 2", "roller 3"}
     # a roller moved along its axis carries the belt with it: ~1 µm per µm
@@ -51,7 +52,7 @@ def test_tolerance_json(files, capsys):
     test_design.py::test_box_on_the_default_scene_is_verified_by_full_runs)."""
     (files / "w.toml").write_text('[roller."roller 2"]\nrotation = [4.0, 1.0, 1.0]\n')
     r = _json(capsys, ["tolerance", str(files / "small.toml"), "--components", "roller 2:rotation",
-                       "--weights", str(files / "w.toml"), "--json", "--plot", str(files / "t.png")])
+                       "--weights", str(files / "w.toml"), "--solver", "reuse", "--json", "--plot", str(files / "t.png")])
     assert r["verified"] and 0.97 * 20 <= r["worst_case_um"] <= 20
     ax, ay = r["box"]["roller 2"]["rotation_mrad"][:2]
     assert ax > 0 and ay > 0 and r["box"]["roller 1"]["rotation_mrad"] == [0.0, 0.0, 0.0]
@@ -64,7 +65,7 @@ def test_tolerance_json(files, capsys):
 def test_sweep_json_store_and_resume(files, capsys):
     out = files / "sweep.zarr"
     argv = ["sweep", str(files / "small.toml"), "--dist", str(files / "dist.toml"), "--samples", "24",
-            "--chunk", "8", "--limit-um", "8", "--out", str(out), "--json", "--no-form"]
+            "--chunk", "8", "--limit-um", "8", "--solver", "reuse", "--out", str(out), "--json", "--no-form"]
     r = _json(capsys, argv + ["--plot", str(files / "y.png")])
     assert r["samples"] == 24 and r["full_runs"] == 24 and r["reduced_runs"] == 0
     assert r["ci95"][0] <= r["yield"] <= r["ci95"][1]
