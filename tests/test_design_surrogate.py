@@ -18,8 +18,11 @@ LIMIT = 20.0  # µm
 
 @pytest.fixture(scope="module")
 def study():
+    """Coarse, 30 steps (whole checkpoint chunks), the factorisation-reuse solver (cheaper to
+    compile and to run; checked against the exact one in test_reuse.py)."""
     model = jb.compile_scene(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
-    return design.make_study(model, "lateral_max", t_eval=0.6, components="roller 2:rotation")
+    return design.make_study(model, "lateral_max", t_eval=0.6, components="roller 2:rotation",
+                             integrator=jb.make_integrator("direct", model, "reuse"))
 
 
 @pytest.fixture(scope="module")
