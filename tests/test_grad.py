@@ -180,11 +180,17 @@ def _tracer_metric(model, n_steps, solver):
     return metric
 
 
-@pytest.mark.parametrize("solver", ["structured", "reuse"])
-@pytest.mark.parametrize("case", list(_FD_CASES))
+_SLOW_FD = {("1d-drive-idle", "reuse"), ("1d-tension", "reuse")}  # reuse: the 2D case; 1D: structured
+_FD_PARAMS = [pytest.param(case, solver, id=f"{case}-{solver}", marks=[pytest.mark.slow] * ((case, solver) in _SLOW_FD))
+              for solver in ("structured", "reuse") for case in _FD_CASES]
+
+
+@pytest.mark.parametrize("case,solver", _FD_PARAMS)
 def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, solver):
     """Reverse mode through the whole run (custom adjoint solve, checkpointed scan) against
-    central differences (h = 1e-6 m or rad) around a random misalignment, every component."""
+    central differences (h = 1e-6 m or rad) around a random misalignment, every component.
+    The factorisation-reuse solver's 1D cases are slow (its 2D case and the 1D structured cases
+    are fast)."""
     make, n_steps, active, inactive = _FD_CASES[case]
     model = make()
     d = len(model.dofs)
