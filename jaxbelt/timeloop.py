@@ -136,6 +136,7 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
     ``v_solved`` (flat ``[belt; rollers]``), the snapshots of model order reduction, and the
     state after transport ``x_grid``, ``v_grid``."""
     p, d = model.n_rollers, len(model.dofs)
+    integrator = integrator.prepare(model)
 
     def roller_loads(state, solved):
         """``M_r χ̈ + Σ R_rᵀ f_k - Q_ext`` per roller DOF (§4 post-processing): at a prescribed DOF

@@ -19,7 +19,7 @@ def make_integrator(name: str, model, linear_solver: str | None = None) -> Abstr
         ls = linear_solver or model.linear_solver
         if ls == "reuse":
             return ReusedFactorisationBackwardEuler.for_model(model)
-        return DirectBackwardEuler(ls)
+        return DirectBackwardEuler.for_model(model, ls)
     if name == "naive":
         return NaiveBackwardEuler()
     if name == "eliminated":

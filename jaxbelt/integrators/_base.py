@@ -20,3 +20,8 @@ class AbstractIntegrator(eqx.Module):
     @abc.abstractmethod
     def solve_step(self, model: BeltModel, state: BeltState) -> BeltState:
         """Advance ``state`` by one step of size ``model.dt`` (before transport)."""
+
+    def prepare(self, model: BeltModel) -> "AbstractIntegrator":
+        """Per-run set-up, called by the time loop once before its scan (inside ``jit``): the
+        integrator to use for ``model``'s steps. Default: ``self``."""
+        return self

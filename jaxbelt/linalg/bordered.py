@@ -273,6 +273,58 @@ def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFact
     return BorderedFactorisation(row_b, row_r, interior, y_G, H, S_lu, S_piv)
 
 
+def scaled_schur(A: BorderedBlockCyclic, F: BorderedFactorisation) -> jax.Array:
+    """The (unfactored) ``(b + q)²`` Schur complement ``Z - H T⁻¹ G`` of ``A`` in ``F``'s row
+    scaling (:func:`refactorise_border` updates it)."""
+    G, Z = _border_parts(_scale_rows(A, F.row_b, F.row_r))
+    return Z - _border_times(F.H, F.y_G)
+
+
+def _scale_rows(A: BorderedBlockCyclic, row_b, row_r) -> BorderedBlockCyclic:
+    return BorderedBlockCyclic(diag=A.diag * row_b[:, :, None], lower=A.lower * row_b[:, :, None],
+                               upper=A.upper * row_b[:, :, None], C=A.C * row_b[:, :, None],
+                               D=A.D * row_r[None, :, None], E=A.E * row_r[:, None])
+
+
+def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_ref: jax.Array,
+                       columns=(), rows=()) -> BorderedFactorisation:
+    """Exact factors of ``A`` from those of a matrix ``A_ref`` that differs from it in a few
+    roller columns and rows only.
+
+    Precondition (the caller's to guarantee): ``A`` equals ``A_ref`` — factored in ``F_ref``,
+    ``S_ref = scaled_schur(A_ref, F_ref)`` — except in the roller columns ``C[:, :, columns]``
+    and the roller rows ``D[:, rows, :]`` (static index tuples into the roller unknowns); ``E``
+    must be the same. Then the interior factors ``T⁻¹`` are those of ``A`` too, ``T⁻¹ G``
+    changes in the listed columns only (one sweep with the kept factors over ``len(columns)``
+    right-hand sides) and the Schur complement in the listed columns and rows only; the rest is
+    ``F_ref``'s. The rows keep ``F_ref``'s equilibration scales (any positive row scaling
+    factors the same system). The result is the exact factorisation of ``A``:
+    :func:`factor_solve` with it solves ``A x = r`` to round-off (``tests/test_linalg.py``
+    checks it against :func:`factorise`). For the belt on rollers with tilt DOFs, whose lever
+    arm moves with the lateral displacement (§4.2) while nothing else in ``M + Δt² K`` changes
+    under the shift transport, this is the whole difference between two steps' matrices
+    (:class:`jaxbelt.integrators.DirectBackwardEuler`)."""
+    from jax.scipy.linalg import lu_factor
+
+    b = A.block
+    row_b, row_r = F_ref.row_b, F_ref.row_r
+    cols, rws = jnp.asarray(columns, int), jnp.asarray(rows, int)
+    C = A.C[:, :, cols] * row_b[:, :, None]  # (n, b, k) changed roller columns, scaled
+    D = A.D * row_r[None, :, None]
+    H = (F_ref.H[0], F_ref.H[1], D[1:])
+    y_G, S = F_ref.y_G, S_ref
+    if len(columns):
+        y_new = _apply_interior(F_ref.interior, C[1:])
+        y_G = y_G.at[:, :, b + cols].set(y_new)
+        Z_cols = jnp.concatenate([C[0], A.E[:, cols] * row_r[:, None]], axis=0)
+        S = S.at[:, b + cols].set(Z_cols - _border_times(H, y_new))
+    if len(rows):
+        Z_rows = jnp.concatenate([D[0, rws], A.E[rws] * row_r[rws, None]], axis=1)
+        S = S.at[b + rws, :].set(Z_rows - jnp.einsum("nqb,nbs->qs", D[1:, rws], y_G))
+    S_lu, S_piv = lu_factor(S)
+    return BorderedFactorisation(row_b, row_r, F_ref.interior, y_G, H, S_lu, S_piv)
+
+
 def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
     """Solve with the factors: exact for the factored matrix, a preconditioner for a nearby one."""
     from jax.scipy.linalg import lu_solve

@@ -1,0 +1,121 @@
+"""The exact solver's kept interior: one interior factorisation per run, the border per step.
+
+With the shift transport the belt's interior blocks of ``M + Δt² K`` never change; only the
+tilt columns (lever arm ``z + v``) and, for dynamic tilts, their roller rows do
+(:class:`jaxbelt.integrators.DirectBackwardEuler`). Checked against a full factorisation of
+every step's matrix and against dense solves, forward and in reverse mode."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbelt as jb
+from jaxbelt.integrators import DirectBackwardEuler
+from jaxbelt.linalg import BorderedBlockCyclic
+from jaxbelt.linalg.bordered import dense_solve, factor_solve, factorise, refactorise_border, scaled_schur
+from jaxbelt.timeloop import run
+from helpers import scene_with
+
+
+class FullFactorisation(DirectBackwardEuler):
+    """The exact solver without the kept interior: every step's matrix factored in full."""
+
+    def prepare(self, model):
+        return self
+
+
+def _random_bordered(rng, n=7, b=4, q=5):
+    g = lambda *s: jnp.asarray(rng.normal(size=s))  # noqa: E731
+    return BorderedBlockCyclic(diag=g(n, b, b) + 8 * jnp.eye(b), lower=g(n, b, b), upper=g(n, b, b),
+                               C=g(n, b, q), D=g(n, q, b), E=g(q, q) + 8 * jnp.eye(q))
+
+
+@pytest.mark.parametrize("method", ["thomas", "cyclic-reduction"])
+def test_refactorise_border_is_the_exact_factorisation(method):
+    rng = np.random.default_rng(3)
+    A_ref = _random_bordered(rng)
+    cols, rows = (1, 3), (0, 3)
+    C = A_ref.C.at[:, :, jnp.asarray(cols)].add(jnp.asarray(rng.normal(size=(7, 4, 2))))
+    D = A_ref.D.at[:, jnp.asarray(rows), :].add(jnp.asarray(rng.normal(size=(7, 2, 4))))
+    A = BorderedBlockCyclic(A_ref.diag, A_ref.lower, A_ref.upper, C, D, A_ref.E)
+    rb, rr = jnp.asarray(rng.normal(size=(7, 4))), jnp.asarray(rng.normal(size=5))
+
+    @jax.jit
+    def solves(A_ref, A, rb, rr):
+        F_ref = factorise(A_ref, method)
+        F = refactorise_border(A, F_ref, scaled_schur(A_ref, F_ref), cols, rows)
+        return factor_solve(F, rb, rr), factor_solve(F_ref, rb, rr), dense_solve(A, rb, rr)
+
+    x, x_ref_factors, x_dense = solves(A_ref, A, rb, rr)
+    for a, b in zip(x, x_dense):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-11, atol=1e-12)
+    # and the reference's factors alone would not do: the test can fail
+    assert float(jnp.max(jnp.abs(x_ref_factors[0] - x_dense[0]))) > 1e-3
+
+
+@pytest.fixture(scope="module")
+def walking():
+    """A small three-roller belt whose lever arms keep moving: a skewed roller with lateral
+    transport (the belt walks), and a tension roller whose x-tilt is a dynamic, torque-loaded DOF
+    (its roller row moves with the lever arm too)."""
+
+    def mutate(d):
+        d.setdefault("mesh", {}).update(n_eta=3)
+        d.setdefault("solver", {}).update(lateral_transport=True)
+        d.setdefault("variant", {}).setdefault("roller 2", {}).update(role="tension", force_n=[200.0, 0.0, 0.0],
+                                                                    torque_nm=[0.5, 0.0, 0.0],
+                                                                    rotation_mrad=[0.0, 0.0, 0.0])
+        d["variant"].setdefault("roller 3", {}).update(rotation_mrad=[0.0, 2.0, 0.0])
+
+    return jb.compile_scene(scene_with(mutate, "three-roller-t72"))
+
+
+def test_lever_columns_and_dynamic_rows(walking):
+    integ = DirectBackwardEuler.for_model(walking)
+    d = len(walking.dofs)
+    assert integ.lever_columns == tuple(j * d + walking.dofs.index(a) for j in range(3) for a in ("ax", "ay"))
+    assert integ.lever_rows == (d + walking.dofs.index("ax"),)  # roller 2's torque-loaded x tilt
+
+
+def test_run_equals_a_full_factorisation_every_step(walking):
+    """With the static facts of :meth:`for_model` (dynamic rows known) and without them (every
+    tilt row recomputed), against the full factorisation of every step's matrix."""
+    n = 16
+    s0 = jb.initial_state(walking)
+    (s_full, tr_full), *kept = jax.jit(lambda s: [
+        run(walking, i, s, n) for i in (FullFactorisation("structured"), DirectBackwardEuler.for_model(walking),
+                                        DirectBackwardEuler("structured"))])(s0)
+    scale_u = float(jnp.max(jnp.abs(s_full.u)))
+    r = np.asarray(tr_full.roller_reaction)
+    for s_kept, tr_kept in kept:
+        np.testing.assert_allclose(np.asarray(s_kept.u), np.asarray(s_full.u), rtol=0, atol=1e-12 * scale_u)
+        np.testing.assert_allclose(np.asarray(s_kept.chi), np.asarray(s_full.chi), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(np.asarray(tr_kept.roller_reaction), r, rtol=0, atol=1e-9 * np.max(np.abs(r)))
+    # the lever arms did move (else the test could not tell the kept interior from a frozen matrix)
+    assert float(jnp.max(jnp.abs(s_full.u[:, 1::2] - s0.u[:, 1::2]))) > 1e-7
+
+
+def test_gradient_through_the_kept_interior(walking):
+    """Reverse mode through one step (its adjoint solve is the transposed kept-interior solve)
+    equals reverse mode through the full factorisation."""
+    s = jax.jit(lambda m: run(m, DirectBackwardEuler("structured"), jb.initial_state(m), 4)[0])(walking)
+    kept = jax.jit(DirectBackwardEuler.for_model(walking).prepare)(walking)
+    assert kept.reference is not None
+
+    def metric(integrator, rot):
+        solved = integrator.solve_step(walking.with_misalignment(rotation=rot), s)
+        return jnp.sum(solved.u[:, 1::2] ** 2) + jnp.sum(solved.chi ** 2)
+
+    rot = jnp.zeros((3, 3)).at[2, 1].set(2e-3)
+    g_kept, g_full = jax.jit(lambda r: (jax.grad(lambda r: metric(kept, r))(r),
+                                        jax.grad(lambda r: metric(FullFactorisation("structured"), r))(r)))(rot)
+    np.testing.assert_allclose(np.asarray(g_kept), np.asarray(g_full), rtol=1e-9,
+                               atol=1e-9 * float(jnp.max(jnp.abs(g_full))))
+    assert float(jnp.max(jnp.abs(g_full))) > 0
+
+
+def test_source_transport_factors_every_step(walking):
+    m = walking.replace(transport="source")
+    assert DirectBackwardEuler.for_model(m).prepare(m).reference is None
+    assert DirectBackwardEuler.for_model(walking).prepare(walking).reference is not None
