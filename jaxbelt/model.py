@@ -66,6 +66,7 @@ class BeltModel(eqx.Module):
     linear_solver: str = eqx.field(static=True)
     transport: str = eqx.field(static=True, default="shift")
     lateral_transport: bool = eqx.field(static=True, default=False)
+    contact_columns: tuple | None = eqx.field(static=True, default=None)  # node columns on rollers (None: unknown)
 
     @property
     def n_eta(self) -> int:
@@ -146,7 +147,8 @@ def _node_geometry(mesh):
     radius = np.where(on, mesh.path.radii[j], 0.0)
     sense = np.where(on, mesh.path.senses[j], 0).astype(float)
     return dict(node_roller=jnp.asarray(mesh.node_roller), node_theta=jnp.asarray(mesh.node_theta),
-                node_radius=jnp.asarray(radius), node_sense=jnp.asarray(sense), z0=jnp.asarray(mesh.z))
+                node_radius=jnp.asarray(radius), node_sense=jnp.asarray(sense), z0=jnp.asarray(mesh.z),
+                contact_columns=tuple(int(i) for i in np.flatnonzero(on)))
 
 
 def _tracers(mesh):

@@ -19,7 +19,8 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-from .assembly import free_belt_matvec, generalised_belt_force, nodal_masses, roller_R
+from .assembly import (free_belt_matvec, free_belt_stencil, generalised_belt_force, nodal_masses, roller_R,
+                       static_surface_offset, stencil_matvec)
 from .integrators import AbstractIntegrator, resolve_integrator
 from .linalg import join
 from .model import BeltModel
@@ -137,19 +138,32 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
     state after transport ``x_grid``, ``v_grid``."""
     p, d = model.n_rollers, len(model.dofs)
     integrator = integrator.prepare(model)
+    stencil = free_belt_stencil(model)  # once per run, outside the scan
+    offset = static_surface_offset(model)
+    on = model.contact_columns  # R_r vanishes off the rollers: the loads need those columns only
 
     def roller_loads(state, solved):
         """``M_r χ̈ + Σ R_rᵀ f_k - Q_ext`` per roller DOF (§4 post-processing): at a prescribed DOF
         the force/torque its support must supply (what holds a misaligned roller, what the drive
-        delivers); at a dynamic DOF the residual of its equation (≈ 0)."""
+        delivers); at a dynamic DOF the residual of its equation (≈ 0). The nodal forces ``f_k``
+        are evaluated on the roller columns only (``model.contact_columns``), where ``R_r`` is
+        non-zero."""
         a_u = (solved.u_dot - state.u_dot) / model.dt
         a_chi = (solved.chi_dot - state.chi_dot) / model.dt
-        f = nodal_masses(model, state.m_e) * a_u + free_belt_matvec(model, solved.u) + model.f0
-        return model.M_roller * a_chi + generalised_belt_force(roller_R(model, state.u), f) - model.Q_ext
+        R = roller_R(model, state.u)
+        m = nodal_masses(model, state.m_e)
+        if on is None or stencil is None:
+            Kf_u = free_belt_matvec(model, solved.u) if stencil is None else stencil_matvec(stencil, solved.u)
+            f = m * a_u + Kf_u + model.f0
+            return model.M_roller * a_chi + generalised_belt_force(R, f) - model.Q_ext
+        idx = jnp.asarray(on, int)
+        f = m[idx] * a_u[idx] + stencil_matvec(stencil, solved.u, on) + model.f0[idx]
+        return model.M_roller * a_chi + generalised_belt_force(R[idx], f) - model.Q_ext
 
     def step(state: BeltState):
         solved = integrator.solve_step(model, state)
-        u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e)
+        u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e,
+                                                               static_offset=offset)
         new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=state.step + 1)
         tu, tv = tracer_values(model, u)
         rec = dict(

@@ -145,12 +145,13 @@ def transport_step(model: BeltModel, u, u_dot, chi, m_e):
     return u_new, u_dot_new, chi_new, m_new
 
 
-def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=None):
+def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=None, static_offset=None):
     """:func:`transport_step` plus the ``(min, max)`` of the interpolation weights (diagnostic).
 
     ``s`` (shift rule only) imposes the shift instead of ``mean(ũ)`` and ``R`` freezes the roller
     kinematics used for the roller-relative correction: with both given the step is affine in
-    ``(u, u_dot, chi)`` — what the fully reduced step (:mod:`jaxbelt.rom.reduced`) projects."""
+    ``(u, u_dot, chi)`` — what the fully reduced step (:mod:`jaxbelt.rom.reduced`) projects.
+    ``static_offset``: :func:`jaxbelt.assembly.static_surface_offset`, if already computed."""
     from .assembly import roller_R, roller_surface_displacement
 
     ux = _x_dofs(model, u)
@@ -166,7 +167,7 @@ def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=
         a_v = a_x if model.lateral_transport else jnp.zeros_like(a_x)
         a = jnp.stack([a_x, a_v], axis=2).reshape(u.shape)
         fwd = jnp.repeat(fwd_x, 2, axis=1)
-    r = roller_surface_displacement(model, chi, roller_R(model, u) if R is None else R)
+    r = roller_surface_displacement(model, chi, roller_R(model, u) if R is None else R, static_offset)
     u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, r)
     if model.kind == "2d" and model.lateral_transport:  # normal entry: lateral DOFs only
         v_mask = jnp.tile(jnp.array([0.0, 1.0]), model.n_eta)

@@ -119,3 +119,30 @@ def test_source_transport_factors_every_step(walking):
     m = walking.replace(transport="source")
     assert DirectBackwardEuler.for_model(m).prepare(m).reference is None
     assert DirectBackwardEuler.for_model(walking).prepare(walking).reference is not None
+
+
+def test_stencil_product_equals_the_block_product(walking):
+    from jaxbelt.assembly import free_belt_matvec, free_belt_stencil, stencil_matvec
+
+    u = jnp.asarray(np.random.default_rng(0).normal(size=(walking.n_xi, walking.block)))
+    S = free_belt_stencil(walking)
+    ref = free_belt_matvec(walking, u)
+    tol = 1e-13 * float(jnp.max(jnp.abs(ref)))
+    np.testing.assert_allclose(np.asarray(stencil_matvec(S, u)), np.asarray(ref), rtol=0, atol=tol)
+    cols = walking.contact_columns
+    assert 0 < len(cols) < walking.n_xi
+    np.testing.assert_allclose(np.asarray(stencil_matvec(S, u, cols)), np.asarray(ref)[np.asarray(cols)], rtol=0,
+                               atol=tol)
+    assert free_belt_stencil(jb.compile_scene(jb.load_scene("two-roller-1d"))) is None
+
+
+def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking):
+    from jaxbelt.timeloop import make_step
+
+    s = jb.initial_state(walking)
+    integ = DirectBackwardEuler.for_model(walking)
+    r_on = jax.jit(lambda s: make_step(walking, integ)(s)[1]["roller_reaction"])(s)
+    full = walking.replace(contact_columns=None)
+    r_all = jax.jit(lambda s: make_step(full, integ)(s)[1]["roller_reaction"])(s)
+    np.testing.assert_allclose(np.asarray(r_on), np.asarray(r_all), rtol=1e-10, atol=1e-9 * float(jnp.max(jnp.abs(r_all))))
+    assert float(jnp.max(jnp.abs(r_all))) > 1.0  # the supports do carry load

@@ -8,7 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from ..assembly import dae_apply, dae_rhs, nodal_masses, roller_R, roller_stiffness_rows, step_matrix
+from ..assembly import (dae_apply, dae_rhs, free_belt_stencil, nodal_masses, roller_R, roller_stiffness_rows,
+                        step_matrix)
 from ..linalg import BorderedBlockCyclic, bordered_solve, dense_solve
 from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
                                refactorise_border, scaled_schur, solve_with_adjoint)
@@ -70,15 +71,18 @@ class DirectBackwardEuler(AbstractIntegrator):
             return self
         cols = _lever_columns(model) if self.lever_columns is None else self.lever_columns
         rows = cols if self.lever_rows is None else self.lever_rows
-        return DirectBackwardEuler(self.linear_solver, self.interior,
-                                   lax.stop_gradient(_kept_interior(model, self.interior)), cols, rows)
+        kept = _kept_interior(model, self.interior)
+        kept = _KeptInterior(*lax.stop_gradient((kept.A, kept.F, kept.S)), free_belt_stencil(model))  # the
+        # stencil serves the products, which carry the derivatives; the factors are only a solver
+        return DirectBackwardEuler(self.linear_solver, self.interior, kept, cols, rows)
 
     def solve_step(self, model, state):
         dt = model.dt
         R = roller_R(model, state.u)
         F_b, F_r = dae_rhs(model, state.u, state.chi, R)
         p_b, p_r = state.u + dt * state.u_dot, state.chi + dt * state.chi_dot
-        (Kp_b, Kp_r), _ = dae_apply(model, state.m_e, R, p_b, p_r)
+        stencil = None if self.reference is None else self.reference.stencil
+        (Kp_b, Kp_r), _ = dae_apply(model, state.m_e, R, p_b, p_r, stencil)
         if self.linear_solver == "structured" and self.reference is not None:
             a_b, a_r = self._kept_interior_solve(model, state, R, F_b - Kp_b, F_r - Kp_r)
         else:
@@ -112,7 +116,7 @@ class DirectBackwardEuler(AbstractIntegrator):
         F = refactorise_border(lax.stop_gradient(A), ref.F, ref.S, cols, rows)
 
         def A_matvec(x_b, x_r):  # the current (M + Δt² K) x, matrix-free: carries the derivatives
-            (k_b, k_r), (m_b, m_r) = dae_apply(model, state.m_e, R, x_b, x_r)
+            (k_b, k_r), (m_b, m_r) = dae_apply(model, state.m_e, R, x_b, x_r, ref.stencil)
             return m_b + dt**2 * k_b, m_r + dt**2 * k_r
 
         return solve_with_adjoint(A_matvec, r_b, r_r, lambda _, rb, rr: factor_solve(F, rb, rr),
@@ -120,12 +124,13 @@ class DirectBackwardEuler(AbstractIntegrator):
 
 
 class _KeptInterior(eqx.Module):
-    """The reference step matrix ``A`` (model masses, reference lever arms), its factors ``F``
-    and its scaled Schur complement ``S``."""
+    """The reference step matrix ``A`` (model masses, reference lever arms), its factors ``F``,
+    its scaled Schur complement ``S`` and the free-belt stencil (2D, else ``None``)."""
 
     A: BorderedBlockCyclic
     F: BorderedFactorisation
     S: jax.Array
+    stencil: jax.Array | None
 
 
 def _lever_columns(model) -> tuple:
@@ -142,4 +147,4 @@ def _kept_interior(model, method=None) -> _KeptInterior:
     program: op by op the factorisation is seconds of dispatch)."""
     A = step_matrix(model, model.m_e0, model.R, model.dt)
     F = factorise(A, method)
-    return _KeptInterior(A, F, scaled_schur(A, F))
+    return _KeptInterior(A, F, scaled_schur(A, F), None)

@@ -21,9 +21,10 @@ matrix's transposed mat-vec; the frozen factors are never differentiated.
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 from jax import lax
 
-from ..assembly import dae_apply, dae_matrices, dae_rhs, roller_R
+from ..assembly import dae_apply, dae_matrices, dae_rhs, free_belt_stencil, roller_R
 from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
                               solve_with_adjoint)
 from ..state import initial_state
@@ -35,6 +36,14 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
 
     factors: BorderedFactorisation
     refine: int = eqx.field(static=True, default=2)
+    stencil: jax.Array | None = None  # the free-belt stencil (2D), set by :meth:`prepare`
+
+    def prepare(self, model) -> "ReusedFactorisationBackwardEuler":
+        """With the free-belt product as a nine-point stencil (:func:`jaxbelt.assembly.free_belt_stencil`,
+        a sixth of the block product's work), gathered once per run from the model's blocks."""
+        if self.stencil is not None or model.kind != "2d":
+            return self
+        return eqx.tree_at(lambda s: s.stencil, self, free_belt_stencil(model), is_leaf=lambda x: x is None)
 
     @classmethod
     def for_model(cls, model, refine: int | None = None, state=None) -> "ReusedFactorisationBackwardEuler":
@@ -48,11 +57,12 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
         R = roller_R(model, state.u)
 
         def A_matvec(x_b, x_r):  # (M + Δt² K) x, matrix-free
-            (k_b, k_r), (m_b, m_r) = dae_apply(model, state.m_e, R, x_b, x_r)
+            (k_b, k_r), (m_b, m_r) = dae_apply(model, state.m_e, R, x_b, x_r, self.stencil)
             return m_b + dt**2 * k_b, m_r + dt**2 * k_r
 
         F_b, F_r = dae_rhs(model, state.u, state.chi, R)
-        (Kp_b, Kp_r), _ = dae_apply(model, state.m_e, R, state.u + dt * state.u_dot, state.chi + dt * state.chi_dot)
+        (Kp_b, Kp_r), _ = dae_apply(model, state.m_e, R, state.u + dt * state.u_dot, state.chi + dt * state.chi_dot,
+                                    self.stencil)
         a_b, a_r = solve_with_adjoint(
             A_matvec, F_b - Kp_b, F_r - Kp_r,
             lambda matvec, rb, rr: _refined(lambda *r: factor_solve(self.factors, *r), matvec, rb, rr, self.refine),
