@@ -146,3 +146,30 @@ def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking):
     r_all = jax.jit(lambda s: make_step(full, integ)(s)[1]["roller_reaction"])(s)
     np.testing.assert_allclose(np.asarray(r_on), np.asarray(r_all), rtol=1e-10, atol=1e-9 * float(jnp.max(jnp.abs(r_all))))
     assert float(jnp.max(jnp.abs(r_all))) > 1.0  # the supports do carry load
+
+
+def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
+    """Blocks with zero couplings break the chain: the rearranged sweeps give the same solve,
+    and its transpose (the adjoint solve) equals the plain one's."""
+    from jaxbelt.linalg.bordered import chain_thomas, chained_thomas_apply, thomas_apply, thomas_factor
+
+    rng = np.random.default_rng(5)
+    m, b = 11, 3
+    breaks = np.zeros(m, bool)
+    breaks[[0, 1, 4, 5, 9]] = True  # runs of single blocks, chains of lengths 3 and 4, a last chain of 2
+    diag = jnp.asarray(rng.normal(size=(m, b, b)) + 6 * np.eye(b))
+    mask = jnp.asarray(~breaks, float)[:, None, None]
+    lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * mask for _ in range(2))
+    F = thomas_factor(diag, lower, upper)
+    Fc = chain_thomas(F, breaks)
+    r = jnp.asarray(rng.normal(size=(m, b, 2)))
+    np.testing.assert_allclose(np.asarray(chained_thomas_apply(Fc, r)), np.asarray(thomas_apply(F, r)), rtol=1e-13,
+                               atol=1e-13)
+    spec = jax.ShapeDtypeStruct(r.shape, r.dtype)
+    tr_c = jax.linear_transpose(lambda x: chained_thomas_apply(Fc, x), spec)(r)[0]
+    tr_p = jax.linear_transpose(lambda x: thomas_apply(F, x), spec)(r)[0]
+    np.testing.assert_allclose(np.asarray(tr_c), np.asarray(tr_p), rtol=1e-13, atol=1e-13)
+    # wrong breaks (a coupled block declared free of couplings) give a different answer: the test can fail
+    wrong = breaks.copy()
+    wrong[7] = True
+    assert float(jnp.max(jnp.abs(chained_thomas_apply(chain_thomas(F, wrong), r) - thomas_apply(F, r)))) > 1e-6

@@ -12,7 +12,7 @@ from ..assembly import (dae_apply, dae_rhs, free_belt_stencil, nodal_masses, rol
                         step_matrix)
 from ..linalg import BorderedBlockCyclic, bordered_solve, dense_solve
 from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
-                               refactorise_border, scaled_schur, solve_with_adjoint)
+                               refactorise_border, scaled_schur, solve_with_adjoint, with_chained_interior)
 from ._base import AbstractIntegrator
 
 
@@ -72,7 +72,8 @@ class DirectBackwardEuler(AbstractIntegrator):
         cols = _lever_columns(model) if self.lever_columns is None else self.lever_columns
         rows = cols if self.lever_rows is None else self.lever_rows
         kept = _kept_interior(model, self.interior)
-        kept = _KeptInterior(*lax.stop_gradient((kept.A, kept.F, kept.S)), free_belt_stencil(model))  # the
+        F = with_chained_interior(kept.F, model.contact_columns)
+        kept = _KeptInterior(*lax.stop_gradient((kept.A, F, kept.S)), free_belt_stencil(model))  # the
         # stencil serves the products, which carry the derivatives; the factors are only a solver
         return DirectBackwardEuler(self.linear_solver, self.interior, kept, cols, rows)
 

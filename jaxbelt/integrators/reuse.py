@@ -26,7 +26,7 @@ from jax import lax
 
 from ..assembly import dae_apply, dae_matrices, dae_rhs, free_belt_stencil, roller_R
 from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
-                              solve_with_adjoint)
+                              solve_with_adjoint, with_chained_interior)
 from ..state import initial_state
 from ._base import AbstractIntegrator
 
@@ -47,10 +47,13 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
 
     @classmethod
     def for_model(cls, model, refine: int | None = None, state=None) -> "ReusedFactorisationBackwardEuler":
-        """Factors of ``model``'s first step. ``refine`` defaults to :func:`default_refinement`."""
+        """Factors of ``model``'s first step, the interior along its chains of dependent blocks
+        (:class:`jaxbelt.linalg.bordered.ChainedThomasFactors`). ``refine`` defaults to
+        :func:`default_refinement`."""
         refine = default_refinement(model) if refine is None else int(refine)
         state = initial_state(model) if state is None else state
-        return cls(lax.stop_gradient(_first_step_factors(model, state)), refine)
+        F = with_chained_interior(_first_step_factors(model, state), model.contact_columns)
+        return cls(lax.stop_gradient(F), refine)
 
     def solve_step(self, model, state):
         dt = model.dt

@@ -34,6 +34,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 
 from .cyclic_reduction import CyclicReductionFactors, bcr_apply, bcr_factor
@@ -194,6 +195,97 @@ def thomas_apply(F: ThomasFactors, rhs):
     return xs
 
 
+class ChainedThomasFactors(eqx.Module):
+    """Block Thomas factors rearranged along their chains of dependent blocks.
+
+    A block ``i`` whose couplings ``L_i`` and ``U_i`` both vanish breaks the sweeps' chain of
+    dependencies: its forward value does not need block ``i - 1``'s and its backward value does
+    not need block ``i + 1``'s (``Ĉ_i = 0``). The belt's roller columns are such blocks — their
+    rows are no-slip constraints, coupled only to the roller unknowns — so the interior falls
+    apart into one chain per free span (each led, forward, by the roller column before it and,
+    backward, by the one after it) and single roller columns. Both sweeps then run all chains at
+    once, as one batched scan as long as the longest span, and the single blocks as one batched
+    product: on ``three-roller-t72`` 37 dependent steps per sweep instead of 103 — the same
+    arithmetic, ~35 % less time on a CPU, where the chain's latency sets the pace. Built by
+    :func:`chain_thomas` from static break positions; the result equals :func:`thomas_apply`'s
+    (``tests/test_kept_interior.py``).
+
+    **Fields:** forward chains ``f_inv``, ``f_L`` (steps, chains, b, b); single blocks ``s_inv``;
+    backward chains ``b_C`` (steps, chains, b, b); ``layout`` the static index tables."""
+
+    f_inv: jax.Array
+    f_L: jax.Array
+    s_inv: jax.Array
+    b_C: jax.Array
+    layout: tuple = eqx.field(static=True)  # (f_idx, singles, b_idx, m): tuples of block indices, m = pad index
+
+
+def _chains(m: int, breaks, reverse: bool):
+    order = range(m - 1, -1, -1) if reverse else range(m)
+    out, cur = [], []
+    for i in order:
+        if breaks[i] and cur:
+            out.append(cur)
+            cur = []
+        cur.append(i)
+    out.append(cur)
+    return out
+
+
+def _pad_chains(chains, m):
+    n_steps = max(len(c) for c in chains)
+    return tuple(tuple(c[t] if t < len(c) else m for c in chains) for t in range(n_steps))
+
+
+def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
+    """Rearrange ``F`` along its chains (:class:`ChainedThomasFactors`). ``breaks`` (m,) static
+    booleans: ``True`` where the block's ``L_i`` and ``U_i`` are zero (the caller's guarantee;
+    e.g. the belt's roller columns)."""
+    m = F.inv.shape[0]
+    breaks = [bool(x) for x in breaks]
+    fw = _chains(m, breaks, reverse=False)
+    singles = tuple(c[0] for c in fw if len(c) == 1)
+    fw = [c for c in fw if len(c) > 1] or [[m]]
+    bw = [c for c in _chains(m, breaks, reverse=True) if len(c) > 1] or [[m]]
+    f_idx, b_idx = _pad_chains(fw, m), _pad_chains(bw, m)
+    pad = lambda a: jnp.concatenate([a, jnp.zeros_like(a[:1])], axis=0)  # noqa: E731  index m: a zero block
+    inv, L, C = pad(F.inv), pad(F.L), pad(F.C_hat)
+    fi, bi = np.asarray(f_idx), np.asarray(b_idx)
+    return ChainedThomasFactors(inv[fi], L[fi], inv[np.asarray(singles, int)], C[bi], (f_idx, singles, b_idx, m))
+
+
+def chained_thomas_apply(F: ChainedThomasFactors, rhs):
+    """:func:`thomas_apply` along the chains; ``rhs`` (m, b, k)."""
+    f_idx, singles, b_idx, m = F.layout
+    fi, si, bi = np.asarray(f_idx), np.asarray(singles, int), np.asarray(b_idx)
+    r = jnp.concatenate([rhs, jnp.zeros_like(rhs[:1])], axis=0)
+
+    def forward(y_prev, blk):
+        inv_i, l, rr = blk
+        y = inv_i @ (rr - l @ y_prev)
+        return y, y
+
+    # scatter-adds on zeros, not sets: each real block is written exactly once (the chains and the
+    # single blocks partition them; padding lands on the dropped row m), and a scatter-add has a
+    # transpose (the adjoint solve is jax.linear_transpose of this function)
+    _, ys = lax.scan(forward, jnp.zeros((fi.shape[1],) + rhs.shape[1:], rhs.dtype), (F.f_inv, F.f_L, r[fi]))
+    y = jnp.zeros_like(r).at[fi].add(ys)
+    if len(singles):
+        y = y.at[si].add(F.s_inv @ r[si])
+    y = y.at[m].multiply(0.0)
+
+    def backward(x_next, blk):
+        c, yy = blk
+        x = yy - c @ x_next
+        return x, x
+
+    _, xs = lax.scan(backward, jnp.zeros((bi.shape[1],) + rhs.shape[1:], rhs.dtype), (F.b_C, y[bi]))
+    in_chain = np.zeros(m + 1, bool)
+    in_chain[bi.reshape(-1)] = True
+    keep = jnp.asarray(~in_chain, rhs.dtype).reshape((m + 1,) + (1,) * (rhs.ndim - 1))  # backward singles: x = y
+    return (y * keep).at[bi].add(xs)[:m]
+
+
 class BorderedFactorisation(eqx.Module):
     """Factors of a row-equilibrated bordered block-cyclic matrix, for repeated solves.
 
@@ -205,7 +297,7 @@ class BorderedFactorisation(eqx.Module):
 
     row_b: jax.Array
     row_r: jax.Array
-    interior: CyclicReductionFactors | ThomasFactors
+    interior: CyclicReductionFactors | ThomasFactors | ChainedThomasFactors
     y_G: jax.Array
     H: tuple
     S_lu: jax.Array
@@ -213,7 +305,20 @@ class BorderedFactorisation(eqx.Module):
 
 
 def _apply_interior(F, rhs):
+    if isinstance(F, ChainedThomasFactors):
+        return chained_thomas_apply(F, rhs)
     return bcr_apply(F, rhs) if isinstance(F, CyclicReductionFactors) else thomas_apply(F, rhs)
+
+
+def with_chained_interior(F: BorderedFactorisation, contact_columns) -> BorderedFactorisation:
+    """``F`` with its Thomas interior rearranged along chains (:class:`ChainedThomasFactors`),
+    the breaks at the belt's roller columns ``contact_columns`` (static; column ``i`` is interior
+    block ``i - 1``). Unchanged for a cyclic-reduction interior or unknown columns."""
+    if not isinstance(F.interior, ThomasFactors) or contact_columns is None:
+        return F
+    m = F.interior.inv.shape[0]
+    on = set(int(c) for c in contact_columns)
+    return eqx.tree_at(lambda f: f.interior, F, chain_thomas(F.interior, [(k + 1) in on for k in range(m)]))
 
 
 def _border_parts(A):
