@@ -514,10 +514,12 @@ def plot_fields(model, traj, times=None, components=None, ax=None, cmap="RdBu_r"
     t, u = _full_fields(traj)
     idx = select_times(t, times, spacing=model.dt * model.every if times is not None else None)
     n_r, n_c = len(idx), len(comps)
+    z = np.asarray(model.z0) * 1e3
+    one_row = z.size == 1
     if ax is None:
         plt = _plt()
-        fig, axes = plt.subplots(n_r, n_c, figsize=(6.5 * n_c, 2.4 + 1.9 * n_r), constrained_layout=True,
-                                 squeeze=False)
+        fig, axes = plt.subplots(n_r, n_c, figsize=(6.5 * n_c, 1.6 + (1.1 if one_row else 1.9) * n_r),
+                                 constrained_layout=True, squeeze=False)
     else:
         axes = np.asarray(ax, dtype=object).reshape(-1)
         if axes.size != n_r * n_c:
@@ -527,8 +529,6 @@ def plot_fields(model, traj, times=None, components=None, ax=None, cmap="RdBu_r"
     x = np.asarray(model.x) * 1e3
     length = float(np.asarray(model.x)[-1] + np.asarray(model.ell)[-1]) * 1e3
     xc = np.append(x, length)
-    z = np.asarray(model.z0) * 1e3
-    one_row = z.size == 1
     zc = np.array([-0.5, 0.5]) if one_row else z
     X, Z = np.meshgrid(xc, zc)
     segs = belt_segments(model)

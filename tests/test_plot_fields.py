@@ -109,6 +109,10 @@ def test_plot_fields_1d_and_bad_input(run1d):
     with pytest.raises(ValueError, match="1D model"):
         plot.plot_belt_3d(model, u[-1], color_by="v")
     plt.close(fig)
+    ax3 = plot.plot_belt_3d(model, u[-1], color_by="u")  # 1D: the belt is a line, one segment per element
+    uc = np.append(u[-1][:, 0], u[-1][0, 0]) * 1e3
+    np.testing.assert_allclose(np.asarray(ax3.collections[0].get_array()), 0.5 * (uc[:-1] + uc[1:]), atol=1e-12)
+    plt.close(ax3.figure)
 
 
 def _no_u(traj):
