@@ -77,6 +77,11 @@ WORKER = METRIC + textwrap.dedent("""
 """)
 
 
+def _devices(n):
+    """XLA_FLAGS for ``n`` forced CPU devices, keeping the suite's compile flags (tests/conftest.py)."""
+    return f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={n}".strip()
+
+
 def _env(**extra):
     env = dict(os.environ, JAX_PLATFORMS="cpu", OPENBLAS_NUM_THREADS="1", **extra)
     for k in ("JAXBELT_COORDINATOR", "JAXBELT_NUM_PROCESSES", "JAXBELT_PROCESS_ID", "SLURM_NTASKS",
@@ -87,7 +92,7 @@ def _env(**extra):
 
 
 def test_batched_map_over_four_cpu_devices_equals_vmap():
-    env = _env(XLA_FLAGS="--xla_force_host_platform_device_count=4")
+    env = _env(XLA_FLAGS=_devices(4))
     r = subprocess.run([sys.executable, "-c", FOUR_DEVICES], env=env, capture_output=True,
                        text=True, timeout=TIMEOUT_S)
     assert r.returncode == 0 and "OK" in r.stdout, r.stdout + r.stderr[-4000:]
@@ -103,7 +108,7 @@ def test_distributed_map_two_processes_equals_single_process(tmp_path):
     port = _free_port()
     procs = []
     for pid in range(2):
-        env = _env(XLA_FLAGS="--xla_force_host_platform_device_count=2",
+        env = _env(XLA_FLAGS=_devices(2),
                    JAXBELT_COORDINATOR=f"127.0.0.1:{port}", JAXBELT_NUM_PROCESSES="2",
                    JAXBELT_PROCESS_ID=str(pid), JAX_COORDINATOR_BIND_ADDRESS=f"127.0.0.1:{port}")
         script = "from jaxbelt.design import sharding; assert sharding.initialize_from_env()\n" + WORKER
