@@ -23,13 +23,39 @@ from .model import BeltModel
 from .rollers import exact_static_displacement
 
 
-def roller_R(model: BeltModel, u) -> jnp.ndarray:
+def roller_R(model: BeltModel, u, on_rollers: bool = False) -> jnp.ndarray:
     """``R_r`` (n, b, q) at the current state: in 2D the lever arm of the tilts is the node's
-    current lateral position ``z + v`` (§4.2, weak nonlinearity), lagged by one step."""
+    current lateral position ``z + v`` (§4.2, weak nonlinearity), lagged by one step.
+
+    ``on_rollers``: only the node columns on rollers (``model.contact_columns``, where ``R_r``
+    can be non-zero), (n_on, b, q) — a fifth of the array on the default scene, and the
+    products with it (:func:`roller_times`, :func:`belt_force_on_rollers`, which take either
+    form) a fifth of the memory traffic. The full form where the columns are unknown."""
+    idx = _on(model) if on_rollers else None
+    R0, Rdz = (model.R, model.R_dz) if idx is None else (model.R[idx], model.R_dz[idx])
     if model.kind == "1d":
-        return model.R
-    lever = jnp.zeros_like(u).at[:, 0::2].set(u[:, 1::2])
-    return model.R + model.R_dz * lever[:, :, None]
+        return R0
+    v = u[:, 1::2] if idx is None else u[idx][:, 1::2]
+    lever = jnp.zeros(v.shape[:1] + (2 * v.shape[1],), u.dtype).at[:, 0::2].set(v)
+    return R0 + Rdz * lever[:, :, None]
+
+
+def _on(model: BeltModel):
+    """Static indices of the node columns on rollers, or ``None`` if the model does not know them."""
+    return None if model.contact_columns is None else np.asarray(model.contact_columns, int)
+
+
+def roller_times(model: BeltModel, R, chi) -> jnp.ndarray:
+    """``R_r χ`` (n, b) for ``R`` in either form of :func:`roller_R` (zero off the rollers)."""
+    y = jnp.einsum("nbq,q->nb", R, chi)
+    if R.shape[0] == model.n_xi:
+        return y
+    return jnp.zeros((model.n_xi, model.block), y.dtype).at[_on(model)].set(y, unique_indices=True)
+
+
+def belt_force_on_rollers(model: BeltModel, R, f) -> jnp.ndarray:
+    """``Σ_k R_rᵀ f_k`` (q,) for nodal forces ``f`` (n, b) and ``R`` in either form of :func:`roller_R`."""
+    return generalised_belt_force(R, f if R.shape[0] == model.n_xi else f[_on(model)])
 
 
 def roller_surface_displacement(model: BeltModel, chi, R, static_offset=None) -> jnp.ndarray:
@@ -38,7 +64,7 @@ def roller_surface_displacement(model: BeltModel, chi, R, static_offset=None) ->
     Linear ``R_r χ`` plus, in 2D, the difference between the exact finite static motion
     (rotations x → y → z, §4.2) and its linearisation at the reference lever arm, so the
     static misalignment enters exactly and its increments linearly."""
-    lin = jnp.einsum("nbq,q->nb", R, chi)
+    lin = roller_times(model, R, chi)
     if model.kind == "1d":
         return lin
     return lin + static_surface_offset(model) if static_offset is None else lin + static_offset
@@ -116,9 +142,9 @@ def dae_rhs(model: BeltModel, u_prev, chi_prev, R=None):
     """Right-hand side ``F`` for the step from the (transported, reset) state ``(u_prev, χ_prev)``."""
     R = model.R if R is None else R
     con = model.is_constraint
-    F_belt = jnp.where(con, u_prev - jnp.einsum("nbq,q->nb", R, chi_prev), -model.f0)
+    F_belt = jnp.where(con, u_prev - roller_times(model, R, chi_prev), -model.f0)
     target = model.chi_static + jnp.where(model.is_az, chi_prev, 0.0) + model.omega * model.dt
-    F_roll = jnp.where(model.dynamic, model.Q_ext - generalised_belt_force(R, model.f0), target)
+    F_roll = jnp.where(model.dynamic, model.Q_ext - belt_force_on_rollers(model, R, model.f0), target)
     return F_belt, F_roll
 
 
@@ -182,14 +208,15 @@ def dae_apply(model: BeltModel, m_e, R, x_b, x_r, stencil=None):
 
     Equals :func:`dae_matrices` followed by ``matvec`` (tested) at a fraction of the cost; used
     by the factorisation-reuse integrator, whose steps need products, not matrices. With
-    ``stencil`` (:func:`free_belt_stencil`) the free-belt product uses it."""
+    ``stencil`` (:func:`free_belt_stencil`) the free-belt product uses it; ``R`` in either form
+    of :func:`roller_R`."""
     con, dyn = model.is_constraint, model.dynamic
     Kf_x = free_belt_matvec(model, x_b) if stencil is None else stencil_matvec(stencil, x_b)
     m = nodal_masses(model, m_e)
-    Kx_b = jnp.where(con, x_b - jnp.einsum("nbq,q->nb", R, x_r), Kf_x)
-    Kx_r = jnp.where(dyn, generalised_belt_force(R, Kf_x), x_r)
+    Kx_b = jnp.where(con, x_b - roller_times(model, R, x_r), Kf_x)
+    Kx_r = jnp.where(dyn, belt_force_on_rollers(model, R, Kf_x), x_r)
     Mx_b = jnp.where(con, 0.0, m * x_b)
-    Mx_r = jnp.where(dyn, generalised_belt_force(R, m * x_b) + model.M_roller * x_r, 0.0)
+    Mx_r = jnp.where(dyn, belt_force_on_rollers(model, R, m * x_b) + model.M_roller * x_r, 0.0)
     return (Kx_b, Kx_r), (Mx_b, Mx_r)
 
 

@@ -150,15 +150,15 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
         non-zero."""
         a_u = (solved.u_dot - state.u_dot) / model.dt
         a_chi = (solved.chi_dot - state.chi_dot) / model.dt
-        R = roller_R(model, state.u)
         m = nodal_masses(model, state.m_e)
         if on is None or stencil is None:
             Kf_u = free_belt_matvec(model, solved.u) if stencil is None else stencil_matvec(stencil, solved.u)
             f = m * a_u + Kf_u + model.f0
-            return model.M_roller * a_chi + generalised_belt_force(R, f) - model.Q_ext
+            return model.M_roller * a_chi + generalised_belt_force(roller_R(model, state.u), f) - model.Q_ext
         idx = jnp.asarray(on, int)
         f = m[idx] * a_u[idx] + stencil_matvec(stencil, solved.u, on) + model.f0[idx]
-        return model.M_roller * a_chi + generalised_belt_force(R[idx], f) - model.Q_ext
+        return model.M_roller * a_chi + generalised_belt_force(roller_R(model, state.u, on_rollers=True), f) \
+            - model.Q_ext
 
     def step(state: BeltState):
         solved = integrator.solve_step(model, state)

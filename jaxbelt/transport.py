@@ -167,7 +167,8 @@ def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=
         a_v = a_x if model.lateral_transport else jnp.zeros_like(a_x)
         a = jnp.stack([a_x, a_v], axis=2).reshape(u.shape)
         fwd = jnp.repeat(fwd_x, 2, axis=1)
-    r = roller_surface_displacement(model, chi, roller_R(model, u) if R is None else R, static_offset)
+    r = roller_surface_displacement(model, chi, roller_R(model, u, on_rollers=True) if R is None else R,
+                                    static_offset)
     u_new = interpolate(u, a, fwd) + roller_relative_correction(model, a, fwd, r)
     if model.kind == "2d" and model.lateral_transport:  # normal entry: lateral DOFs only
         v_mask = jnp.tile(jnp.array([0.0, 1.0]), model.n_eta)

@@ -18,11 +18,9 @@ from jaxbelt.timeloop import run
 from helpers import scene_with
 
 
-class FullFactorisation(DirectBackwardEuler):
+def FullFactorisation(linear_solver="structured"):
     """The exact solver without the kept interior: every step's matrix factored in full."""
-
-    def prepare(self, model):
-        return self
+    return DirectBackwardEuler(linear_solver, keep_interior=False)
 
 
 def _random_bordered(rng, n=7, b=4, q=5):
@@ -119,6 +117,7 @@ def test_source_transport_factors_every_step(walking):
     m = walking.replace(transport="source")
     assert DirectBackwardEuler.for_model(m).prepare(m).reference is None
     assert DirectBackwardEuler.for_model(walking).prepare(walking).reference is not None
+    assert FullFactorisation().prepare(walking).reference is None
 
 
 def test_stencil_product_equals_the_block_product(walking):

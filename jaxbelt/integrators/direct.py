@@ -41,7 +41,8 @@ class DirectBackwardEuler(AbstractIntegrator):
     with a full factorisation every step). The kept factors come from the model the run is
     given (under ``vmap`` over misalignments they are shared, since misalignments change neither
     stiffness nor masses); with the ``"source"`` rule, whose masses move between elements, and
-    wherever ``solve_step`` is called without :meth:`prepare`, every step is factored in full.
+    wherever ``solve_step`` is called without :meth:`prepare`, every step is factored in full
+    (as with ``keep_interior=False``, kept for comparisons: ``jaxbelt bench`` times both).
     """
 
     linear_solver: str = eqx.field(static=True, default="structured")
@@ -49,9 +50,11 @@ class DirectBackwardEuler(AbstractIntegrator):
     reference: _KeptInterior | None = None
     lever_columns: tuple | None = eqx.field(static=True, default=None)  # tilt columns of R; None: from the DOFs
     lever_rows: tuple | None = eqx.field(static=True, default=None)  # those of them that are dynamic; None: all
+    keep_interior: bool = eqx.field(static=True, default=True)  # False: factor every step in full
 
     @classmethod
-    def for_model(cls, model, linear_solver: str = "structured", interior: str | None = None):
+    def for_model(cls, model, linear_solver: str = "structured", interior: str | None = None,
+                  keep_interior: bool = True):
         """The integrator for ``model``, with the static facts :meth:`prepare` needs: which roller
         columns carry a lever arm and which of them are dynamic DOFs (whose roller rows then move
         with it too). Read from a concrete model; under tracing, every tilt is taken as dynamic
@@ -62,12 +65,12 @@ class DirectBackwardEuler(AbstractIntegrator):
             rows = tuple(c for c in cols if dyn[c])
         except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
             rows = cols
-        return cls(linear_solver, interior, None, cols, rows)
+        return cls(linear_solver, interior, None, cols, rows, keep_interior)
 
     def prepare(self, model) -> "DirectBackwardEuler":
         """This integrator with the run's kept interior factors (class docstring), where they apply."""
-        if (self.linear_solver != "structured" or self.reference is not None or model.transport != "shift"
-                or model.n_xi < 3):
+        if (self.linear_solver != "structured" or not self.keep_interior or self.reference is not None
+                or model.transport != "shift" or model.n_xi < 3):
             return self
         cols = _lever_columns(model) if self.lever_columns is None else self.lever_columns
         rows = cols if self.lever_rows is None else self.lever_rows
@@ -75,16 +78,17 @@ class DirectBackwardEuler(AbstractIntegrator):
         F = with_chained_interior(kept.F, model.contact_columns)
         kept = _KeptInterior(*lax.stop_gradient((kept.A, F, kept.S)), free_belt_stencil(model))  # the
         # stencil serves the products, which carry the derivatives; the factors are only a solver
-        return DirectBackwardEuler(self.linear_solver, self.interior, kept, cols, rows)
+        return DirectBackwardEuler(self.linear_solver, self.interior, kept, cols, rows, True)
 
     def solve_step(self, model, state):
         dt = model.dt
-        R = roller_R(model, state.u)
+        kept = self.linear_solver == "structured" and self.reference is not None
+        R = roller_R(model, state.u, on_rollers=kept)  # kept interior: the roller columns only
         F_b, F_r = dae_rhs(model, state.u, state.chi, R)
         p_b, p_r = state.u + dt * state.u_dot, state.chi + dt * state.chi_dot
         stencil = None if self.reference is None else self.reference.stencil
         (Kp_b, Kp_r), _ = dae_apply(model, state.m_e, R, p_b, p_r, stencil)
-        if self.linear_solver == "structured" and self.reference is not None:
+        if kept:
             a_b, a_r = self._kept_interior_solve(model, state, R, F_b - Kp_b, F_r - Kp_r)
         else:
             A = step_matrix(model, state.m_e, R, dt)
@@ -105,10 +109,17 @@ class DirectBackwardEuler(AbstractIntegrator):
         cols, rows = self.lever_columns, self.lever_rows
         con = model.is_constraint[:, :, None]
         C, D = ref.A.C, ref.A.D
+
+        def full(Rk):  # columns of R in the full (n, b, k) form
+            if Rk.shape[0] == model.n_xi:
+                return Rk
+            on = np.asarray(model.contact_columns)
+            return jnp.zeros((model.n_xi,) + Rk.shape[1:], Rk.dtype).at[on].set(Rk, unique_indices=True)
+
         if cols:
-            C = C.at[:, :, jnp.asarray(cols)].set(jnp.where(con, -dt**2 * R[:, :, jnp.asarray(cols)], 0.0))
+            C = C.at[:, :, jnp.asarray(cols)].set(jnp.where(con, -dt**2 * full(R[:, :, jnp.asarray(cols)]), 0.0))
         if rows:
-            Rr = R[:, :, jnp.asarray(rows)]
+            Rr = full(R[:, :, jnp.asarray(rows)])
             m = nodal_masses(model, state.m_e)
             Dr = dt**2 * roller_stiffness_rows(Rr, model.K_diag, model.K_lower, model.K_upper) \
                 + jnp.swapaxes(Rr, 1, 2) * m[:, None, :]

@@ -57,7 +57,7 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
 
     def solve_step(self, model, state):
         dt = model.dt
-        R = roller_R(model, state.u)
+        R = roller_R(model, state.u, on_rollers=True)  # the roller columns only
 
         def A_matvec(x_b, x_r):  # (M + Δt² K) x, matrix-free
             (k_b, k_r), (m_b, m_r) = dae_apply(model, state.m_e, R, x_b, x_r, self.stencil)
