@@ -19,8 +19,12 @@ columns, ``D``: roller rows × belt columns, ``E``: roller × roller).
 elimination (a sequential ``lax.scan``); ``T⁻¹`` is applied to the ``s`` border columns and a
 dense ``s × s`` Schur complement closes the system. :func:`factorise` keeps all of it, so
 :func:`factor_solve` re-solves for a new right-hand side with matrix products only (the
-factorisation-reuse integrator). Everything is ordinary ``jnp`` code: it jit-compiles and
-vmaps. Derivatives do not go through the factorisation: :func:`bordered_solve` is a
+factorisation-reuse integrator). :func:`refactorise_border` turns the factors of one matrix
+into the exact factors of another that differs from it only in a few roller columns and rows
+(what two Backward-Euler steps' matrices differ in under the shift transport: the exact
+solver keeps its interior factors for the whole run), and :class:`ChainedThomasFactors` runs
+the Thomas sweeps along the chains the roller columns cut the interior into, all chains at
+once. Everything is ordinary ``jnp`` code: it jit-compiles and vmaps. Derivatives do not go through the factorisation: :func:`bordered_solve` is a
 ``custom_linear_solve`` (:func:`solve_with_adjoint`) whose tangent solve and adjoint solve
 (:func:`factor_solve_transposed`) reuse the step's factors, and whose matrix derivative comes from
 the structured mat-vec — reverse mode costs one transposed solve per solve and keeps only the
