@@ -93,10 +93,71 @@ import numpy as np
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
 from ..rom.reduced import reduced_operators
 from ..state import initial_state
+from ..timeloop import simulate
 from .metrics import M_TO_UM, Study, aggregate, response_from_deviation
-from .sampling import Distribution, check_distribution, evaluate_configs, standard_normal_samples
+from .sampling import Distribution, check_distribution, standard_normal_samples
 
 ROUNDOFF_UM = 1e-9
+METHODS = ("response", "pod")
+
+
+class ResponseSurface(eqx.Module):
+    """The tracer deviations (µm) as a function of ``theta``, from the axial training runs:
+    ``d(θ) = d_0 + Σ_k (a_k θ_k + b_k θ_k²)`` with ``d_0`` the nominal run's deviations,
+    ``a_k = (d_k⁺ − d_k⁻) / 2w_k`` and ``b_k = (d_k⁺ + d_k⁻ − 2 d_0) / 2w_k²`` from the runs at
+    ``± w_k`` (exact at every training run; the mixed terms ``θ_j θ_k`` are what it leaves out).
+
+    **Fields:** ``d0`` (c, m, n_tr), ``linear`` and ``curvature`` (P, c, m, n_tr): ``c`` = 1 in
+    1D (longitudinal) or 2 (longitudinal, lateral); the last ``m`` steps of the run, the ones the
+    study's metric reads (:func:`steps_needed`); ``n_steps`` the whole run."""
+
+    d0: jax.Array
+    linear: jax.Array
+    curvature: jax.Array
+    n_steps: int = eqx.field(static=True)
+
+    def deviations(self, theta):
+        """``(d_u, d_v)`` (n_steps, n_tr) µm at ``theta`` (P,) (``d_v`` ``None`` in 1D); steps
+        before the kept ones are zero (no metric reads them)."""
+        theta = jnp.asarray(theta, self.d0.dtype)
+        d = self.d0 + jnp.tensordot(theta, self.linear, 1) + jnp.tensordot(theta**2, self.curvature, 1)
+        d = jnp.concatenate([jnp.zeros((d.shape[0], self.n_steps - d.shape[1], d.shape[2]), d.dtype), d], axis=1)
+        return d[0], (d[1] if d.shape[0] > 1 else None)
+
+
+def steps_needed(study: Study) -> int:
+    """How many of the last steps of a run the study's metric and the stored outputs read: the
+    last one (``*_rms``, ``lateral_max``), the window (``lateral_peak``), the second half
+    (``walk_rate``)."""
+    if study.metric == "walk_rate":
+        return study.n_steps - study.n_steps // 2
+    if study.metric == "lateral_peak":
+        return study.window
+    return 1
+
+
+@eqx.filter_jit
+def _configured(study: Study, theta):
+    return study.configured(theta)
+
+
+def full_deviations(study: Study, theta):
+    """``(d_u, d_v)`` (n_steps, n_tr) µm (numpy) of the full model at ``theta``, one run through
+    :func:`~jaxbelt.simulate` — the program the study compiled for its aligned reference run
+    (the same shapes), so no new compilation; a non-finite run comes back non-finite."""
+    model = _configured(study, jnp.asarray(theta, study.base.dtype))
+    _, tr = simulate(model, study.integrator, n_steps=study.n_steps, check=False)
+    du = (np.asarray(tr.tracer_u) - np.asarray(study.ref_u)) * M_TO_UM
+    return du, None if tr.tracer_v is None else (np.asarray(tr.tracer_v) - np.asarray(study.ref_v)) * M_TO_UM
+
+
+def _metric(study: Study, du, dv):
+    return aggregate(study.aggregate, response_from_deviation(study, du, dv))
+
+
+@eqx.filter_jit
+def _metric_jit(study: Study, du, dv):
+    return _metric(study, du, dv)
 
 
 def _reduced_tracers(study: Study, rom: ReducedStep, theta):
@@ -106,20 +167,24 @@ def _reduced_tracers(study: Study, rom: ReducedStep, theta):
     return run["tracer_u"], None if study.ref_v is None else run["tracer_v"]
 
 
-def _predict_one(study: Study, rom: ReducedStep, anchor, theta):
-    """Reduced metric and tracer deviations at t_eval; ``anchor`` the nominal offsets (full
-    minus reduced tracers at ``theta = 0``)."""
-    tu, tv = _reduced_tracers(study, rom, theta)
-    du = (tu + anchor[0] - study.ref_u) * M_TO_UM
-    dv = None if tv is None else (tv + anchor[1] - study.ref_v) * M_TO_UM
-    out = {"metric": aggregate(study.aggregate, response_from_deviation(study, du, dv)), "longitudinal_um": du[-1]}
+def _predict_one(study: Study, rom, anchor, theta):
+    """Reduced metric and tracer deviations at t_eval. ``rom`` a :class:`ResponseSurface` or a
+    :class:`~jaxbelt.rom.ReducedStep` with ``anchor`` the nominal offsets (full minus reduced
+    tracers at ``theta = 0``)."""
+    if isinstance(rom, ResponseSurface):
+        du, dv = rom.deviations(theta)
+    else:
+        tu, tv = _reduced_tracers(study, rom, theta)
+        du = (tu + anchor[0] - study.ref_u) * M_TO_UM
+        dv = None if tv is None else (tv + anchor[1] - study.ref_v) * M_TO_UM
+    out = {"metric": _metric(study, du, dv), "longitudinal_um": du[-1]}
     if dv is not None:
         out["lateral_um"] = dv[-1]
     return out
 
 
 @eqx.filter_jit
-def _predict_batch(study: Study, rom: ReducedStep, anchor, thetas):
+def _predict_batch(study: Study, rom, anchor, thetas):
     return jax.vmap(lambda th: _predict_one(study, rom, anchor, th))(thetas)
 
 
@@ -132,12 +197,13 @@ def _anchor(study: Study, rom: ReducedStep, full_u, full_v):
 class Surrogate:
     """A fitted reduced-model surrogate (see the module docstring). Build with :func:`fit_surrogate`.
 
-    **Attributes:** ``study``; ``rom`` (:class:`~jaxbelt.rom.ReducedStep`); ``widths`` (P,) the
+    **Attributes:** ``study``; ``rom`` the reduced model (:class:`ResponseSurface`, or
+    :class:`~jaxbelt.rom.ReducedStep` with ``anchor`` its nominal offsets); ``widths`` (P,) the
     training widths ``w``; ``error_um`` (``safety · E``); ``rho_max``; ``bound_um`` (the bound
     on the validation samples, µm); ``limit_um``; ``validation`` (dict, JSON-able).
     """
 
-    def __init__(self, study: Study, rom: ReducedStep, anchor, widths, limit_um: float, batch: int = 64):
+    def __init__(self, study: Study, rom, anchor, widths, limit_um: float, batch: int = 64):
         self.study, self.rom, self.anchor = study, rom, anchor
         self.widths = np.asarray(widths, float)
         self.limit_um, self.batch = float(limit_um), int(batch)
@@ -198,30 +264,22 @@ def training_configurations(dist: Distribution, spread: float = 3.0) -> np.ndarr
     return np.array(rows)
 
 
-def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int = 0, n_validation: int = 12,
-                  safety: float = 10.0, sv_tol: float = 1e-9, max_modes: int = 200, spread: float = 3.0,
-                  batch: int = 64) -> Surrogate:
-    """Train, validate and calibrate a reduced-model surrogate of ``study`` under ``dist``
-    (module docstring).
+def _fit_response(study: Study, train, widths) -> ResponseSurface:
+    """:class:`ResponseSurface` from one full run per row of ``train`` (nominal, then ``±w_k``)."""
+    m = steps_needed(study)
+    runs = []
+    for theta in train:
+        du, dv = full_deviations(study, theta)
+        runs.append(np.stack([np.asarray(du)] + ([] if dv is None else [np.asarray(dv)]))[:, -m:])
+    runs = np.array(runs)
+    d0, plus, minus = runs[0], runs[1::2], runs[2::2]
+    w = np.asarray(widths, float)[:, None, None, None]
+    return ResponseSurface(d0=jnp.asarray(d0), linear=jnp.asarray((plus - minus) / (2 * w)),
+                           curvature=jnp.asarray((plus + minus - 2 * d0) / (2 * w**2)), n_steps=study.n_steps)
 
-    **Arguments:** ``limit_um`` the sweep's limit (only to send non-finite predictions to a full
-    re-run); ``seed`` of the validation samples; ``n_validation`` full runs that set the bound;
-    ``safety`` factor on the largest validation error; ``sv_tol`` / ``max_modes`` the POD rule;
-    ``spread`` the training width in σ (normal laws); ``batch`` rows per compiled evaluation.
 
-    **Returns:** a :class:`Surrogate`. Its ``validation`` holds ``validation_runs`` (training +
-    validation full runs), ``n_validation``, ``n_modes``, ``max_true_error_um``,
-    ``max_bound_um``, ``effectivity_min`` / ``_median`` (bound / true error over the validation
-    samples), ``loo_effectivity_min``, ``offline_s`` and its parts.
-    """
-    check_distribution(dist, study)
-    if n_validation < 2:
-        raise ValueError(f"n_validation = {n_validation}: need at least 2 validation runs")
-    if safety < 1.0:
-        raise ValueError(f"safety = {safety}: must be at least 1")
-    t0 = time.perf_counter()
-    widths = training_widths(dist, spread)
-    train = training_configurations(dist, spread)
+def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
+    """Fully reduced POD step from the training runs' snapshots, and its nominal anchor."""
     snaps = []
     for theta in train:
         _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)), study.n_steps, study.integrator)
@@ -231,9 +289,7 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     full_u = (tracer_operator(study.model) @ x_nominal).T
     full_v = None if study.ref_v is None else (tracer_operator(study.model, "z") @ x_nominal).T
     del snaps
-    t_train = time.perf_counter() - t0
-
-    t1 = time.perf_counter()
+    t_train = time.perf_counter()
     V, s = pod_basis(Z, n_modes=max_modes)
     del Z
     s = np.asarray(s)
@@ -241,13 +297,53 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     nominal = study.configured(jnp.zeros(study.space.size))
     rom = ReducedStep(basis=V[:, :r], singular_values=jnp.asarray(s),
                       **reduced_operators(nominal, V[:, :r], study.integrator))
-    surrogate = Surrogate(study, rom, _anchor(study, rom, full_u, full_v), widths, limit_um, batch)
-    t_fit = time.perf_counter() - t1
+    info = {"snapshots": int(len(train) * (2 * study.n_steps + 1)), "n_modes": int(r), "sv_tol": float(sv_tol),
+            "singular_value_ratio": float(s[r - 1] / s[0])}
+    return rom, _anchor(study, rom, full_u, full_v), info, t_train
+
+
+def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int = 0, n_validation: int = 12,
+                  safety: float = 10.0, sv_tol: float = 1e-9, max_modes: int = 200, spread: float = 3.0,
+                  batch: int = 64, method: str = "response") -> Surrogate:
+    """Train, validate and calibrate a reduced-model surrogate of ``study`` under ``dist``
+    (module docstring).
+
+    **Arguments:** ``limit_um`` the sweep's limit (only to send non-finite predictions to a full
+    re-run); ``seed`` of the validation samples; ``n_validation`` full runs that set the bound;
+    ``safety`` factor on the largest validation error; ``spread`` the training width in σ
+    (normal laws); ``batch`` rows per compiled evaluation; ``method`` the reduced model:
+    ``"response"`` (:class:`ResponseSurface`, default) or ``"pod"`` (the fully reduced POD
+    step, with ``sv_tol`` / ``max_modes`` its mode rule).
+
+    **Returns:** a :class:`Surrogate`. Its ``validation`` holds ``method``, ``validation_runs``
+    (training + validation full runs), ``n_validation``, ``max_true_error_um``,
+    ``max_bound_um``, ``effectivity_min`` / ``_median`` (bound / true error over the validation
+    samples), ``loo_effectivity_min``, ``offline_s`` and its parts (``training_s``, ``fit_s``,
+    ``validation_s``); with ``"pod"`` also ``n_modes``, ``snapshots``, ``sv_tol``,
+    ``singular_value_ratio``.
+    """
+    check_distribution(dist, study)
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r}: one of {', '.join(METHODS)}")
+    if n_validation < 2:
+        raise ValueError(f"n_validation = {n_validation}: need at least 2 validation runs")
+    if safety < 1.0:
+        raise ValueError(f"safety = {safety}: must be at least 1")
+    t0 = time.perf_counter()
+    widths = training_widths(dist, spread)
+    train = training_configurations(dist, spread)
+    if method == "response":
+        rom, anchor, info = _fit_response(study, train, widths), None, {"steps_kept": steps_needed(study)}
+        t_train = t_fitted = time.perf_counter()
+    else:
+        rom, anchor, info, t_train = _fit_pod(study, train, sv_tol, max_modes)
+        t_fitted = time.perf_counter()
+    surrogate = Surrogate(study, rom, anchor, widths, limit_um, batch)
 
     t2 = time.perf_counter()
     u = standard_normal_samples(n_validation, study.space.size, seed)
-    thetas = np.asarray(dist.transform(jnp.asarray(u)))
-    full = np.asarray(evaluate_configs(study, thetas, n_validation)["metric"])
+    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(u)))  # one small program, not op by op
+    full = np.array([float(_metric_jit(study, *full_deviations(study, th))) for th in thetas])
     t_full = time.perf_counter() - t2
     err = np.abs(surrogate.predict(thetas)["metric"] - full)
     err = np.where(np.isfinite(err), err, np.inf)
@@ -259,18 +355,21 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
         eff = np.where(err > 0, bound / err, np.inf)
         loo = [safety * np.max(np.delete(err, i)) / err[i] if err[i] > 0 else np.inf for i in range(n_validation)]
     finite = eff[np.isfinite(eff)]
+    described = {
+        "response": "response surface of the tracer deviations (nominal run + per-component slope and curvature "
+                    "from the +-w runs)",
+        "pod": "fully reduced POD step (jaxbelt.rom), nominal-anchored",
+    }[method]
     surrogate.validation = {
-        "method": "fully reduced POD step (jaxbelt.rom), nominal-anchored; bound = safety x largest validation "
-                  "error, growing with (rho / rho_max)^2 beyond the validated range",
+        "method": method,
+        "description": described + "; bound = safety x largest validation error, growing with (rho / rho_max)^2 "
+                                   "beyond the validated range",
         "validation_runs": int(len(train) + n_validation),
         "training_runs": int(len(train)),
         "n_validation": int(n_validation),
         "seed": int(seed),
         "training_widths": widths.tolist(),
-        "snapshots": int(len(train) * (2 * study.n_steps + 1)),
-        "n_modes": int(r),
-        "sv_tol": float(sv_tol),
-        "singular_value_ratio": float(s[r - 1] / s[0]),
+        **info,
         "safety": float(safety),
         "rho_max": surrogate.rho_max,
         "max_true_error_um": float(np.max(err)),
@@ -280,8 +379,8 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
         "effectivity_median": float(np.median(finite)) if finite.size else float("inf"),
         "loo_effectivity_min": float(np.min(loo)),
         "metric_range_um": [float(np.min(full)), float(np.max(full))],
-        "training_s": t_train,
-        "fit_s": t_fit,
+        "training_s": t_train - t0,
+        "fit_s": t_fitted - t_train,
         "validation_s": t_full,
         "offline_s": time.perf_counter() - t0,
     }
