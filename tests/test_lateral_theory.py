@@ -1,10 +1,12 @@
 """Belt walk: the Timoshenko-beam loop reference (jaxbelt.lateral_theory) and the 2D model against it."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxbelt as jb
+from helpers import simulate_optimised
 from jaxbelt import lateral_theory as th
 
 E, NU, T_B, R, SPAN = 2.5e9, 0.34, 0.3e-3, 0.08, 1.0
@@ -118,10 +120,16 @@ def _walk(tr):
     return float(np.polyfit(t[n // 2:], v[n // 2:], 1)[0])
 
 
+def _run(model, rotation):
+    """1600 steps (16 s) with ``rotation``: one program for the module, compiled optimised (long
+    runs: ``helpers.simulate_optimised``)."""
+    return simulate_optimised(model.with_misalignment(rotation=jnp.asarray(rotation)))
+
+
 @pytest.fixture(scope="module")
 def skew_run(two_roller_model):
-    """Roller 2 skewed by 1 mrad, 1600 steps (16 s): the trajectory of two tests below."""
-    return jb.simulate(two_roller_model.with_misalignment(rotation=jnp.asarray(rot(1, 1))))[1]
+    """Roller 2 skewed by 1 mrad: the trajectory of two tests below."""
+    return _run(two_roller_model, rot(1, 1))
 
 
 def test_skew_walk_equals_the_timoshenko_loop(skew_run):
@@ -136,27 +144,30 @@ def test_skew_walk_equals_the_timoshenko_loop(skew_run):
 
 
 def test_twist_walk_equals_the_per_pass_shift(two_roller_model):
-    c = _walk(jb.simulate(two_roller_model.with_misalignment(rotation=jnp.asarray(rot(1, 0))))[1])
+    c = _walk(_run(two_roller_model, rot(1, 0)))
     assert c == pytest.approx(2 * R * 1e-3 / L_LOOP, rel=0.01)
 
 
-@pytest.mark.parametrize("axis", [0, 1])
-def test_entry_line_correction_is_the_roller_skew_at_the_contact_line(axis):
-    """The normal-entry term moves an entry node's v by ``s σ``: ``σ`` the lateral slope of the
-    roller's circumferential lines at the contact line (reference formula ``e_z · (α × t)``),
-    for a skew (σ = ∓α) and a twist (σ = 0 on spans along x); u is untouched."""
+@jax.jit  # one program for both cases, not op by op
+def _entry_line_correction(m, s):
+    """The normal-entry correction of the static state for a uniform shift ``s`` (m)."""
     from jaxbelt.assembly import roller_R, roller_surface_displacement
     from jaxbelt.transport import entry_line_correction, upwind_weights
 
-    m = jb.compile_scene(two_roller(n_xi=200, dt=0.01, t_end=0.02)).with_misalignment(
-        rotation=jnp.asarray(rot(1, axis)))
     st = jb.initial_state(m)
     r = roller_surface_displacement(m, st.chi, roller_R(m, st.u))
-    s = 0.01
     a, fwd = upwind_weights(jnp.full((m.n_xi, m.n_eta), s), m.ell)
-    a = jnp.repeat(a, 2, axis=1)
-    fwd = jnp.repeat(fwd, 2, axis=1)
-    corr = np.asarray(entry_line_correction(m, a, fwd, r))
+    return entry_line_correction(m, jnp.repeat(a, 2, axis=1), jnp.repeat(fwd, 2, axis=1), r)
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_entry_line_correction_is_the_roller_skew_at_the_contact_line(two_roller_model, axis):
+    """The normal-entry term moves an entry node's v by ``s σ``: ``σ`` the lateral slope of the
+    roller's circumferential lines at the contact line (reference formula ``e_z · (α × t)``),
+    for a skew (σ = ∓α) and a twist (σ = 0 on spans along x); u is untouched."""
+    s = 0.01
+    m = two_roller_model.with_misalignment(rotation=jnp.asarray(rot(1, axis)))
+    corr = np.asarray(_entry_line_correction(m, s))
     g = geometry()
     node_roller = np.asarray(m.node_roller)
     for j in (0, 1):
