@@ -12,16 +12,32 @@ import gc
 import os
 
 # Compiling dominates the suite (hundreds of whole-run programs, most run for a few dozen steps):
-# LLVM at -O0 instead of -O3 compiles ~35 % faster and runs the programs up to ~2× slower, a net
-# ~25 % less CPU time for the suite. XLA:CPU's newer MLIR fusion emitters off (the classic
-# elemental IR emitters instead) halves what is left of a compile again (a 1D run 2.1 → 1.2 s,
-# compile_scene of a 2D scene 3.1 → 1.5 s) and does not slow the runs; results agree with the
-# default emitters to round-off (~1e-12 relative). Set before jax starts its backend; a caller's
+# LLVM at -O0 instead of -O3 compiles ~35 % faster and runs the programs 2–4× slower, a net
+# ~25 % less CPU time for the suite (the few long 2D runs use helpers.simulate_optimised).
+# XLA:CPU's newer MLIR fusion emitters off (the classic elemental IR emitters instead) halves
+# what is left of a compile again (a 1D run 2.1 → 1.2 s, compile_scene of a 2D scene 3.1 → 1.5 s)
+# and does not slow the runs; results agree with the default emitters to round-off (~1e-12
+# relative). One LLVM module per program instead of parallel codegen's pieces: ~7 % less again
+# (the two workers already keep both cores busy). Set before jax starts its backend; a caller's
 # own XLA_FLAGS win, flag by flag.
-TEST_XLA_FLAGS = {"xla_backend_optimization_level": "0", "xla_cpu_use_fusion_emitters": "false"}
+TEST_XLA_FLAGS = {"xla_backend_optimization_level": "0", "xla_cpu_use_fusion_emitters": "false",
+                  "xla_cpu_parallel_codegen_split_count": "1"}
 for _flag, _value in TEST_XLA_FLAGS.items():
     if _flag not in os.environ.get("XLA_FLAGS", ""):
         os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + f" --{_flag}={_value}").strip()
+
+# One BLAS thread per process: the two workers already fill both cores, and OpenBLAS's own
+# threads (numpy, scipy, and jaxlib's LAPACK calls through scipy's) only spin waiting for each
+# other (an 850 × 850 cond + solve + eigh: 1.4 s CPU single-threaded, 4.7 s with 2 threads under
+# load). The variable reaches the libraries loaded from here on (and subprocesses); numpy's is
+# loaded already (by pytest's plugins), threadpoolctl (a dependency of pymor) limits it.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+try:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1, user_api="blas")
+except ImportError:  # pragma: no cover - threadpoolctl comes with the dev extra
+    pass
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
@@ -79,7 +95,25 @@ def _release_compiled_programs():
     Every CPU executable holds its own memory mappings; one process that compiles the whole
     suite's programs (≈ 200 mappings a second of compiling) passes the kernel's per-process
     limit (``vm.max_map_count``, 65530 by default) and the next compile segfaults. Clearing JAX's
-    caches between modules keeps the count bounded (module-scoped fixtures are torn down first)."""
+    caches between modules keeps the count bounded (module-scoped fixtures are torn down first).
+    They are cleared only once the process holds more than half the limit: until then the next
+    module reuses what this one traced and compiled (the shared scenes' ``compile_scene`` and
+    ``initial_state``, whole runs of the same shapes) instead of tracing it again and loading it
+    from the compilation cache."""
     yield
-    jax.clear_caches()
+    n, limit = _memory_mappings()
+    if n is None or n > limit // 2:
+        jax.clear_caches()
     gc.collect()
+
+
+def _memory_mappings():
+    """``(mappings this process holds, the kernel's limit)``; ``(None, None)`` where Linux's
+    ``/proc`` does not tell."""
+    try:
+        with open("/proc/self/maps") as f:
+            n = sum(1 for _ in f)
+        with open("/proc/sys/vm/max_map_count") as f:
+            return n, int(f.read())
+    except (OSError, ValueError):
+        return None, None
