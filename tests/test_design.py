@@ -3,10 +3,12 @@
 importance sampling, the sweep store.
 
 Most tests share one coarse study (``study``: 12 steps, a whole number of the scan's checkpoint
-chunks, so each compiled run holds one copy of the step; the factorisation-reuse solver, which
-test_reuse.py and test_grad.py check against the exact one, 4× faster here) and reuse its
-compiled programs: the value and gradient, the forward Jacobian, the vmapped batches of 8
-configurations, the jitted metric. The 1D gradient check runs the scene's exact solver."""
+chunks, so each compiled run holds one copy of the step; the factorisation-reuse solver, 4×
+faster here, whose runs test_reuse.py checks against the exact one and whose derivatives the
+Jacobian tests below check against full runs; test_grad.py's slow cases check its gradients
+against central differences) and reuse its compiled programs: the value and gradient, the
+forward Jacobian, the vmapped batches of 8 configurations, the jitted metric. The 1D gradient
+check runs the scene's exact solver."""
 
 import jax
 import jax.numpy as jnp

@@ -188,7 +188,7 @@ def _fd_point(model):
     return model.chi_static + jnp.asarray(np.random.default_rng(0).uniform(-1, 1, model.chi_static.size) * scale)
 
 
-_SLOW_FD = {("1d-drive-idle", "reuse"), ("1d-tension", "reuse")}  # reuse: the 2D case; 1D: structured
+_SLOW_FD = {("1d-drive-idle", "reuse"), ("1d-tension", "reuse"), ("2d-tension", "reuse")}  # fast: structured
 _FD_PARAMS = [pytest.param(case, solver, id=f"{case}-{solver}", marks=[pytest.mark.slow] * ((case, solver) in _SLOW_FD))
               for solver in ("structured", "reuse") for case in _FD_CASES]
 
@@ -197,8 +197,11 @@ _FD_PARAMS = [pytest.param(case, solver, id=f"{case}-{solver}", marks=[pytest.ma
 def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, solver):
     """Reverse mode through the whole run (custom adjoint solve, checkpointed scan) against
     central differences (h = 1e-6 m or rad) around a random misalignment, every component.
-    The factorisation-reuse solver's 1D cases are slow (its 2D case and the 1D structured cases
-    are fast)."""
+    The factorisation-reuse solver's cases are slow; fast, the structured solver's cases here and,
+    for reverse mode through the reuse solver in 2D, test_design.py's shared study (reuse):
+    test_response_is_linear_in_small_misalignments (its forward-mode Jacobian against full runs)
+    and test_jacobian_forward_matches_the_reverse_gradient (its reverse-mode gradient against that
+    Jacobian)."""
     make, n_steps, active, inactive = _FD_CASES[case]
     model = make()
     chi0 = _fd_point(model)
