@@ -116,3 +116,18 @@ def test_parametric_dmd_predicts_a_held_out_misalignment_and_speed(belt):
     test = m0.with_misalignment(translation=jnp.array([-6e-3, 0.0])).replace(omega=0.9 * m0.omega)
     pred = p.predict(parameters(test), n + 1, observe=Cz)[1:]
     assert float(rmse(_truth(test, n), pred)) * 1e3 < 0.02
+
+
+def test_parametric_dmd_with_a_given_basis_equals_its_own_svd():
+    """``basis=`` (one SVD reused over a rank study) gives the model of the SVD the fit would do."""
+    rng = np.random.default_rng(3)
+    trajs, P = [], []
+    for j in range(3):
+        A, B, X, U = _linear_system(seed=j, m=30)
+        trajs.append(jnp.asarray(X))
+        P.append([float(j)])
+    own = fit_parametric_dmd(trajs, jnp.asarray(P), rank=5)
+    U_all = np.linalg.svd(np.concatenate([np.asarray(t) for t in trajs], axis=1), full_matrices=False)[0]
+    given = fit_parametric_dmd(trajs, jnp.asarray(P), rank=5, basis=jnp.asarray(U_all[:, :6]))
+    mu = jnp.asarray([rng.uniform(0, 2)])
+    np.testing.assert_allclose(np.asarray(given.predict(mu, 10)), np.asarray(own.predict(mu, 10)), atol=1e-9)
