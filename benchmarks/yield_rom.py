@@ -78,8 +78,9 @@ def part(which, out_path):
     model, study, dist, t_study = setup()
     res = design.run_sweep(study, dist, N, LIMIT, seed=SEED, chunk=chunk, rom=rom, rom_method=method or "response",
                            with_form=False)
+    yield_at = time.time()  # the yield is known: the process's time to it ends here (the check below apart)
     info = {k: v for k, v in res.items() if k != "metric_values"}
-    info.update(chunk=chunk, study_s=t_study, n_unknowns=int(model.n_unknowns), n_steps=int(study.n_steps),
+    info.update(chunk=chunk, yield_at=yield_at, study_s=t_study, n_unknowns=int(model.n_unknowns), n_steps=int(study.n_steps),
                 labels=study.space.labels())
     arrays = {"metric": np.asarray(res["metric_values"])}
     if method is not None:
@@ -106,12 +107,14 @@ def load_average():
 def run_part(which, tmp):
     path = Path(tmp) / which
     load = load_average()
+    started = time.time()
     t0 = time.perf_counter()
     subprocess.run([sys.executable, __file__, "--part", which, "--out", str(path)] + (["--quick"] if QUICK else []),
                    check=True)
     wall = time.perf_counter() - t0
     info = json.loads(path.with_suffix(".json").read_text())
-    info.update(process_wall_s=wall, load_before=load, load_after=load_average())
+    info.update(process_wall_s=wall, process_to_yield_s=info["yield_at"] - started, load_before=load,
+                load_after=load_average())
     return info, dict(np.load(path.with_suffix(".npz")))
 
 
@@ -120,7 +123,9 @@ def side_summary(runs, off_best, full, which):
     the full-only metric ``full``."""
     info, arr = min(runs, key=lambda r: r[0]["wall_s"])
     summary = {"wall_s": info["wall_s"], "wall_s_all": [r[0]["wall_s"] for r in runs],
-               "process_wall_s": info["process_wall_s"], "process_wall_s_all": [r[0]["process_wall_s"] for r in runs],
+               "process_to_yield_s": info["process_to_yield_s"],
+               "process_to_yield_s_all": [r[0]["process_to_yield_s"] for r in runs],
+               "process_wall_s_all": [r[0]["process_wall_s"] for r in runs],
                "load_average_1_5_15": [r[0]["load_before"] for r in runs],
                "full_runs": info["full_runs"], "reduced_runs": info["reduced_runs"], "yield": info["yield"],
                "ci95": info["ci95"], "study_setup_s": info["study_s"]}
@@ -136,7 +141,7 @@ def side_summary(runs, off_best, full, which):
         near_limit_reruns=reruns, offline_s=rom["offline_s"], online_s=info["online_s_all"],
         online_per_config_s=info["online_s_all"] / N, validation=rom,
         speedup=off_best["wall_s"] / info["wall_s"],
-        speedup_process=off_best["process_wall_s"] / info["process_wall_s"],
+        speedup_process=off_best["process_to_yield_s"] / info["process_to_yield_s"],
         # fixed cost of the surrogate over the per-configuration saving: the sample count from which it pays
         break_even_samples=(info["wall_s"] - info["online_s_all"] - reruns * per_full)
         / max(per_full - info["online_s_all"] / N, 1e-12),
@@ -163,7 +168,7 @@ def main():
                 info, arr = run_part(side, tmp)
                 runs[side].append((info, arr))
                 print(f"round {rnd + 1} {side}:", {k: info[k] for k in ("yield", "ci95", "full_runs", "reduced_runs",
-                                                                         "wall_s", "process_wall_s", "load_before")},
+                                                                         "wall_s", "process_to_yield_s", "load_before")},
                       flush=True)
     full_runs = runs["off"] + runs["off16"]
     off_info, off_arr = min(full_runs, key=lambda r: r[0]["wall_s"])
@@ -178,8 +183,9 @@ def main():
         "components": first["labels"], "sigma": SIGMA, "limit_um": LIMIT, "samples": N, "seed": SEED,
         "rounds": REPEAT, "timing": "best of the interleaved rounds per side; each sweep in a fresh process; "
                                     "wall_s = run_sweep's wall time (the study's aligned reference run apart), "
-                                    "process_wall_s = the whole process (imports, scene, study, sweep, the "
-                                    "benchmark's own re-fit for the sample-by-sample check)",
+                                    "process_to_yield_s = from the process's start to the sweep's result (imports, "
+                                    "scene, study set-up, sweep; the benchmark's own re-fit for the sample-by-sample "
+                                    "check after it is left out)",
     }
     off = side_summary(full_runs, off_info, full, "off")
     off.update(per_config_s=off["wall_s"] / N, chunk=off_info["chunk"],
@@ -228,7 +234,7 @@ def plot(out, full, err, bound, rho, name):
             color="w")
     ax.set(xlabel="wall time (s), best of the rounds",
            title=f"{out['samples']} configurations, {out['scene']} (N = {out['n_unknowns']})")
-    ax.set_xlim(0, 1.05 * fo["wall_s"])
+    ax.set_xlim(0, 1.3 * max(fo["wall_s"], *(out[side]["wall_s"] for side in labels)))
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2)
     ax = axs[1]
     v = out["rom_auto"]["validation"]

@@ -1,35 +1,60 @@
 """A validated reduced-model surrogate of a tolerance study (``jaxbelt sweep --rom auto``).
 
-A :class:`Surrogate` predicts the study's metric, and the tracer deviations a sweep stores, with
-the fully reduced POD step of :mod:`jaxbelt.rom.reduced`, and gives every prediction an error
-bound. :func:`fit_surrogate` builds it in three stages.
+A :class:`Surrogate` predicts the study's metric, and the tracer deviations a sweep stores, from
+a reduced model, and gives every prediction an error bound. :func:`fit_surrogate` builds it in
+three stages; ``method`` chooses the reduced model.
 
 **Training** (``1 + 2P`` full runs). The study's own model, integrator and ``n_steps`` run at
 the nominal configuration (``theta = 0``) and at ``±`` the training width of each varied
 component, one at a time (3σ for a normal law, the half-width for a uniform one). The response
 to misalignments is nearly linear, so the nominal run plus runs along each direction span what
-the sweep asks for (README, "Model order reduction": a basis trained like that predicts held-out
+the sweep asks for (README, "Model order reduction": a model trained like that predicts held-out
 2D configurations to ~1e-3 mm, and it cannot extrapolate to a component no run varied, hence
-every varied component is trained). The scaled first-order snapshots before and after each
-transport (:func:`~jaxbelt.rom.snapshots.collect_first_order`) of all runs, side by side, give
-the POD basis (:func:`~jaxbelt.rom.pod.pod_basis`). It keeps every mode with
-``σ_i / σ_1 > sv_tol`` (1e-9), at most ``max_modes``: the energy rule of eq. 5.11 cannot reach
-this depth, because its tail fractions (~1e-17) are below the round-off of the cumulative sum.
-The operators are projected at the nominal configuration
-(:func:`~jaxbelt.rom.reduced.reduced_operators`, the second half of
-:func:`~jaxbelt.rom.reduced.fit_reduced_pod`).
+every varied component is trained). Every full run of the surrogate (training and validation)
+goes through :func:`~jaxbelt.simulate` with the study's model and integrator: the program the
+study compiled for its aligned reference run, so the surrogate compiles no full-order program
+of its own (a vmapped batch would be cheaper per run but costs a compilation worth ~60 serial
+runs of ``three-roller-t72``).
 
-**Online** (per ``theta``: one O(N) static solve for the initial state, then O(r²) per step).
-``study.configured(theta)`` gives the parameters ``μ = [χ_static; ω]``
-(:func:`~jaxbelt.rom.reduced.parameters`) and the initial state. Its projection starts a
-reduced run of ``n_steps``, whose tracers are read through the tracer operators lifted onto the
-basis. The nominal offset (full minus reduced tracers at ``theta = 0``, from the nominal training
-run) is added, so the surrogate is exact at the nominal configuration and only the reduced
-model's error in the *change* of the response remains. The tracers minus the study's aligned
-reference ``ref_u`` / ``ref_v`` are the deviations in µm. The metric is formed from them by the
-study's own :func:`~jaxbelt.design.metrics.response_from_deviation` and
+* ``method="response"`` (default): :class:`ResponseSurface`. The training runs' tracer
+  deviations themselves are the model: the nominal run ``d_0`` plus, per component, the slope
+  ``(d⁺ − d⁻) / 2w`` and the curvature ``(d⁺ + d⁻ − 2d_0) / 2w²`` of its ``±w`` pair, i.e. a
+  quadratic without mixed terms, exact at every training run. Only the steps the metric reads
+  are kept (:func:`steps_needed`). No snapshots, no basis, no projection; a prediction is
+  ``P`` multiply-adds per tracer value. It is the limit of a reduced model of the map
+  ``θ → tracers`` when that map is affine, as the belt's is to ~1e-9 relative (README,
+  "Tolerance design"), and what it leaves out — the mixed second-order terms of the 2D lever
+  arms — is what the validation measures.
+* ``method="pod"``: the fully reduced POD step of :mod:`jaxbelt.rom.reduced`. The scaled
+  first-order snapshots before and after each transport
+  (:func:`~jaxbelt.rom.snapshots.collect_first_order`) of all training runs, side by side, give
+  the POD basis (:func:`~jaxbelt.rom.pod.pod_basis`); it keeps every mode with
+  ``σ_i / σ_1 > sv_tol`` (1e-9), at most ``max_modes`` (the energy rule of eq. 5.11 cannot reach
+  this depth: its tail fractions, ~1e-17, are below the round-off of the cumulative sum), and
+  the operators are projected at the nominal configuration
+  (:func:`~jaxbelt.rom.reduced.reduced_operators`). Online: per ``theta`` one O(N) static solve
+  for the initial state, then O(r²) per step; the nominal offset (full minus reduced tracers at
+  ``theta = 0``) is added, so it is exact at the nominal configuration.
+
+The tracers minus the study's aligned reference are the deviations in µm; the metric is formed
+from them by the study's own :func:`~jaxbelt.design.metrics.response_from_deviation` and
 :func:`~jaxbelt.design.metrics.aggregate`, so the full and the reduced metric share one
 definition. The batch is ``vmap``-ed and compiled once: rows are padded to ``batch``.
+
+**Measured** (``OPENBLAS_NUM_THREADS=1 python benchmarks/yield_rom.py``,
+``results/yield_rom.json``; ``three-roller-t72``, N = 3762, ``lateral_max`` at 2 s = 100 steps,
+5 components, 1000 configurations, limit 60 µm, reuse solver; each sweep in a fresh process,
+the sides interleaved, best of 2 rounds, a shared 2-core machine at load 7–13). Full only:
+61.1 s in batches of 16 (104.8 s in the default 64), yield 0.879 [0.857, 0.898]. ``--rom auto``
+with the response surface: 5.9 s — offline 5.6 s (11 training and 12 validation runs, 2.6 s
+each), 0 re-runs, the same yield and interval and the full model's pass/fail call on every
+sample — **×10.3** (×10.3 and ×12.1 round by round); it pays from ~100 configurations. The
+largest true metric error over the 1000 samples was 5.3e-6 µm (median 5.2e-7 µm) under bounds
+of 2.2e-5–4.1e-5 µm, no violation, smallest effectivity 4.6. With the POD step (123 modes):
+69.9 s, of it 43.6 s for the basis and the projection, ×0.87 — slower than the full-only sweep
+since the full step became faster; largest error 8.3e-5 µm under 3.5e-4–6.6e-4 µm. Counted from
+each fresh process's start (imports, scene, the study's set-up with its compilation, then the
+sweep): 78.6 s against 31.4 s, ×2.5.
 
 **Bound** (``n_validation`` more full runs). ``n_validation`` fresh samples of ``dist``
 (:func:`~jaxbelt.design.sampling.standard_normal_samples` with ``seed``) run both ways. With
@@ -40,45 +65,39 @@ $$ \\text{bound}(θ) = \\text{safety} \\cdot E \\cdot \\max\\bigl(1, (ρ(θ)/ρ_
 
 with ``ρ_max`` the largest ``ρ`` among the validation samples, ``safety`` = 10 and ``ε`` =
 1e-9 µm (round-off). Inside the validated range the bound is the constant ``safety · E``. Beyond
-it the bound grows quadratically, like the error of a model linearised at the nominal. A
-configuration further out than every validation sample therefore gets a wider bound. Such
-configurations lie in the far tail, which is where a yield's failures are.
-``bound_um`` is the bound on the validation samples (``safety · E + ε``). On every validation
-sample it exceeds the true error at least ``safety``-fold (effectivity ≥ safety).
-``validation["loo_effectivity_min"]`` gives the leave-one-out check: each validation sample
-against the bound the other samples would have set.
+it the bound grows quadratically, like the error of a model linearised at the nominal (and like
+the mixed terms the response surface leaves out). A configuration further out than every
+validation sample therefore gets a wider bound. Such configurations lie in the far tail, which
+is where a yield's failures are. ``bound_um`` is the bound on the validation samples
+(``safety · E + ε``). On every validation sample it exceeds the true error at least
+``safety``-fold (effectivity ≥ safety). ``validation["loo_effectivity_min"]`` gives the
+leave-one-out check: each validation sample against the bound the other samples would have set.
 
 *Why a constant and not a per-sample indicator.* A cheap per-sample indicator was built and
-measured while this module was written: the difference between the ``r``-mode model and its
-leading ``r/2`` modes. It is free, because with a nested POD basis the Galerkin operators of the
-sub-basis are the leading blocks. It was calibrated against the validation errors in the same
-way. It did not follow the error. On 256 fresh samples its rank correlation with the true error
-was −0.07 on ``three-roller-t72`` (N = 3762, 122 modes) and 0.30 on the coarse CI scene
-(67 modes). The distance ``‖u‖`` did little better, at 0.12 and 0.26. With this many modes the
-remaining error is scattered with little dependence on the configuration. On t72
-(``benchmarks/yield_rom.py``, 1000 samples with metrics from 12 to 93 µm) its median was
-2.3e-5 µm and its largest 1.4e-4 µm. The constant bound is 10 × the largest of 12 validation
-errors, 4.9e-4 µm. It held on every fresh sample: the smallest out-of-sample effectivity was 3.8
-over the 1000 t72 samples and 5.7 over 256 CI samples (largest error 1.6e-5 µm there). It was
-also tighter than the calibrated indicator, whose median bound was 8.6e-4 µm on t72. The full residual indicator
-(:mod:`jaxbelt.rom.indicator`) needs full steps for every sample, which is the work the
-surrogate is meant to avoid. Twelve samples give a statistical statement, not a proof; the
-safety factor is what covers that.
+measured for the POD step while this module was written: the difference between the
+``r``-mode model and its leading ``r/2`` modes. It is free, because with a nested POD basis the
+Galerkin operators of the sub-basis are the leading blocks. It was calibrated against the
+validation errors in the same way. It did not follow the error. On 256 fresh samples its rank
+correlation with the true error was −0.07 on ``three-roller-t72`` (N = 3762, 122 modes) and 0.30
+on the coarse CI scene (67 modes). The distance ``‖u‖`` did little better, at 0.12 and 0.26.
+With this many modes the remaining error is scattered with little dependence on the
+configuration. The constant bound held on every fresh sample (figures above), and it was tighter
+than the calibrated indicator (median 8.6e-4 µm on t72 against a constant 4.9e-4 µm then). The
+full residual indicator (:mod:`jaxbelt.rom.indicator`) needs full steps for every sample, which
+is the work the surrogate is meant to avoid. Twelve samples give a statistical statement, not a
+proof; the safety factor is what covers that.
 
 A prediction that is not finite gets ``bound = inf`` and ``metric = limit_um``, so the sweep
 re-runs it in full.
 
 **``--rom auto``** (``run_sweep(..., rom="auto")``, ``jaxbelt sweep --rom auto``). The sweep fits
-this surrogate with ``1 + 2P`` training runs and 12 validation runs. Its bound is 10 × the largest
-metric error that the validation runs showed, and it widens for configurations further out than
-any of them. The surrogate is used only if that bound is below 10 % of the limit. Then every
-sample is predicted, and each sample whose predicted metric lies within its own bound of the
-limit is re-run in full. Every pass/fail call left to the reduced model is therefore certain up
-to the bound. ``full_runs`` counts the training and validation runs
-(``validation["validation_runs"]``) plus those re-runs. On ``three-roller-t72``
-(``benchmarks/yield_rom.py``: 1000 configurations, 5 components, t_eval = 2 s) the bound was
-4.9e-4 µm against a 60 µm limit, no sample needed a re-run, the yield was the full model's to
-the sample, and the sweep took 44 s instead of 145 s.
+this surrogate (``rom_method``, default ``"response"``) with ``1 + 2P`` training runs and 12
+validation runs. Its bound is 10 × the largest metric error that the validation runs showed, and
+it widens for configurations further out than any of them. The surrogate is used only if that
+bound is below 10 % of the limit. Then every sample is predicted, and each sample whose
+predicted metric lies within its own bound of the limit is re-run in full. Every pass/fail call
+left to the reduced model is therefore certain up to the bound. ``full_runs`` counts the
+training and validation runs (``validation["validation_runs"]``) plus those re-runs.
 """
 
 from __future__ import annotations
