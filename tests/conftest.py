@@ -99,12 +99,14 @@ def _release_compiled_programs():
     They are cleared only once the process holds more than half the limit: until then the next
     module reuses what this one traced and compiled (the shared scenes' ``compile_scene`` and
     ``initial_state``, whole runs of the same shapes) instead of tracing it again and loading it
-    from the compilation cache."""
+    from the compilation cache. Only then is the garbage collector run too: with the caches
+    kept, a full collection walks every cached program's Python objects (~1.5 s a module late
+    in a worker's run)."""
     yield
     n, limit = _memory_mappings()
     if n is None or n > limit // 2:
         jax.clear_caches()
-    gc.collect()
+        gc.collect()
 
 
 def _memory_mappings():
