@@ -10,6 +10,7 @@ import numpy as np
 from ._common import SCENE_HELP, SimulationError, UsageError, _emit, _finite, _fmt, _load, _positive, _timed
 
 REDUCE_METHODS = ("pod", "dmd", "dmdc", "pdmd")
+CALIBRATION_RUNS = 3  # training runs the error estimate's safety factor is calibrated on
 DEFAULT_MODES = {"pod": 20, "dmd": None, "dmdc": 30, "pdmd": 30}
 REDUCE_HELP = """\
 Train a reduced model and compare its tracer displacements with the full model's.
@@ -37,8 +38,13 @@ the nominal configuration plus one run per varied parameter, e.g. for a two-roll
   --train two-roller-1d two-roller-1d-train1
 (dmdc is valid at the drive speed(s) it was trained at; vary drive speeds with pdmd).
 
-The error is the tracer RMSE in mm over the predicted steps (the source's tolerance: 0.02 mm);
-the indicator (--stride K > 0) is the residual-based estimate of jaxbelt.rom.indicator.
+The error is the tracer RMSE in mm over the predicted steps (the source's tolerance: 0.02 mm).
+The error estimate (--stride K > 0; jaxbelt.rom.indicator.error_rom) needs no reference run: the
+reduced trajectory's full-order residuals, averaged over windows of K steps, are propagated
+through the full step's Jacobian in a residual-enriched subspace, and multiplied by a safety
+factor calibrated on the training data (the same fit on the first half of the training window,
+predicting the training runs over the whole window). error_estimate_mm estimates rmse_mm,
+error_estimate_max_mm max_rmse_over_time_mm; effectivity = error_estimate_mm / rmse_mm.
 
 Times exclude compilation on both sides (as with a warm compilation cache; the first calls,
 compilation included, are reported apart): the full run in the scene's own mode and in the
@@ -69,7 +75,7 @@ def add_parser(subparsers):
     r.add_argument("--steps", type=int, default=None, metavar="N",
                    help="steps to predict and compare (default: the scene's t_end / dt)")
     r.add_argument("--stride", type=int, default=10, metavar="K",
-                   help="residual indicator every K-th step (0: skip; default 10)")
+                   help="error estimate from residuals averaged over windows of K steps (0: no estimate; default 10)")
     r.add_argument("--plot", default=None, metavar="FILE.png",
                    help="write singular values / eigenvalues / error over time to this .png")
     r.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -83,7 +89,7 @@ def run(args):
 
     from .. import initial_state, rom, simulate
     from ..model import compile_scene
-    from ..rom.indicator import residual_indicator
+    from ..rom.indicator import calibrate, dmd_coordinates, error_rom
 
     method = args.method
     _positive("--modes", args.modes)
@@ -169,6 +175,12 @@ def run(args):
     Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
     z0 = rom.state_to_z(test, initial_state(test))
     mu = rom.parameters(test)
+    N = test.n_unknowns
+
+    def calibration_subset(items):
+        """The training runs the safety factor is calibrated on: the first ``CALIBRATION_RUNS``
+        (the nominal configuration first)."""
+        return items[:CALIBRATION_RUNS]
 
     import time
 
@@ -192,19 +204,26 @@ def run(args):
 
     if method == "pod":
         def train():
-            snaps = []
-            for m in train_models:
-                _, Zpre, Zpost = rom.collect_first_order(m, m_train, snapshot_integrator(m))
-                snaps += [Zpre, Zpost]
-            return rom.fit_reduced_pod(train_models[0], jnp.concatenate(snaps, axis=1), n_modes=modes)
+            snaps = [rom.collect_first_order(m, m_train, snapshot_integrator(m))[1:] for m in train_models]
+            return snaps, rom.fit_reduced_pod(train_models[0], jnp.concatenate([z for p in snaps for z in p], axis=1),
+                                              n_modes=modes)
 
-        fit, offline_s = offline(train)
+        (snaps, fit), offline_s = offline(train)
         xi0 = fit.project(test, initial_state(test))
         run = jax.jit(lambda f, x, p: f.run(x, p, n))
         out, online_s = _timed(run, fit, xi0, mu)
-        pred, start, compared = out["tracer_u"], 0, "tracer_u"
-        states = (lambda: fit.fields(jnp.concatenate([xi0[None], out["xi"]])), "post")
+        pred, start, compared, order = out["tracer_u"], 0, "tracer_u", "post"
+        indicator_input = lambda: dict(basis=fit.basis, coords=jnp.concatenate([xi0[None], out["xi"]]), z_true0=z0)  # noqa: E731
         modes_used = fit.n_modes
+
+        def calibration_cases(half):
+            first_half = [Z for Zpre, Zpost in snaps for Z in (Zpre[:, :half], Zpost[:, :half + 1])]
+            cfit = rom.fit_reduced_pod(train_models[0], jnp.concatenate(first_half, axis=1), n_modes=modes)
+            for m, (_, Zpost) in calibration_subset(list(zip(train_models, snaps))):
+                x0 = cfit.project(m, initial_state(m))
+                o = cfit.run(x0, rom.parameters(m), m_train)
+                yield m, (C @ Zpost[:N, 1:]).T, o["tracer_u"], dict(
+                    basis=cfit.basis, coords=jnp.concatenate([x0[None], o["xi"]]), z_true0=Zpost[:, 0])
 
         def plot_data():
             return dict(singular_values=fit.singular_values)
@@ -218,9 +237,19 @@ def run(args):
         x_start, k = Zpre[:, -1], n - m_train
         pred_f = jax.jit(lambda f, x: f.predict(x, k, observe=Cz))
         pred, online_s = _timed(pred_f, fit, x_start)
-        start, compared = m_train, "tracer_u_solved"
-        states = (lambda: jnp.concatenate([x_start[None], fit.predict(x_start, k)]), "pre")
+        start, compared, order = m_train, "tracer_u_solved", "pre"
+        indicator_input = lambda: dmd_coordinates(Zpre, fit, x_start, k)  # noqa: E731
         modes_used = int(fit.eigs.shape[0])
+
+        def calibration_cases(_):
+            # the last third of the training window predicted by a fit on the first two thirds
+            k2 = max(2, (2 * m_train) // 3)
+            if m_train - k2 < 1:
+                return
+            cfit = rom.fit_dmd(Zpre[:, :k2], rank=modes).stable()
+            xs = Zpre[:, k2 - 1]
+            yield test, (C @ Zpre[:N, k2:]).T, cfit.predict(xs, m_train - k2, observe=Cz), \
+                dmd_coordinates(Zpre[:, :k2], cfit, xs, m_train - k2)
         extra["modes_discarded"] = int(full_fit.eigs.shape[0] - modes_used)
 
         def plot_data():
@@ -229,18 +258,33 @@ def run(args):
     else:
         params = [rom.parameters(m) for m in train_models]
         if method == "dmdc":
-            def train():
+            def train_all():
                 trajs = [rom.collect_first_order(m, m_train, snapshot_integrator(m))[2] for m in train_models]
+                return trajs, fit_on(trajs)
+
+            def fit_on(trajs):
                 X, Y, U = rom.stack_controlled(trajs, [rom.belt_inputs(p, Z.shape[1] - 1)
                                                        for p, Z in zip(params, trajs)])
                 return X, Y, rom.fit_dmdc(X, Y, U, rank=modes)
 
-            (X, Y, fit), offline_s = offline(train)
+            (trajs, (X, Y, fit)), offline_s = offline(train_all)
             u = rom.belt_inputs(mu, 1)[:, 0]
             pred_f = jax.jit(lambda f, z, u: f.predict(z, u, n, observe=Cz))
             pred, online_s = _timed(pred_f, fit, z0, u)
-            states = (lambda: jnp.concatenate([z0[None], fit.predict(z0, u, n)]), "post")
+
+            def dmdc_input(f, z, uu, steps):
+                return dict(basis=f.basis, coords=jnp.concatenate(
+                    [(f.basis.T @ z)[None], f.predict(z, uu, steps, observe=f.basis.T)]), z_true0=z)
+
+            indicator_input = lambda: dmdc_input(fit, z0, u, n)  # noqa: E731
             modes_used = int(fit.A.shape[0])
+
+            def calibration_cases(half):
+                cfit = fit_on([Z[:, :half + 1] for Z in trajs])[2]
+                for (m, p), Z in calibration_subset(list(zip(zip(train_models, params), trajs))):
+                    uu = rom.belt_inputs(p, 1)[:, 0]
+                    yield m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], uu, m_train, observe=Cz), \
+                        dmdc_input(cfit, Z[:, 0], uu, m_train)
 
             def plot_data():
                 return dict(singular_values=jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), compute_uv=False),
@@ -253,15 +297,22 @@ def run(args):
             (trajs, fit), offline_s = offline(train)
             pred_f = jax.jit(lambda f, p: f.predict(p, n + 1, observe=Cz)[1:])
             pred, online_s = _timed(pred_f, fit, mu)
-            states = (lambda: fit.predict(mu, n + 1), "post")
+            indicator_input = lambda: dict(basis=fit.basis, coords=fit.predict(mu, n + 1, observe=fit.basis.T),  # noqa: E731
+                                           z_true0=z0)
             modes_used = int(fit.basis.shape[1])
+
+            def calibration_cases(half):
+                cfit = rom.fit_parametric_dmd([Z[:, :half + 1] for Z in trajs], jnp.stack(params), rank=modes)
+                for (m, p), Z in calibration_subset(list(zip(zip(train_models, params), trajs))):
+                    yield m, (C @ Z[:N, 1:]).T, cfit.predict(p, m_train + 1, observe=Cz)[1:], dict(
+                        basis=cfit.basis, coords=cfit.predict(p, m_train + 1, observe=cfit.basis.T), z_true0=Z[:, 0])
 
             def plot_data():
                 w = (np.abs(np.asarray(fit.amplitudes)) * np.linalg.norm(np.asarray(fit.modes), axis=1)).reshape(-1)
                 keep = w > 0  # not the padding of the per-configuration DMDs
                 return dict(singular_values=jnp.linalg.svd(jnp.concatenate(trajs, axis=1), compute_uv=False),
                             eigs=np.asarray(fit.eigs).reshape(-1)[keep], eig_weights=w[keep])
-        start, compared = 0, "tracer_u"
+        start, compared, order = 0, "tracer_u", "post"
 
     if not np.all(np.isfinite(np.asarray(pred))):
         bad = int(np.argmax(~np.all(np.isfinite(np.asarray(pred).reshape(len(pred), -1)), axis=1)))
@@ -275,8 +326,23 @@ def run(args):
     err_t = np.sqrt(np.mean((truth - pred) ** 2, axis=1)) * 1e3
     estimate = None
     if args.stride > 0:
-        S, order = states
-        estimate = residual_indicator(test, S(), stride=args.stride, order=order)
+        t0 = time.perf_counter()
+        ind_integrator = snapshot_integrator(test)
+        estimate = error_rom(test, **indicator_input(), stride=args.stride, order=order, integrator=ind_integrator)
+        test_s = time.perf_counter() - t0
+        # the safety factor, from the training data only
+        calibration = calibrate(((m, tr, pr, dict(inp, integrator=snapshot_integrator(m)))
+                                 for m, tr, pr, inp in calibration_cases(max(1, m_train // 2))),
+                                stride=args.stride, order=order)
+        cal, kappa = calibration["cases"], calibration["safety_factor"]
+        est_t = kappa * np.asarray(estimate["error_mm"])[steps_full[rows] - start - 1]
+        est_rmse = float(np.sqrt(np.mean(est_t**2))) if est_t.size else None
+        extra["error_estimate"] = dict(
+            method="error ROM (windowed full-order residuals through the step's Jacobian in a residual-enriched "
+                   "subspace) x safety factor", raw_rmse_mm=float(np.sqrt(np.mean((est_t / kappa) ** 2))) if est_t.size else None,
+            safety_factor=kappa, calibration=cal, subspace_dim=estimate["dim"], projected_spectral_radius=estimate["rho"],
+            cost=dict(estimate["cost"], full_steps_predicted=(n - start)), test_s=test_s,
+            total_s=time.perf_counter() - t0)
     online = max(online_s, 1e-12)
     report = dict(
         scene=scene.name, method=method, train=train_names, modes=modes_used, **extra, train_steps=m_train,
@@ -284,7 +350,9 @@ def run(args):
         n_unknowns=test.n_unknowns, n_tracers=test.n_tracers,
         rmse_mm=_finite(rom.rmse(truth, pred) * 1e3), rrmse=_finite(rom.rrmse(truth, pred)),
         max_rmse_over_time_mm=_finite(np.max(err_t)) if err_t.size else None,
-        error_estimate_mm=_finite(estimate["estimate_mm"][-1]) if estimate is not None else None,
+        error_estimate_mm=_finite(est_rmse) if estimate is not None else None,
+        error_estimate_max_mm=_finite(np.max(est_t)) if estimate is not None and est_t.size else None,
+        effectivity=_finite(est_rmse / (rom.rmse(truth, pred) * 1e3)) if estimate is not None and est_t.size else None,
         stride=args.stride, n_test_configs=1,
         timings=_timings(full_modes, fastest_mode, fastest_s, full_s, offline_s, online, n, start,
                          m_train * len(train_models), extra.pop("offline_first_call_s")),
@@ -293,9 +361,7 @@ def run(args):
         from ..plot import plot_reduction
 
         pd = plot_data()
-        est = {} if estimate is None else dict(  # the estimate after step k is that of state k + 1
-            estimate_t=(start + np.asarray(estimate["step"]) + 1) * test.dt,
-            estimate_mm=np.asarray(estimate["estimate_mm"]))
+        est = {} if estimate is None else dict(estimate_t=steps_full[rows] * test.dt, estimate_mm=est_t)
         plot_reduction(dict(report, modes=pd.pop("marked", modes_used)), steps_full[rows] * test.dt, err_t, args.plot,
                        singular_values=np.asarray(pd.pop("singular_values")), **pd, **est)
         report["plot"] = str(args.plot)
@@ -333,7 +399,9 @@ def _print_reduce(r):
         ("predicted", f"{r['predict_steps']} steps from step {r['predict_from_step']} ({r['compared']})"),
         ("RMSE", _fmt(r["rmse_mm"], " mm")), ("RRMSE", _fmt(r["rrmse"])),
         ("max RMSE over time", _fmt(r["max_rmse_over_time_mm"], " mm")),
-        ("error estimate", _fmt(r["error_estimate_mm"], " mm") if r["error_estimate_mm"] is not None
+        ("error estimate", (_fmt(r["error_estimate_mm"], " mm") + f" (max over time {_fmt(r['error_estimate_max_mm'], ' mm')}; "
+                            f"effectivity {_fmt(r['effectivity'])}, safety factor "
+                            f"{_fmt(r['error_estimate']['safety_factor'])})") if r.get("error_estimate_mm") is not None
          else "-" if r["stride"] == 0 else "nan"),
     ]
     tm = r["timings"]
