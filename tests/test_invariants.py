@@ -26,7 +26,7 @@ def test_mass_conserved_over_1000_steps(scene, transport):
 
 def test_idle_roller_reaches_drive_speed():
     model = jb.load_model("two-roller-1d")
-    _, tr = jb.simulate(model, n_steps=400)
+    _, tr = jb.simulate(model, n_steps=1024)  # the compiled run of test_mass_conserved_over_1000_steps
     w = np.asarray(tr.roller_velocity)[-1, :, 1]
     assert abs(abs(w[1]) - abs(w[0])) / abs(w[0]) < 1e-3
     # the drive is prescribed at V / r = 10 rad/s
@@ -34,7 +34,7 @@ def test_idle_roller_reaches_drive_speed():
 
 
 def test_idle_speed_with_misalignment_shift_transport():
-    _, tr = jb.simulate(jb.load_model("two-roller-1d-train1"), n_steps=600)
+    _, tr = jb.simulate(jb.load_model("two-roller-1d-train1"), n_steps=1024)  # the same compiled run
     w = np.asarray(tr.roller_velocity)[-1, :, 1]
     assert abs(abs(w[1]) - abs(w[0])) / abs(w[0]) < 1e-6
 
@@ -73,5 +73,5 @@ def test_zero_speed_is_static():
 
     model = eqx.tree_at(lambda m: m.omega, model, jnp.zeros_like(model.omega))
     s0 = jb.initial_state(model)
-    s, _ = jb.simulate(model, state=s0, n_steps=20)
+    s, _ = jb.simulate(model, state=s0, n_steps=30)  # 30 steps: a run length other modules compile too
     np.testing.assert_allclose(np.asarray(s.u), np.asarray(s0.u), atol=1e-15)

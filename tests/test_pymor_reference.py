@@ -24,7 +24,7 @@ R = 12
 @pytest.fixture(scope="module")
 def setup():
     m = jb.load_model("two-roller-1d-train1")
-    _, Zp, Zq = collect_first_order(m, 120)
+    _, Zp, Zq = collect_first_order(m, 150)  # the training run of test_rom_dmdc / test_rom_indicator
     Z = np.asarray(jnp.concatenate([Zp, Zq], axis=1))
     return m, Z
 

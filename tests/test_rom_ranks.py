@@ -11,7 +11,7 @@ from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ra
 @pytest.fixture(scope="module")
 def training():
     m = jb.load_model("two-roller-1d-train1")
-    _, Zp, Zq = collect_first_order(m, 120)
+    _, Zp, Zq = collect_first_order(m, 150)  # the training run of test_rom_dmdc / test_rom_indicator
     Z = jnp.concatenate([Zp, Zq], axis=1)
     return m, Z, fit_reduced_pod_ranks(m, Z, (4, 12, 8))
 

@@ -9,7 +9,7 @@ import jaxbelt as jb
 from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ranks, parameters, pod_basis, rmse
 from jaxbelt.rom.reduced import ReducedStep, reduced_operators
 
-N_TRAIN, N_TEST = 200, 400
+N_TRAIN, N_TEST = 150, 400  # 150: the training run of test_rom_dmdc / test_rom_indicator (one compiled program)
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def test_full_basis_reproduces_the_full_model_exactly():
 
 def test_single_configuration_error_falls_with_modes_and_meets_tolerance(runs):
     m, Z = runs["two-roller-1d-train1"]
-    _, ref = jb.simulate(m, n_steps=N_TEST)  # 200 steps beyond the training window
+    _, ref = jb.simulate(m, n_steps=N_TEST)  # 250 steps beyond the training window
     # one projection at r = 20, truncated (= a fit at each rank: test_rom_ranks)
     roms = fit_reduced_pod_ranks(m, Z, (5, 10, 20))
     errs = [float(rmse(ref.tracer_u, _predict(roms[r], m)["tracer_u"])) * 1e3 for r in (5, 10, 20)]

@@ -55,14 +55,14 @@ def test_nonfinite_state_stops_with_step_and_cause():
     bad = st.__class__(u=st.u.at[7, 0].set(jnp.nan), u_dot=st.u_dot, chi=st.chi, chi_dot=st.chi_dot,
                        m_e=st.m_e, step=st.step)
     with pytest.raises(jb.NonFiniteStateError, match=r"non-finite belt displacement at step 1 \(t = 0\.005 s\)"):
-        jb.simulate(model, state=bad, n_steps=10)
+        jb.simulate(model, state=bad, n_steps=30)  # 30 steps: a run length other modules compile too
     # under jit the flag travels with the trajectory and the caller checks it
     tr = jax.jit(lambda s: jb.simulate(model, state=s, n_steps=10)[1])(bad)
     assert np.asarray(tr.nonfinite)[0] == 1
     with pytest.raises(jb.NonFiniteStateError):
         jb.check_finite(tr, model.dt)
     # a healthy run passes the guard: every step's flag is 0
-    _, tr = jb.simulate(model, n_steps=10)
+    _, tr = jb.simulate(model, n_steps=30)
     assert not np.any(np.asarray(tr.nonfinite))
 
 
@@ -98,7 +98,7 @@ def test_stiffness_over_five_orders_of_magnitude(E, rho):
     ringing after 6 s — the model has no material damping."""
     import dataclasses
 
-    from helpers import span_strains
+    from helpers import span_strains, whole_chunks
     from jaxbelt.integrators import make_integrator
 
     sc = jb.load_scene("two-roller-1d-idle-translated")
@@ -108,7 +108,8 @@ def test_stiffness_over_five_orders_of_magnitude(E, rho):
     for e in span_strains(model, mesh, jb.initial_state(model).u):
         np.testing.assert_allclose(e, 1e-3 / 0.275, rtol=1e-9)
     integ = make_integrator("direct", model)
-    s, tr = jb.simulate(model, integ, n_steps=1200)
+    # 1225 steps (6.1 s): whole checkpoint chunks, the compiled run of test_transport.py's 6 s runs
+    s, tr = jb.simulate(model, integ, n_steps=whole_chunks(1200))
     assert not np.any(np.asarray(tr.nonfinite))
     m = np.asarray(tr.belt_mass)
     assert np.max(np.abs(m / m[0] - 1)) < 1e-12
