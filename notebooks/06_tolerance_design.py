@@ -188,7 +188,7 @@ show_png("box.png", plot.plot_tolerance_box, box)
 
 # %% [markdown]
 # The box is a few µm wide in z and a few hundredths of a mrad in the tilts: the belt on an arc
-# follows an axial roller shift one to one, and 0.05 mrad of tilt already moves it by 5–13 µm.
+# follows an axial roller shift one to one, and 0.05 mrad of tilt already moves it by 3–13 µm.
 # The in-plane translations are not felt (capped at 5 mm). The binding components — those whose
 # share of the worst case the optimiser could not trade away — are the tilts of rollers 2 and 3.
 # The same from the command line: `jaxbelt tolerance three-roller-tolerance --limit-um 20`.
