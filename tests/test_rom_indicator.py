@@ -4,7 +4,8 @@ Small 1D scenes, short runs. The models are fitted once per module on the nomina
 6.1 run 1 (100 steps each); the safety factor is calibrated on those training runs only (a fit on
 their first half predicting the whole window), and the effectivity is checked on configurations
 no fit has seen: the drive moved -6 mm (and for POD, which takes the drive rate as an input,
-turning at 0.9 of the nominal rate)."""
+turning at 0.9 of the nominal rate). Single-configuration DMD (pre-transport states) is checked
+through ``jaxbelt reduce`` in ``tests/test_cli_reduce.py``."""
 
 import jax.numpy as jnp
 import numpy as np
@@ -13,8 +14,7 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, tracer_operator)
-from jaxbelt.rom.indicator import (calibrate, dmd_coordinates, error_rom, residual_indicator, safety_factor,
-                                  snapshot_count)
+from jaxbelt.rom.indicator import calibrate, error_rom, residual_indicator, safety_factor, snapshot_count
 
 N_TRAIN, N_TEST = 100, 200
 
@@ -70,10 +70,11 @@ def pod(setup):
 
 def test_error_rom_vanishes_on_a_full_order_trajectory(setup):
     m, Z = setup["truth"]["same"]
+    Z = Z[:, :41]
     U = jnp.linalg.svd(Z, full_matrices=False)[0]  # the trajectory's own span
     est = error_rom(m, U, (U.T @ Z).T, z_true0=Z[:, 0], stride=1)
     assert est["max_mm"] < 1e-9
-    assert est["error"].shape == (N_TEST, m.n_tracers) and est["rho"] <= 1 + 1e-6
+    assert est["error"].shape == (40, m.n_tracers) and est["cost"]["full_steps"] == 41
 
 
 @pytest.mark.parametrize("r", [10, 20])
@@ -122,26 +123,6 @@ def test_dmdc_effectivity_on_a_held_out_configuration(setup):
     u = belt_inputs(parameters(m), 1)[:, 0]
     true = _rmse_mm((Cz @ Z[:, 1:]).T, f.predict(Z[:, 0], u, N_TEST, observe=Cz))
     est = error_rom(m, **inputs(f, Z[:, 0], u, N_TEST))["rmse_mm"]
-    assert 0.8 < est / true < 1.25
-    assert 1.0 <= kappa * est / true <= 3.0
-
-
-def test_dmd_effectivity_predicting_past_the_training_window():
-    """Single-configuration DMD on pre-transport snapshots (``order="pre"``): calibrated on the
-    last third of its training window, checked on the steps after it."""
-    m = jb.load_model("two-roller-1d-train1")
-    C = tracer_operator(m)
-    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
-    _, Zpre, _ = collect_first_order(m, 300)
-    Z, n_train = Zpre[:, :100], 100
-    k2 = 66
-    cf = fit_dmd(Z[:, :k2]).stable()
-    kappa = calibrate([(m, (Cz @ Z[:, k2:]).T, cf.predict(Z[:, k2 - 1], n_train - k2, observe=Cz),
-                        dmd_coordinates(Z[:, :k2], cf, Z[:, k2 - 1], n_train - k2))], order="pre")["safety_factor"]
-    f = fit_dmd(Z).stable()
-    k = 200
-    true = _rmse_mm((Cz @ Zpre[:, n_train:n_train + k]).T, f.predict(Z[:, -1], k, observe=Cz))
-    est = error_rom(m, **dmd_coordinates(Z, f, Z[:, -1], k), order="pre")["rmse_mm"]
     assert 0.8 < est / true < 1.25
     assert 1.0 <= kappa * est / true <= 3.0
 
