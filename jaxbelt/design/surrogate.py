@@ -13,7 +13,7 @@ the sweep asks for (README, "Model order reduction": a model trained like that p
 every varied component is trained). Every full run of the surrogate (training and validation)
 goes through :func:`~jaxbelt.simulate` with the study's model and integrator: the program the
 study compiled for its aligned reference run, so the surrogate compiles no full-order program
-of its own (a vmapped batch would be cheaper per run but costs a compilation worth ~60 serial
+of its own (a vmapped batch would be cheaper per run but costs a compilation worth 40–60 serial
 runs of ``three-roller-t72``).
 
 * ``method="response"`` (default): :class:`ResponseSurface`. The training runs' tracer
@@ -44,17 +44,17 @@ definition. The batch is ``vmap``-ed and compiled once: rows are padded to ``bat
 **Measured** (``OPENBLAS_NUM_THREADS=1 python benchmarks/yield_rom.py``,
 ``results/yield_rom.json``; ``three-roller-t72``, N = 3762, ``lateral_max`` at 2 s = 100 steps,
 5 components, 1000 configurations, limit 60 µm, reuse solver; each sweep in a fresh process,
-the sides interleaved, best of 2 rounds, a shared 2-core machine at load 7–13). Full only:
-61.1 s in batches of 16 (104.8 s in the default 64), yield 0.879 [0.857, 0.898]. ``--rom auto``
-with the response surface: 5.9 s — offline 5.6 s (11 training and 12 validation runs, 2.6 s
-each), 0 re-runs, the same yield and interval and the full model's pass/fail call on every
-sample — **×10.3** (×10.3 and ×12.1 round by round); it pays from ~100 configurations. The
-largest true metric error over the 1000 samples was 5.3e-6 µm (median 5.2e-7 µm) under bounds
-of 2.2e-5–4.1e-5 µm, no violation, smallest effectivity 4.6. With the POD step (123 modes):
-69.9 s, of it 43.6 s for the basis and the projection, ×0.87 — slower than the full-only sweep
-since the full step became faster; largest error 8.3e-5 µm under 3.5e-4–6.6e-4 µm. Counted from
-each fresh process's start (imports, scene, the study's set-up with its compilation, then the
-sweep): 78.6 s against 31.4 s, ×2.5.
+the sides interleaved, best of 2 rounds, a shared 2-core machine at load 7–9). Full only:
+46.5 s in batches of 16 (122.9 s in the default 64), yield 0.879 [0.857, 0.898]. ``--rom auto``
+with the response surface: 3.7 s — offline 3.5 s (11 training and 12 validation runs), 0
+re-runs, the same yield and interval and the full model's pass/fail call on every sample —
+**×12.6** (×12.6 and ×15.4 round by round; ×10.3 in an earlier run at load 7–13); it pays from
+~80 configurations. The largest true metric error over the 1000 samples was 5.3e-6 µm (median
+5.2e-7 µm) under bounds of 2.2e-5–4.1e-5 µm, no violation, smallest effectivity 4.6. With the
+POD step (123 modes): 64.0 s, of it 42.7 s for the basis and the projection, ×0.73 — slower than
+the full-only sweep since the full step became faster; largest error 8.3e-5 µm under
+3.5e-4–6.6e-4 µm. Counted from each fresh process's start (imports, scene, the study's set-up
+with its compilation, then the sweep): 65.9 s against 18.2 s, ×3.6.
 
 **Bound** (``n_validation`` more full runs). ``n_validation`` fresh samples of ``dist``
 (:func:`~jaxbelt.design.sampling.standard_normal_samples` with ``seed``) run both ways. With
