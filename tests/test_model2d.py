@@ -1,7 +1,8 @@
 """The 2D plane-stress model (MODEL.md §4): counts, solves, invariants, symmetry, linearity.
 
 The runs share the coarse grid (three lines across) and a few run lengths that are whole numbers
-of the scan's checkpoint chunks (9, 56, 156), so that they share compiled programs."""
+of the scan's checkpoint chunks (9, 36, 156), so that they share compiled programs (with each other
+and with test_vmap.py, test_validation.py's 2D statics, test_reuse.py, test_rom_snapshots.py)."""
 
 import jax
 import jax.numpy as jnp
@@ -79,7 +80,7 @@ def test_aligned_stretched_belt_is_symmetric():
     """No lateral misalignment, belt stretched by moving roller 2 outwards: Poisson contraction
     only, v = 0 on the centre line and v(-z) = -v(z), u(-z) = u(z)."""
     m = with_variant(small(n_eta=3), {1: dict(translation=(2e-3, 0, 0))})
-    s, tr = jb.simulate(m, n_steps=56)
+    s, tr = jb.simulate(m, n_steps=36)
     u, v = np.asarray(s.u[:, 0::2]), np.asarray(s.u[:, 1::2])
     assert np.max(np.abs(v)) > 1e-7  # the contraction is there (the test is not vacuous)
     np.testing.assert_allclose(v[:, 1], 0.0, atol=1e-15 + 1e-9 * np.max(np.abs(v)))
@@ -92,8 +93,8 @@ def test_mirrored_lateral_misalignment_mirrors_the_field():
     base = small(n_eta=3)
     a = with_variant(base, {0: dict(translation=(0, 0, 1e-3)), 1: dict(rotation=(4e-4, -2e-4))})
     b = with_variant(base, {0: dict(translation=(0, 0, -1e-3)), 1: dict(rotation=(-4e-4, 2e-4))})
-    sa, _ = jb.simulate(a, n_steps=56)
-    sb, _ = jb.simulate(b, n_steps=56)
+    sa, _ = jb.simulate(a, n_steps=36)
+    sb, _ = jb.simulate(b, n_steps=36)
     ua, va = np.asarray(sa.u[:, 0::2]), np.asarray(sa.u[:, 1::2])
     ub, vb = np.asarray(sb.u[:, 0::2]), np.asarray(sb.u[:, 1::2])
     assert np.max(np.abs(va)) > 1e-5
@@ -105,9 +106,9 @@ def test_doubling_a_small_misalignment_doubles_the_response():
     base = small(n_eta=3)
     c1 = {0: dict(translation=(0, 1e-4, 1e-4)), 1: dict(rotation=(5e-5, 0)), 2: dict(rotation=(0, 4e-5))}
     c2 = {k: {kk: tuple(2 * x for x in vv) for kk, vv in v.items()} for k, v in c1.items()}
-    zero = jb.simulate(base, n_steps=56)[1]
-    r1 = jb.simulate(with_variant(base, c1), n_steps=56)[1]
-    r2 = jb.simulate(with_variant(base, c2), n_steps=56)[1]
+    zero = jb.simulate(base, n_steps=36)[1]
+    r1 = jb.simulate(with_variant(base, c1), n_steps=36)[1]
+    r2 = jb.simulate(with_variant(base, c2), n_steps=36)[1]
     for f in ("tracer_u", "tracer_v"):
         d1 = np.asarray(getattr(r1, f) - getattr(zero, f))
         d2 = np.asarray(getattr(r2, f) - getattr(zero, f))

@@ -18,8 +18,9 @@ def m():
 
 @pytest.fixture(scope="module")
 def state4(m):
-    """The state after 4 steps (a whole number of checkpoint chunks: one compiled step)."""
-    return jb.simulate(m, n_steps=4)[0]
+    """The state after 9 steps (a whole number of checkpoint chunks: one compiled step; the run
+    test_model2d.py and test_vmap.py compile for the same shapes)."""
+    return jb.simulate(m, n_steps=9)[0]
 
 
 def test_factor_solve_equals_structured_solve(m):

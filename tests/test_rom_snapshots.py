@@ -20,7 +20,7 @@ def test_tracer_operator_2d():
     from helpers import scene_with
 
     m = jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), "three-roller-t72"))
-    s, _ = jb.simulate(m, n_steps=6)
+    s, _ = jb.simulate(m, n_steps=9)  # the compiled run of test_model2d / test_vmap (same shapes)
     from jaxbelt.linalg import join
     from jaxbelt.timeloop import tracer_values
 
