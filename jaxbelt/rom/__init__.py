@@ -1,6 +1,6 @@
 """Model order reduction on the belt model (MODEL.md §5): snapshots, metrics, modal decomposition,
 POD-Galerkin (as the source), the fully reduced POD step, exact DMD, DMD with control and
-parametric DMD, and an a-posteriori error indicator."""
+parametric DMD, and an a-posteriori error estimate (the error ROM of :mod:`jaxbelt.rom.indicator`)."""
 
 from .dmd import DMDModel as DMDModel
 from .dmd import fit_dmd as fit_dmd
@@ -12,6 +12,12 @@ from .dmdc import fit_dmdc as fit_dmdc
 from .dmdc import fit_parametric_dmd as fit_parametric_dmd
 from .dmdc import interpolation_weights as interpolation_weights
 from .dmdc import stack_controlled as stack_controlled
+from .indicator import calibrate as calibrate
+from .indicator import dmd_coordinates as dmd_coordinates
+from .indicator import error_rom as error_rom
+from .indicator import residual_indicator as residual_indicator
+from .indicator import safety_factor as safety_factor
+from .indicator import snapshot_count as snapshot_count
 from .metrics import rmse as rmse
 from .metrics import rrmse as rrmse
 from .modal import fit_modal as fit_modal
