@@ -53,7 +53,6 @@ def whole_chunks(n_steps: int) -> int:
     return n
 
 
-
 def simulate_optimised(model, n_steps=None):
     """``jb.simulate(model, n_steps=n_steps)[1]`` from a program compiled at XLA's optimisation
     level 1, for the few long 2D runs (over a thousand steps) whose running time outweighs their
