@@ -31,8 +31,8 @@ unless marked "benchmark".
    1D ``two-roller-1d-pretension``: ±2T = ±14.481 N to 8e-10 T; 2D ``three-roller`` with
    ``length_mm = 2830`` (T = 172.8 N) against tangents computed here from the roller centres
    and radii, to 3e-7 T after 36 steps. Tension rollers (``two-roller-1d-tension``,
-   ``three-roller-tension``): T = F / |(t_out − t_in)·x̂| at the pulled roller (50 N; 115.15 N),
-   the same T at the others, span tension F/2 in 1D. **Drive torque**: without losses the
+   ``three-roller-tension``, 156 steps): T = F / |(t_out − t_in)·x̂| at the pulled roller
+   (50 N; 115.15 N), the same T at the others, span tension F/2 in 1D. **Drive torque**: without losses the
    steady torque is 0 (< 1e-13 N·m in 1D, 5e-9 N·m in 2D), and what the drive delivers during
    the start-up is the angular momentum it gives the rest of the loop,
    ``∫τ dt = r₁ V (m_belt − m_on_drive + Σ_idle I_j / r_j²)``: 2e-12 (1D), 3e-9 (2D),
@@ -346,7 +346,8 @@ def run_statics_2d():
     out = {}
     for name, belt in (("three-roller", {"length_mm": 2830.0}), ("three-roller-tension", {})):
         model, mesh = coarse_three_roller(name, **belt)
-        reac = np.asarray(jb.simulate(model)[1].roller_reaction)  # (steps, 3, 6)
+        # 36 steps; the tension roller (it moves during the start-up) 156, the run of test_model2d.py
+        reac = np.asarray(jb.simulate(model, n_steps=None if belt else 156)[1].roller_reaction)  # (steps, 3, 6)
         # pre-tension: T = E A ε₀; tension roller: the belt's pull on roller 2 balances the 200 N
         T = E * 0.4 * 0.3e-3 * (L_path / 2.830 - 1) if belt else 200.0 / -hub[1][0]  # 172.8 N; 115.15 N
         support_hand = -T * hub
