@@ -1,6 +1,13 @@
 """Figures (matplotlib, imported lazily: nothing else in jaxbelt imports this module).
 
 Displacements are drawn in mm and times in s, as in the source's figures.
+
+The functions that draw a whole figure (:func:`plot_run`, :func:`plot_scene`,
+:func:`plot_reduction`, :func:`plot_sensitivity`, :func:`plot_tolerance_box`, :func:`plot_yield`)
+write a PNG and return its path when given ``path``; with ``path=None`` they return the open
+:class:`matplotlib.figure.Figure` (shown inline in Jupyter). The panel functions take an ``ax``.
+This module never selects a matplotlib backend: a notebook keeps its inline backend; the command
+line sets ``MPLBACKEND=Agg`` (unless the user set one) before matplotlib is imported.
 """
 
 from __future__ import annotations
@@ -9,12 +16,19 @@ import numpy as np
 
 
 def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # the user's / environment's backend (see the module docstring)
 
     return plt
+
+
+def _finish(fig, path, dpi=120):
+    """Write ``fig`` to ``path`` and close it (returns ``path``), or return the open figure when
+    ``path`` is ``None``."""
+    if path is None:
+        return fig
+    fig.savefig(path, dpi=dpi)
+    _plt().close(fig)
+    return path
 
 
 def tracer_styles(model):
@@ -38,11 +52,11 @@ def _tracer_legend(ax, labels):
               bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, title="tracers", title_fontsize=7)
 
 
-def plot_run(traj, mesh, path, times=None, title: str = ""):
+def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     """Tracer trajectories over time and the displacement along the belt at chosen times.
 
     **Arguments:** ``traj``: a :class:`~jaxbelt.Trajectory`; ``mesh``: the scene's
-    :class:`~jaxbelt.Mesh`; ``path``: output PNG; ``times``: times (s) for the profile panel
+    :class:`~jaxbelt.Mesh`; ``path``: output PNG (``None``: return the figure); ``times``: times (s) for the profile panel
     (default: four evenly spaced). With ``fields = "full"`` the profile is the whole grid,
     otherwise the tracers. Every tracer is labelled with its segment and position
     (:func:`tracer_labels`, e.g. ``"span 2, 40 % / z = +20 mm"``).
@@ -94,12 +108,10 @@ def plot_run(traj, mesh, path, times=None, title: str = ""):
     ax2.set_ylabel("u [mm]")
     ax2.legend(fontsize=8)
     ax2.grid(alpha=0.3)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _finish(fig, path)
 
 
-def plot_scene(scene, mesh, path):
+def plot_scene(scene, mesh, path=None):
     """Rollers, belt path, contact points and tracer points in the (x³ᴰ, y³ᴰ) plane (mm), as the
     source's Figures 2.2 / 7.1."""
     plt = _plt()
@@ -139,9 +151,7 @@ def plot_scene(scene, mesh, path):
     ax.set_title(f"{scene.name}: belt path {mesh.length * 1e3:.1f} mm")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _finish(fig, path)
 
 
 # -- model order reduction (``jaxbelt reduce``) ------------------------------------------------
@@ -231,13 +241,13 @@ def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, esti
     return ax
 
 
-def plot_reduction(report, t, rmse_mm, path, singular_values=None, eigs=None, eig_weights=None,
+def plot_reduction(report, t, rmse_mm, path=None, singular_values=None, eigs=None, eig_weights=None,
                    estimate_t=None, estimate_mm=None, tol_mm=0.02):
     """The figure of ``jaxbelt reduce --plot``: singular values of the training snapshots (with
     ``report["modes"]`` marked), the DMD eigenvalues when ``eigs`` is given (DMD-type methods),
     and the RMSE over time ``t`` (s) with the indicator estimate — a 1 × 3 figure, or 1 × 2
     without eigenvalues. ``report``: the dict the command prints (scene, method, modes, rmse_mm).
-    Returns ``path``."""
+    Returns ``path``, or the figure when ``path`` is ``None``."""
     plt = _plt()
     panels = (singular_values is not None) + (eigs is not None) + 1
     fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.5), constrained_layout=True)
@@ -253,15 +263,13 @@ def plot_reduction(report, t, rmse_mm, path, singular_values=None, eigs=None, ei
     rm = report.get("rmse_mm")
     fig.suptitle(f"{report.get('scene', '')}: {report.get('method', '')}, {report.get('modes')} modes"
                  + (f", RMSE {rm:.3g} mm" if isinstance(rm, (int, float)) else ""))
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _finish(fig, path)
 
 
 # ----------------------------------------------------------------------------- tolerance design
 
 
-def plot_sensitivity(report: dict, path):
+def plot_sensitivity(report: dict, path=None):
     """Bars of the gradient per roller and component (``jaxbelt sensitivity``): translations in
     µm/mm, rotations in µm/mrad, structurally zero components hatched."""
     plt = _plt()
@@ -286,11 +294,10 @@ def plot_sensitivity(report: dict, path):
         ax.legend(title="axis")
         ax.grid(alpha=0.3, axis="y")
     fig.suptitle(f"{report['metric']} = {report['value_um']:.4g} µm at t = {report['t_eval_s']:.3g} s")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return _finish(fig, path)
 
 
-def plot_tolerance_box(result: dict, path):
+def plot_tolerance_box(result: dict, path=None):
     """Half-widths of the tolerance box per component (log scale), binding components marked,
     capped (unconstrained) ones grey; beside it the verification runs against the limit."""
     plt = _plt()
@@ -317,11 +324,10 @@ def plot_tolerance_box(result: dict, path):
     ax2.set_ylabel("full run [µm]")
     ax2.set_title("verification (red: worst corners)")
     fig.suptitle(f"{result['metric']} ≤ {lim:g} µm: verified worst case {result['worst_case_um']:.3f} µm")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return _finish(fig, path)
 
 
-def plot_yield(metric_values, limit_um: float, result: dict, path):
+def plot_yield(metric_values, limit_um: float, result: dict, path=None):
     """Histogram of the metric over the Monte-Carlo samples with the limit and the yield."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
@@ -333,8 +339,7 @@ def plot_yield(metric_values, limit_um: float, result: dict, path):
     ax.set_ylabel("configurations")
     ax.legend()
     ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return _finish(fig, path)
 
 
 # ----------------------------------------------------------------------------- belt segments and tracer labels

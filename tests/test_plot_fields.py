@@ -202,3 +202,24 @@ def test_cli_field_options_bad_input(argv, fragment, capsys):
     assert main(["simulate", *argv]) == 2
     err = capsys.readouterr().err
     assert fragment in err and "Traceback" not in err
+
+
+def test_figure_functions_keep_the_backend_and_return_figures(run2d, tmp_path):
+    """The library never selects a backend (a notebook's inline backend survives a plot call), and
+    every figure-level function returns its open figure when no path is given."""
+    _, mesh2, _, _, traj2 = run2d
+    before = matplotlib.get_backend()
+    plt.switch_backend("svg")  # a backend other than Agg: a plot call must not switch it back
+    try:
+        fig = plot.plot_run(traj2, mesh2, times=[0.02, 0.1])
+        assert isinstance(fig, matplotlib.figure.Figure) and matplotlib.get_backend() == "svg"
+        np.testing.assert_allclose(fig.axes[0].get_lines()[0].get_ydata(), np.asarray(traj2.tracer_u)[:, 0] * 1e3)
+        res = dict(yield_=0.9, ci95=[0.85, 0.95], samples=50, metric="lateral_drift", **{"yield": 0.9})
+        fig2 = plot.plot_yield(np.linspace(0, 30, 50), 20.0, res)
+        assert isinstance(fig2, matplotlib.figure.Figure) and matplotlib.get_backend() == "svg"
+        assert fig2.axes[0].get_lines()[0].get_xdata()[0] == 20.0  # the limit line
+        out = plot.plot_yield(np.linspace(0, 30, 50), 20.0, res, tmp_path / "y.png")
+        assert out == tmp_path / "y.png" and out.stat().st_size > 0
+        plt.close("all")
+    finally:
+        plt.switch_backend(before)

@@ -251,10 +251,7 @@ def run(out_dir: Path, quick: bool = False, results_dir: Path | None = None) -> 
 
 
 def plot(payload: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # backend: the environment's (the CLI sets MPLBACKEND=Agg)
 
     ms = payload["per_step"]["ms_per_step"]
     fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.2), constrained_layout=True)

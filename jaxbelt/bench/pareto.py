@@ -325,10 +325,7 @@ def _front(points):
 
 
 def plot(payload, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # backend: the environment's (the CLI sets MPLBACKEND=Agg)
 
     rows = payload["rows"]
     fams = sorted({r["family"] for r in rows.values()})

@@ -13,6 +13,7 @@ never a traceback; a diverged run ends with exit code 3. Commands signal these b
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from . import bench, demo, info, plot_scene, reduce, scenes, sensitivity, simulate, sweep, tolerance
@@ -82,6 +83,9 @@ def main(argv=None) -> int:
             default_show(message, category, *a, **k)
 
     args = build_parser().parse_args(argv)
+    # figures are written to files: a non-interactive backend unless the user chose one (the
+    # library's plot functions never choose one, so that notebooks keep their inline backend)
+    os.environ.setdefault("MPLBACKEND", "Agg")
     enable_compilation_cache()
     try:
         with warnings.catch_warnings():  # restores showwarning when the command returns
