@@ -128,7 +128,8 @@ def edge_margin(model: BeltModel, u, chi):
     j = jnp.maximum(model.node_roller, 0)
     margin = model.roller_half_width[j, None] - jnp.abs(z_edges - dz[j, None])
     margin = jnp.where((model.node_roller >= 0)[:, None], margin, jnp.inf).min(axis=1)
-    return jax.ops.segment_min(margin, j, num_segments=p)
+    # per roller a masked minimum ((p, n), fused) rather than segment_min's scatter, slow on a CPU
+    return jnp.where(model.node_roller[None, :] == jnp.arange(p)[:, None], margin[None, :], jnp.inf).min(axis=1)
 
 
 def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: bool = False):

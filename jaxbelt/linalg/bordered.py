@@ -96,7 +96,7 @@ class BorderedBlockCyclic(eqx.Module):
             + jnp.einsum("nij,nj->ni", self.upper, jnp.roll(x_belt, -1, axis=0))
             + jnp.einsum("niq,q->ni", self.C, x_roll)
         )
-        z = jnp.einsum("nqj,nj->q", self.D, x_belt) + self.E @ x_roll
+        z = _flat_roller_rows(self.D) @ x_belt.reshape(-1) + self.E @ x_roll
         return y, z
 
     def to_dense(self) -> jax.Array:
