@@ -139,3 +139,38 @@ def test_plot_functions_on_synthetic_data(tmp_path):
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+PDMD_2D = """\
+extends = "two-roller-1d"
+[model]
+kind = "2d"
+[mesh]
+n_eta = 3
+roller_elements = [6, 6]
+free_elements = [8, 8]
+[time]
+dt_s = 0.02
+t_end_s = 2.0
+[variant."idle"]
+translation_mm = [0.0, 0.0, {z}]
+rotation_mrad = [0.5, 0.0, 0.0]
+"""
+
+
+def test_pdmd_2d_trains_from_the_step_after_the_start_up(tmp_path, capsys):
+    """2D parametric DMD: the per-configuration DMDs start at step 1 (the start-up jump from the
+    static state is no linear recurrence of the later states). On this coarse belt (idle roller
+    moved along its axis, trained at 0 and ±1 mm, predicted at 0.5 mm) the CLI's forecast is
+    within 1e-4 mm of the full model; trained from step 0 as before, the same fit was off by
+    0.08 mm (measured)."""
+    paths = {}
+    for z in (0.0, 1.0, -1.0, 0.5):
+        paths[z] = tmp_path / f"pd_{z}.toml"
+        paths[z].write_text(PDMD_2D.format(z=z))
+    argv = ["reduce", str(paths[0.5]), "--method", "pdmd", "--train", str(paths[0.0]), str(paths[1.0]),
+            str(paths[-1.0]), "--steps", "100", "--train-steps", "40", "--stride", "0", "--json"]
+    assert main(argv) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["training_starts_at_step"] == 1 and r["compared"] == "tracer_u"
+    assert r["rmse_mm"] < 1e-3 and r["max_rmse_over_time_mm"] < 3e-3

@@ -290,22 +290,40 @@ def run(args):
                 return dict(singular_values=jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), compute_uv=False),
                             eigs=fit.eigs, eig_weights=fit.scaled_mode_norms(z0))
         else:
+            # 2D: the per-configuration DMDs start after the start-up step. The first step from
+            # the static state is a jump no linear recurrence of the later states continues (it
+            # carries the lever-arm / transport start-up): with z_0 in its trajectories the 2D
+            # forecasts are off by ~0.1 mm, from z_1 on by < 1 µm (benchmarks/pdmd_2d.py;
+            # single-configuration DMD on t72: 42 µm with z_0, 0.93 µm from z_1). 1D keeps z_0
+            # (the source's setting, Table 6.x: no such jump).
+            skip = 1 if test.kind == "2d" else 0
+
+            def forecast(f, p, steps, observe):
+                """States 1 … steps of the configuration ``p`` observed by ``observe``."""
+                return f.predict(p, steps + 1 - skip, observe=observe)[1 - skip:]
+
+            def coordinates(f, p, steps, z_start):
+                """Reduced coordinates of steps 0 … steps (step 0: the start state projected)."""
+                rest = forecast(f, p, steps, f.basis.T)
+                return jnp.concatenate([(f.basis.T @ z_start)[None], rest]) if skip else \
+                    f.predict(p, steps + 1, observe=f.basis.T)
+
             def train():
                 trajs = [rom.collect_first_order(m, m_train, snapshot_integrator(m))[2] for m in train_models]
-                return trajs, rom.fit_parametric_dmd(trajs, jnp.stack(params), rank=modes)
+                return trajs, rom.fit_parametric_dmd([Z[:, skip:] for Z in trajs], jnp.stack(params), rank=modes)
 
             (trajs, fit), offline_s = offline(train)
-            pred_f = jax.jit(lambda f, p: f.predict(p, n + 1, observe=Cz)[1:])
+            pred_f = jax.jit(lambda f, p: forecast(f, p, n, Cz))
             pred, online_s = _timed(pred_f, fit, mu)
-            indicator_input = lambda: dict(basis=fit.basis, coords=fit.predict(mu, n + 1, observe=fit.basis.T),  # noqa: E731
-                                           z_true0=z0)
+            indicator_input = lambda: dict(basis=fit.basis, coords=coordinates(fit, mu, n, z0), z_true0=z0)  # noqa: E731
             modes_used = int(fit.basis.shape[1])
+            extra["training_starts_at_step"] = skip
 
             def calibration_cases(half):
-                cfit = rom.fit_parametric_dmd([Z[:, :half + 1] for Z in trajs], jnp.stack(params), rank=modes)
+                cfit = rom.fit_parametric_dmd([Z[:, skip:half + 1] for Z in trajs], jnp.stack(params), rank=modes)
                 for (m, p), Z in calibration_subset(list(zip(zip(train_models, params), trajs))):
-                    yield m, (C @ Z[:N, 1:]).T, cfit.predict(p, m_train + 1, observe=Cz)[1:], dict(
-                        basis=cfit.basis, coords=cfit.predict(p, m_train + 1, observe=cfit.basis.T), z_true0=Z[:, 0])
+                    yield m, (C @ Z[:N, 1:]).T, forecast(cfit, p, m_train, Cz), dict(
+                        basis=cfit.basis, coords=coordinates(cfit, p, m_train, Z[:, 0]), z_true0=Z[:, 0])
 
             def plot_data():
                 w = (np.abs(np.asarray(fit.amplitudes)) * np.linalg.norm(np.asarray(fit.modes), axis=1)).reshape(-1)
