@@ -7,7 +7,9 @@
 right-hand side and the matrix-free product of the predictor), *solve* (the frozen-factor
 structured solve of the reuse solver; for the exact solver the whole solve step, factorisation
 included), *transport* (interpolation, mass flux, roller-relative and normal-entry corrections),
-*outputs* (tracers, support loads, edge margins, the NaN guard). Set ``OPENBLAS_NUM_THREADS=1``.
+*outputs* (tracers, support loads, edge margins, the NaN guard); last, a whole run per step as
+:func:`jaxbelt.simulate` compiles it (model and solver as the program's arguments, every step's
+outputs recorded). Set ``OPENBLAS_NUM_THREADS=1``.
 Writes ``results/step_profile.json``.
 """
 
@@ -26,6 +28,12 @@ from jaxbelt.integrators import DirectBackwardEuler, ReusedFactorisationBackward
 from jaxbelt.linalg.bordered import factor_solve, refactorise_border
 from jaxbelt.timeloop import make_step, tracer_values
 from jaxbelt.transport import transport_step_with_weights
+
+
+def _clock(f):
+    t0 = time.perf_counter()
+    jax.block_until_ready(f())
+    return time.perf_counter() - t0
 
 
 def timed_scan(body, carry, steps, repeat):
@@ -107,6 +115,14 @@ def main():
                                                                          a.steps // 5, a.repeat)
     step_exact = make_step(model, exact)
     rows["whole step, exact"] = timed_scan(lambda s: step_exact(s)[0], st, a.steps, a.repeat)
+    # a run as jaxbelt.simulate compiles it: the model and the solver are arguments of the program
+    # (not constants folded into it) and every step's outputs are recorded
+    from jaxbelt.timeloop import _run_jit
+
+    integ_reuse = ReusedFactorisationBackwardEuler.for_model(model)
+    run = _run_jit.lower(model, integ_reuse, st, a.steps).compile()
+    rows["whole run per step, reuse (outputs recorded, as simulate runs it)"] = 1e3 / a.steps * min(
+        _clock(lambda: run(model, integ_reuse, st, a.steps)[0].u) for _ in range(a.repeat + 1))
     for k, v in rows.items():
         print(f"{k:72s} {v:7.3f} ms", flush=True)
     write("step_profile", {"scene": "three-roller-t72", "n_unknowns": model.n_unknowns,
