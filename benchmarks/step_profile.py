@@ -24,16 +24,11 @@ from _common import write
 import equinox as eqx
 
 from jaxbelt.assembly import dae_apply, dae_rhs, roller_R, static_surface_offset
+from jaxbelt.bench._common import clock
 from jaxbelt.integrators import DirectBackwardEuler, ReusedFactorisationBackwardEuler
 from jaxbelt.linalg.bordered import factor_solve, refactorise_border
 from jaxbelt.timeloop import make_step, tracer_values
 from jaxbelt.transport import transport_step_with_weights
-
-
-def _clock(f):
-    t0 = time.perf_counter()
-    jax.block_until_ready(f())
-    return time.perf_counter() - t0
 
 
 def timed_scan(body, carry, steps, repeat):
@@ -122,7 +117,7 @@ def main():
     integ_reuse = ReusedFactorisationBackwardEuler.for_model(model)
     run = _run_jit.lower(model, integ_reuse, st, a.steps).compile()
     rows["whole run per step, reuse (outputs recorded, as simulate runs it)"] = 1e3 / a.steps * min(
-        _clock(lambda: run(model, integ_reuse, st, a.steps)[0].u) for _ in range(a.repeat + 1))
+        clock(lambda: run(model, integ_reuse, st, a.steps)[0].u)[0] for _ in range(a.repeat + 1))
     for k, v in rows.items():
         print(f"{k:72s} {v:7.3f} ms", flush=True)
     write("step_profile", {"scene": "three-roller-t72", "n_unknowns": model.n_unknowns,
