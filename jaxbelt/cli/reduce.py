@@ -304,9 +304,9 @@ def run(args):
 
             def coordinates(f, p, steps, z_start):
                 """Reduced coordinates of steps 0 … steps (step 0: the start state projected)."""
-                rest = forecast(f, p, steps, f.basis.T)
-                return jnp.concatenate([(f.basis.T @ z_start)[None], rest]) if skip else \
-                    f.predict(p, steps + 1, observe=f.basis.T)
+                if not skip:  # the forecast starts at step 0 itself
+                    return f.predict(p, steps + 1, observe=f.basis.T)
+                return jnp.concatenate([(f.basis.T @ z_start)[None], forecast(f, p, steps, f.basis.T)])
 
             def train():
                 trajs = [rom.collect_first_order(m, m_train, snapshot_integrator(m))[2] for m in train_models]
