@@ -10,6 +10,20 @@ import numpy as np
 import jaxbelt as jb
 
 
+# A coarse 2D belt on the two-roller machine (28 columns x 3 rows), shared by the test modules that
+# need a tiny 2D scene as TOML text (same mesh: their compiled programs are shared too); each adds
+# its own [time], [output] and [variant] sections.
+COARSE_2D_TWO_ROLLER = """\
+extends = "two-roller-1d"
+[model]
+kind = "2d"
+[mesh]
+n_eta = 3
+roller_elements = [6, 6]
+free_elements = [8, 8]
+"""
+
+
 def builtin_dict(name="two-roller-1d") -> dict:
     return tomllib.loads((resources.files("jaxbelt") / "scenes" / f"{name}.toml").read_text())
 

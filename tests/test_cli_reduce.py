@@ -11,6 +11,8 @@ import pytest
 
 from jaxbelt.cli import _print_reduce, main
 
+from helpers import COARSE_2D_TWO_ROLLER
+
 SHORT = ["--steps", "200", "--train-steps", "100"]
 TRAIN = ["--train", "two-roller-1d", "two-roller-1d-train1"]
 TOL_MM = 0.02  # the source's tolerance on the tracer RMSE
@@ -141,14 +143,7 @@ def test_plot_functions_on_synthetic_data(tmp_path):
     plt.close("all")
 
 
-PDMD_2D = """\
-extends = "two-roller-1d"
-[model]
-kind = "2d"
-[mesh]
-n_eta = 3
-roller_elements = [6, 6]
-free_elements = [8, 8]
+PDMD_2D = COARSE_2D_TWO_ROLLER + """\
 [time]
 dt_s = 0.02
 t_end_s = 2.0

@@ -16,16 +16,11 @@ import jaxbelt as jb  # noqa: E402
 from jaxbelt import plot  # noqa: E402
 from jaxbelt.cli import main  # noqa: E402
 
+from helpers import COARSE_2D_TWO_ROLLER  # noqa: E402
+
 # a tiny 2D belt on the two-roller machine: 28 columns × 3 rows, 5 steps, the idle roller moved
 # 0.5 mm along its axis and tilted, and two extra tracers off the centre line
-SMALL_2D = """\
-extends = "two-roller-1d"
-[model]
-kind = "2d"
-[mesh]
-n_eta = 3
-roller_elements = [6, 6]
-free_elements = [8, 8]
+SMALL_2D = COARSE_2D_TWO_ROLLER + """\
 [time]
 dt_s = 0.02
 t_end_s = 0.1
