@@ -150,7 +150,7 @@ def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking):
 def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     """Blocks with zero couplings break the chain: the rearranged sweeps give the same solve,
     and its transpose (the adjoint solve) equals the plain one's."""
-    from jaxbelt.linalg.bordered import chain_thomas, chained_thomas_apply, thomas_apply, thomas_factor
+    from jaxbelt.linalg.thomas import chain_thomas, chained_thomas_apply, thomas_apply, thomas_factor
 
     rng = np.random.default_rng(5)
     m, b = 11, 3

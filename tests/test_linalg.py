@@ -45,7 +45,7 @@ def test_matvec_and_transpose():
 
 
 def test_cyclic_reduction_equals_thomas_on_interiors():
-    from jaxbelt.linalg.bordered import thomas_apply, thomas_factor
+    from jaxbelt.linalg.thomas import thomas_apply, thomas_factor
     from jaxbelt.linalg.cyclic_reduction import bcr_apply, bcr_factor
 
     rng = np.random.default_rng(5)

@@ -48,7 +48,7 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
     @classmethod
     def for_model(cls, model, refine: int | None = None, state=None) -> "ReusedFactorisationBackwardEuler":
         """Factors of ``model``'s first step, the interior along its chains of dependent blocks
-        (:class:`jaxbelt.linalg.bordered.ChainedThomasFactors`). ``refine`` defaults to
+        (:class:`jaxbelt.linalg.thomas.ChainedThomasFactors`). ``refine`` defaults to
         :func:`default_refinement`."""
         refine = default_refinement(model) if refine is None else int(refine)
         state = initial_state(model) if state is None else state
