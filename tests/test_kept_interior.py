@@ -172,3 +172,34 @@ def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     wrong = breaks.copy()
     wrong[7] = True
     assert float(jnp.max(jnp.abs(chained_thomas_apply(chain_thomas(F, wrong), r) - thomas_apply(F, r)))) > 1e-6
+
+
+def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
+    """With the roller columns known, ``T⁻¹`` of block 0's border columns is kept on the free
+    spans next to block 0 only; the solve, its transpose and a border refactorisation with it
+    still equal dense solves."""
+    from jaxbelt.linalg.bordered import factor_solve_transposed, with_chained_interior
+
+    rng = np.random.default_rng(11)
+    n, b, q = 14, 3, 4
+    contact = (0, 1, 5, 6, 10)  # belt columns on rollers: their rows couple to no belt column
+    on = np.isin(np.arange(n), contact)[:, None, None]
+    g = lambda *s: jnp.asarray(rng.normal(size=s))  # noqa: E731
+    A = BorderedBlockCyclic(diag=g(n, b, b) + 8 * jnp.eye(b), lower=jnp.where(on, 0.0, g(n, b, b)),
+                            upper=jnp.where(on, 0.0, g(n, b, b)), C=g(n, b, q), D=g(n, q, b), E=g(q, q) + 8 * jnp.eye(q))
+    F = with_chained_interior(factorise(A, "thomas"), contact)
+    # interior blocks 0..12 are columns 1..13; columns 11..13 (blocks 10..12) form the span before column 0
+    assert F.y_G0_rows == (10, 11, 12)
+    rb, rr = g(n, b), g(q)
+    x_dense = dense_solve(A, rb, rr)
+    for a, d in zip(factor_solve(F, rb, rr), x_dense):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(d), rtol=1e-11, atol=1e-12)
+    At = A.transpose()
+    for a, d in zip(factor_solve_transposed(F, rb, rr), dense_solve(At, rb, rr)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(d), rtol=1e-11, atol=1e-12)
+    cols, rows = (1, 2), (2,)
+    A2 = BorderedBlockCyclic(A.diag, A.lower, A.upper, A.C.at[:, :, jnp.asarray(cols)].add(g(n, b, 2)),
+                             A.D.at[:, jnp.asarray(rows), :].add(g(n, 1, b)), A.E)
+    F2 = refactorise_border(A2, F, scaled_schur(A, F), cols, rows)
+    for a, d in zip(factor_solve(F2, rb, rr), dense_solve(A2, rb, rr)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(d), rtol=1e-11, atol=1e-12)

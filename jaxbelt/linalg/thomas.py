@@ -80,28 +80,36 @@ class ChainedThomasFactors(eqx.Module):
     rows are no-slip constraints, coupled only to the roller unknowns — so the interior falls
     apart into one chain per free span (each led, forward, by the roller column before it and,
     backward, by the one after it) and single roller columns. Both sweeps then run all chains at
-    once, as one batched scan as long as the longest span, and the single blocks as one batched
-    product: on ``three-roller-t72`` 37 dependent steps per sweep instead of 103 — the same
-    arithmetic, ~35 % less time on a CPU, where the chain's latency sets the pace. Built by
-    :func:`chain_thomas` from static break positions; the result equals :func:`thomas_apply`'s
-    (``tests/test_kept_interior.py``).
+    once, as long as the longest span, and the single blocks as one batched product: on
+    ``three-roller-t72`` 37 dependent steps per sweep instead of 103 — the same arithmetic, ~35 %
+    less time on a CPU. Built by :func:`chain_thomas` from static break positions; the result
+    equals :func:`thomas_apply`'s (``tests/test_kept_interior.py``).
 
     The forward sweep ``y_i = den_i⁻¹ (r_i - L_i y_{i-1})`` is kept as ``y_i = g_i - P_i y_{i-1}``
     with ``g_i = den_i⁻¹ r_i`` (all blocks at once, one batched product outside the scan) and
     ``P_i = den_i⁻¹ L_i`` (formed once with the factors): one dependent block product per step
     instead of two. Blocks are moved between the chains' and the natural order by gathers
     with static index tables (a gather's transpose is the scatter-add reverse mode needs; a
-    scatter in the forward pass is slow on a CPU). Reuse step of ``three-roller-t72``: the
-    interior apply 0.26 → 0.20 ms on this 2-core CPU.
+    scatter in the forward pass is slow on a CPU).
 
-    **Fields:** forward chains ``f_inv``, ``f_P`` (steps, chains, b, b); single blocks ``s_inv``;
-    backward chains ``b_C`` (steps, chains, b, b); ``layout`` the static index tables."""
+    **No padding.** A sweep streams its factor blocks from memory once per solve, and that,
+    not the chain's latency, sets its pace on a CPU: a dependent ``(3, 36, 36)`` block product
+    inside the scan takes 1.9 µs with its factors streamed and 0.7 µs with one block in cache
+    (``benchmarks/step_profile.py`` notes). The chains are sorted by length and each sweep runs
+    in *phases*, one ``lax.scan`` per distinct length, the finished chains dropped from the
+    carry — instead of padding every chain with zero blocks to the longest (25 % of the
+    blocks streamed on the default scene were zeros). Splitting a chain in two and sweeping
+    from both ends (a twisted factorisation) halves the dependent steps but not the blocks
+    streamed, and measured no faster.
 
-    f_inv: jax.Array
-    f_P: jax.Array
+    **Fields:** per forward phase ``f_inv``, ``f_P`` (steps, chains, b, b); single blocks
+    ``s_inv``; per backward phase ``b_C``; ``layout`` the static index tables."""
+
+    f_inv: tuple
+    f_P: tuple
     s_inv: jax.Array
-    b_C: jax.Array
-    layout: tuple = eqx.field(static=True)  # (f_idx, singles, b_idx, m): tuples of block indices, m = pad index
+    b_C: tuple
+    layout: tuple = eqx.field(static=True)  # (f_phases, singles, b_phases, m): block-index tables
 
 
 def _chains(m: int, breaks, reverse: bool):
@@ -116,9 +124,18 @@ def _chains(m: int, breaks, reverse: bool):
     return out
 
 
-def _pad_chains(chains, m):
-    n_steps = max(len(c) for c in chains)
-    return tuple(tuple(c[t] if t < len(c) else m for c in chains) for t in range(n_steps))
+def _phases(chains):
+    """The chains (longest first) as phases: one (steps, chains) block-index table per distinct
+    chain length, each holding the steps of the chains still running."""
+    chains = sorted(chains, key=len, reverse=True)
+    lengths = sorted({len(c) for c in chains}, reverse=True)
+    out, t0 = [], 0
+    for ln in reversed(lengths):  # ascending: the phase ends when the shortest running chain does
+        running = [c for c in chains if len(c) >= ln]
+        if ln > t0:
+            out.append(tuple(tuple(c[t] for c in running) for t in range(t0, ln)))
+        t0 = ln
+    return tuple(out)
 
 
 def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
@@ -129,54 +146,60 @@ def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
     breaks = [bool(x) for x in breaks]
     fw = _chains(m, breaks, reverse=False)
     singles = tuple(c[0] for c in fw if len(c) == 1)
-    fw = [c for c in fw if len(c) > 1] or [[m]]
-    bw = [c for c in _chains(m, breaks, reverse=True) if len(c) > 1] or [[m]]
-    f_idx, b_idx = _pad_chains(fw, m), _pad_chains(bw, m)
-    pad = lambda a: jnp.concatenate([a, jnp.zeros_like(a[:1])], axis=0)  # noqa: E731  index m: a zero block
-    inv, L, C = pad(F.inv), pad(F.L), pad(F.C_hat)
-    fi, bi = np.asarray(f_idx), np.asarray(b_idx)
-    f_inv = inv[fi]
-    return ChainedThomasFactors(f_inv, f_inv @ L[fi], inv[np.asarray(singles, int)], C[bi], (f_idx, singles, b_idx, m))
+    fw = [c for c in fw if len(c) > 1]
+    bw = [c for c in _chains(m, breaks, reverse=True) if len(c) > 1]
+    f_ph, b_ph = _phases(fw), _phases(bw)
+    f_inv = tuple(F.inv[np.asarray(t)] for t in f_ph)
+    f_P = tuple(fi @ F.L[np.asarray(t)] for fi, t in zip(f_inv, f_ph))
+    b_C = tuple(F.C_hat[np.asarray(t)] for t in b_ph)
+    return ChainedThomasFactors(f_inv, f_P, F.inv[np.asarray(singles, int)], b_C, (f_ph, singles, b_ph, m))
+
+
+def _flat(phases):
+    return np.concatenate([np.asarray(t).reshape(-1) for t in phases]) if phases else np.zeros(0, int)
 
 
 def _chain_gathers(layout):
     """Static gather tables of a chained layout: ``fwd`` takes the natural order out of
-    ``concat(forward chains (flattened), single blocks, one zero block)``; ``bwd`` takes it out of
-    ``concat(backward chains (flattened), forward values)`` — a block in no backward chain keeps
+    ``concat(forward phases (flattened), single blocks)``; ``bwd`` takes it out of
+    ``concat(backward phases (flattened), forward values)`` — a block in no backward chain keeps
     its forward value."""
-    f_idx, singles, b_idx, m = layout
-    fi, bi = np.asarray(f_idx).reshape(-1), np.asarray(b_idx).reshape(-1)
-    fwd = np.full(m + 1, fi.size + len(singles))  # the padding index m: the zero block
-    real = fi < m
-    fwd[fi[real]] = np.flatnonzero(real)
+    f_ph, singles, b_ph, m = layout
+    fi, bi = _flat(f_ph), _flat(b_ph)
+    fwd = np.full(m, -1)
+    fwd[fi] = np.arange(fi.size)
     fwd[np.asarray(singles, int)] = fi.size + np.arange(len(singles))
+    assert (fwd >= 0).all(), "every block is in a forward chain or single"
     bwd = np.arange(m) + bi.size
-    real = bi < m
-    bwd[bi[real]] = np.flatnonzero(real)
+    bwd[bi] = np.arange(bi.size)
     return fwd, bwd
+
+
+def _sweep(phases, mats, first, carry):
+    """One sweep ``v_t = first(values_t) - mats_t v_{t-1}`` along the chains, phase by phase
+    (the carry cut to the chains still running); the values of every phase, flattened."""
+
+    def step(prev, blk):
+        a, v = blk
+        v = v - a @ prev
+        return v, v
+
+    out = []
+    for t, a in zip(phases, mats):
+        carry = carry[: len(t[0])]
+        carry, vs = lax.scan(step, carry, (a, first(np.asarray(t))))
+        out.append(vs.reshape((-1,) + vs.shape[2:]))
+    return out
 
 
 def chained_thomas_apply(F: ChainedThomasFactors, rhs):
     """:func:`thomas_apply` along the chains; ``rhs`` (m, b, k)."""
-    f_idx, singles, b_idx, m = F.layout
-    fi, si, bi = np.asarray(f_idx), np.asarray(singles, int), np.asarray(b_idx)
+    f_ph, singles, b_ph, m = F.layout
     fwd, bwd = _chain_gathers(F.layout)
-    r = jnp.concatenate([rhs, jnp.zeros_like(rhs[:1])], axis=0)
-    g = F.f_inv @ r[fi]  # den⁻¹ r of every chained block at once
-
-    def forward(y_prev, blk):
-        p, gg = blk
-        y = gg - p @ y_prev
-        return y, y
-
-    _, ys = lax.scan(forward, jnp.zeros((fi.shape[1],) + rhs.shape[1:], rhs.dtype), (F.f_P, g))
     tail = rhs.shape[1:]
-    y = jnp.concatenate([ys.reshape((-1,) + tail), F.s_inv @ r[si], jnp.zeros_like(rhs[:1])])[fwd]  # (m + 1, b, k)
-
-    def backward(x_next, blk):
-        c, yy = blk
-        x = yy - c @ x_next
-        return x, x
-
-    _, xs = lax.scan(backward, jnp.zeros((bi.shape[1],) + tail, rhs.dtype), (F.b_C, y[bi]))
-    return jnp.concatenate([xs.reshape((-1,) + tail), y[:m]])[bwd]
+    inv = iter(F.f_inv)
+    ys = _sweep(f_ph, F.f_P, lambda t: next(inv) @ rhs[t],  # g = den⁻¹ r of each phase, batched
+                jnp.zeros((len(f_ph[0][0]) if f_ph else 0,) + tail, rhs.dtype))
+    y = jnp.concatenate(ys + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
+    xs = _sweep(b_ph, F.b_C, lambda t: y[t], jnp.zeros((len(b_ph[0][0]) if b_ph else 0,) + tail, rhs.dtype))
+    return jnp.concatenate(xs + [y])[bwd]
