@@ -159,19 +159,24 @@ def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     diag = jnp.asarray(rng.normal(size=(m, b, b)) + 6 * np.eye(b))
     mask = jnp.asarray(~breaks, float)[:, None, None]
     lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * mask for _ in range(2))
-    F = thomas_factor(diag, lower, upper)
-    Fc = chain_thomas(F, breaks)
     r = jnp.asarray(rng.normal(size=(m, b, 2)))
-    np.testing.assert_allclose(np.asarray(chained_thomas_apply(Fc, r)), np.asarray(thomas_apply(F, r)), rtol=1e-13,
-                               atol=1e-13)
     spec = jax.ShapeDtypeStruct(r.shape, r.dtype)
-    tr_c = jax.linear_transpose(lambda x: chained_thomas_apply(Fc, x), spec)(r)[0]
-    tr_p = jax.linear_transpose(lambda x: thomas_apply(F, x), spec)(r)[0]
-    np.testing.assert_allclose(np.asarray(tr_c), np.asarray(tr_p), rtol=1e-13, atol=1e-13)
-    # wrong breaks (a coupled block declared free of couplings) give a different answer: the test can fail
     wrong = breaks.copy()
-    wrong[7] = True
-    assert float(jnp.max(jnp.abs(chained_thomas_apply(chain_thomas(F, wrong), r) - thomas_apply(F, r)))) > 1e-6
+    wrong[7] = True  # a coupled block declared free of couplings
+
+    @jax.jit  # one program (op by op, the sweeps' small primitives compile one by one)
+    def solves(diag, lower, upper, r):
+        F = thomas_factor(diag, lower, upper)
+        Fc = chain_thomas(F, breaks)
+        tr = lambda f: jax.linear_transpose(f, spec)(r)[0]  # noqa: E731
+        return (chained_thomas_apply(Fc, r), thomas_apply(F, r), tr(lambda x: chained_thomas_apply(Fc, x)),
+                tr(lambda x: thomas_apply(F, x)), chained_thomas_apply(chain_thomas(F, wrong), r))
+
+    x_c, x_p, tr_c, tr_p, x_wrong = solves(diag, lower, upper, r)
+    np.testing.assert_allclose(np.asarray(x_c), np.asarray(x_p), rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(tr_c), np.asarray(tr_p), rtol=1e-13, atol=1e-13)
+    # wrong breaks give a different answer: the test can fail
+    assert float(jnp.max(jnp.abs(x_wrong - x_p))) > 1e-6
 
 
 def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
@@ -187,19 +192,23 @@ def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
     g = lambda *s: jnp.asarray(rng.normal(size=s))  # noqa: E731
     A = BorderedBlockCyclic(diag=g(n, b, b) + 8 * jnp.eye(b), lower=jnp.where(on, 0.0, g(n, b, b)),
                             upper=jnp.where(on, 0.0, g(n, b, b)), C=g(n, b, q), D=g(n, q, b), E=g(q, q) + 8 * jnp.eye(q))
-    F = with_chained_interior(factorise(A, "thomas"), contact)
-    # interior blocks 0..12 are columns 1..13; columns 11..13 (blocks 10..12) form the span before column 0
-    assert F.y_G0_rows == (10, 11, 12)
     rb, rr = g(n, b), g(q)
-    x_dense = dense_solve(A, rb, rr)
-    for a, d in zip(factor_solve(F, rb, rr), x_dense):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(d), rtol=1e-11, atol=1e-12)
-    At = A.transpose()
-    for a, d in zip(factor_solve_transposed(F, rb, rr), dense_solve(At, rb, rr)):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(d), rtol=1e-11, atol=1e-12)
     cols, rows = (1, 2), (2,)
     A2 = BorderedBlockCyclic(A.diag, A.lower, A.upper, A.C.at[:, :, jnp.asarray(cols)].add(g(n, b, 2)),
                              A.D.at[:, jnp.asarray(rows), :].add(g(n, 1, b)), A.E)
-    F2 = refactorise_border(A2, F, scaled_schur(A, F), cols, rows)
-    for a, d in zip(factor_solve(F2, rb, rr), dense_solve(A2, rb, rr)):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(d), rtol=1e-11, atol=1e-12)
+
+    @jax.jit  # one program (op by op, the many small sweeps' primitives compile one by one)
+    def solves(A, A2, rb, rr):
+        F = with_chained_interior(factorise(A, "thomas"), contact)
+        F2 = refactorise_border(A2, F, scaled_schur(A, F), cols, rows)
+        rows0.append(F.y_G0_rows)  # static: recorded while tracing
+        return (factor_solve(F, rb, rr), factor_solve_transposed(F, rb, rr), factor_solve(F2, rb, rr),
+                dense_solve(A, rb, rr), dense_solve(A.transpose(), rb, rr), dense_solve(A2, rb, rr))
+
+    rows0 = []
+    x, x_t, x2, d, d_t, d2 = solves(A, A2, rb, rr)
+    # interior blocks 0..12 are columns 1..13; columns 11..13 (blocks 10..12) form the span before column 0
+    assert rows0 == [(10, 11, 12)]
+    for got, want in ((x, d), (x_t, d_t), (x2, d2)):
+        for a, b_ in zip(got, want):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b_), rtol=1e-11, atol=1e-12)
