@@ -1,5 +1,6 @@
 """Physical invariants of the 1D model: mass, steady speeds, rigid shifts, no-slip."""
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -60,7 +61,7 @@ def test_no_slip_on_drive_roller():
     """Belt nodes on the drive roller advance by exactly r ω Δt in a step (before transport)."""
     model = jb.load_model("two-roller-1d-train1")
     s0 = jb.initial_state(model)
-    s1 = jb.DirectBackwardEuler().solve_step(model, s0)
+    s1 = eqx.filter_jit(jb.DirectBackwardEuler().solve_step)(model, s0)
     on = np.asarray(model.node_roller) == 0
     du = np.asarray(s1.u - s0.u)[on, 0]
     np.testing.assert_allclose(du, 0.5 * model.dt, rtol=1e-10)
@@ -69,8 +70,6 @@ def test_no_slip_on_drive_roller():
 def test_zero_speed_is_static():
     """A scene whose belt does not move keeps its static state (velocity zero except drive)."""
     model = jb.load_model("two-roller-1d-idle-translated")
-    import equinox as eqx
-
     model = eqx.tree_at(lambda m: m.omega, model, jnp.zeros_like(model.omega))
     s0 = jb.initial_state(model)
     s, _ = jb.simulate(model, state=s0, n_steps=30)  # 30 steps: a run length other modules compile too

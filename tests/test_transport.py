@@ -5,6 +5,7 @@ Backs the numbers quoted in ``jaxbelt.transport`` (source rule vs. reference shi
 
 import dataclasses
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -43,7 +44,7 @@ def _steady_strain(transport, dt, refine=1):
     model = jb.compile_scene(sc, mesh)
     integ = make_integrator("direct", model)
     s, tr = jb.simulate(model, integ, n_steps=whole_chunks(int(round(6.0 / dt))))  # ~6 s, whole checkpoint chunks
-    solved = integ.solve_step(model, s)
+    solved = eqx.filter_jit(integ.solve_step)(model, s)  # one program (op by op: ~40 compiles)
     eps = span_strains(model, mesh, solved.u)
     w = np.asarray(tr.roller_velocity)[-1, :, 1]
     return eps, w
@@ -83,9 +84,9 @@ def test_plain_interpolation_on_arcs_erases_a_translation(monkeypatch):
     model = jb.load_model("two-roller-1d-idle-translated")
     mesh = jb.build_mesh(jb.load_scene("two-roller-1d-idle-translated"))
     s, _ = jb.simulate(model, n_steps=1024)  # 1024 and 992: whole checkpoint chunks
-    kept = span_strains(model, mesh, jb.DirectBackwardEuler().solve_step(model, s).u)[0]
+    kept = span_strains(model, mesh, eqx.filter_jit(jb.DirectBackwardEuler().solve_step)(model, s).u)[0]
     monkeypatch.setattr(T, "roller_relative_correction", lambda *a: 0.0)
     s, _ = jb.simulate(model, n_steps=992)  # a new n_steps (static) forces a fresh trace
-    lost = span_strains(model, mesh, jb.DirectBackwardEuler().solve_step(model, s).u)[0]
+    lost = span_strains(model, mesh, eqx.filter_jit(jb.DirectBackwardEuler().solve_step)(model, s).u)[0]
     assert np.all(np.abs(lost) < 1e-9)
     np.testing.assert_allclose(kept, 1e-3 / (0.275 + np.pi * 0.05), rtol=1e-9)

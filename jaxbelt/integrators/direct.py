@@ -74,9 +74,8 @@ class DirectBackwardEuler(AbstractIntegrator):
             return self
         cols = _lever_columns(model) if self.lever_columns is None else self.lever_columns
         rows = cols if self.lever_rows is None else self.lever_rows
-        kept = _kept_interior(model, self.interior)
-        F = with_chained_interior(kept.F, model.contact_columns)
-        kept = _KeptInterior(*lax.stop_gradient((kept.A, F, kept.S)), free_belt_stencil(model))  # the
+        kept = _kept_interior(model, self.interior)  # the interior along its chains
+        kept = _KeptInterior(*lax.stop_gradient((kept.A, kept.F, kept.S)), free_belt_stencil(model))  # the
         # stencil serves the products, which carry the derivatives; the factors are only a solver
         return DirectBackwardEuler(self.linear_solver, self.interior, kept, cols, rows, True)
 
@@ -159,4 +158,4 @@ def _kept_interior(model, method=None) -> _KeptInterior:
     program: op by op the factorisation is seconds of dispatch)."""
     A = step_matrix(model, model.m_e0, model.R, model.dt)
     F = factorise(A, method)
-    return _KeptInterior(A, F, scaled_schur(A, F), None)
+    return _KeptInterior(A, with_chained_interior(F, model.contact_columns), scaled_schur(A, F), None)

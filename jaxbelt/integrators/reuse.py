@@ -52,7 +52,7 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
         :func:`default_refinement`."""
         refine = default_refinement(model) if refine is None else int(refine)
         state = initial_state(model) if state is None else state
-        F = with_chained_interior(_first_step_factors(model, state), model.contact_columns)
+        F = _first_step_factors(model, state)
         return cls(lax.stop_gradient(F), refine)
 
     def solve_step(self, model, state):
@@ -81,12 +81,13 @@ class ReusedFactorisationBackwardEuler(AbstractIntegrator):
 
 @eqx.filter_jit
 def _first_step_factors(model, state) -> BorderedFactorisation:
-    """The structured factors of ``M + Δt² K`` at ``state``, as one compiled program (op by op it
-    took ~6 s of dispatch and per-primitive compiles before a run could start; compiled once it
-    is kept by the persistent compilation cache)."""
+    """The structured factors of ``M + Δt² K`` at ``state``, the interior along its chains
+    (:func:`~jaxbelt.linalg.bordered.with_chained_interior`), as one compiled program (op by op
+    it took ~6 s of dispatch and per-primitive compiles before a run could start; compiled once
+    it is kept by the persistent compilation cache)."""
     R = roller_R(model, state.u)
     K, M = dae_matrices(model, state.m_e, R)
-    return factorise(M + K.scale(model.dt**2))
+    return with_chained_interior(factorise(M + K.scale(model.dt**2)), model.contact_columns)
 
 
 def default_refinement(model) -> int:

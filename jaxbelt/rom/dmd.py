@@ -13,6 +13,8 @@ fit and the prediction (eigenvector derivatives assume distinct eigenvalues).
 
 from __future__ import annotations
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -45,15 +47,38 @@ class DMDModel(eqx.Module):
     def predict(self, x_start, n_steps: int, observe=None):
         """States ``x_{k₀+1} … x_{k₀+n}`` (n, N) from ``x_start``; with ``observe`` (o, N), only
         ``observe @ x`` (n, o) — e.g. the tracers — and the full fields are never formed."""
-        b = self.amplitudes(x_start)
-        P = self.modes if observe is None else observe.astype(self.modes.dtype) @ self.modes
-        k = jnp.arange(1, n_steps + 1)
-        powers = self.eigs[None, :] ** k[:, None]  # (n, r)
-        return jnp.real((powers * b[None, :]) @ P.T)
+        return _predict(self, x_start, int(n_steps), observe)
 
     def scaled_mode_norms(self, x_start):
         """``‖φ_i b_i‖`` for every mode (the ranking of §7.4.1)."""
         return jnp.linalg.norm(self.modes, axis=0) * jnp.abs(self.amplitudes(x_start))
+
+
+@functools.partial(jax.jit, static_argnums=2)
+def _predict(model: DMDModel, x_start, n_steps: int, observe):
+    """:meth:`DMDModel.predict` as one compiled program (op by op, each call of new shapes
+    compiled every primitive on its own)."""
+    b = model.amplitudes(x_start)
+    P = model.modes if observe is None else observe.astype(model.modes.dtype) @ model.modes
+    k = jnp.arange(1, n_steps + 1)
+    powers = model.eigs[None, :] ** k[:, None]  # (n, r)
+    return jnp.real((powers * b[None, :]) @ P.T)
+
+
+@jax.jit
+def _pairs_svd(X):
+    return jnp.linalg.svd(X, full_matrices=False)
+
+
+@functools.partial(jax.jit, static_argnums=4)
+def _exact_dmd(U, s, Vh, Y, rank: int) -> DMDModel:
+    U, s, V = U[:, :rank], s[:rank], Vh[:rank].conj().T
+    YVS = Y @ V / s[None, :]
+    A_tilde = U.conj().T @ YVS
+    # eigenvector derivatives are valid for distinct eigenvalues, which DMD of real data has
+    # generically; JAX asks for the opt-in explicitly
+    eigs, W = jax.lax.linalg.eig(A_tilde, compute_left_eigenvectors=False, enable_eigvec_derivs=True)
+    return DMDModel(eigs, YVS.astype(W.dtype) @ W)
 
 
 def fit_dmd(X, Y=None, rank: int | None = None) -> DMDModel:
@@ -65,20 +90,19 @@ def fit_dmd(X, Y=None, rank: int | None = None) -> DMDModel:
     **Returns:** :class:`DMDModel`.
     """
     if Y is None:
-        X, Y = X[:, :-1], X[:, 1:]
-    U, s, Vh = jnp.linalg.svd(X, full_matrices=False)
+        X, Y = _split_pairs(X)
+    U, s, Vh = _pairs_svd(X)
     if rank is None:
         import numpy as np
 
         sv = np.asarray(s)
         rank = int(np.sum(sv > sv[0] * max(X.shape) * np.finfo(sv.dtype).eps))
-    U, s, V = U[:, :rank], s[:rank], Vh[:rank].conj().T
-    YVS = Y @ V / s[None, :]
-    A_tilde = U.conj().T @ YVS
-    # eigenvector derivatives are valid for distinct eigenvalues, which DMD of real data has
-    # generically; JAX asks for the opt-in explicitly
-    eigs, W = jax.lax.linalg.eig(A_tilde, compute_left_eigenvectors=False, enable_eigvec_derivs=True)
-    return DMDModel(eigs, YVS.astype(W.dtype) @ W)
+    return _exact_dmd(U, s, Vh, Y, int(rank))
+
+
+@jax.jit
+def _split_pairs(X):
+    return X[:, :-1], X[:, 1:]
 
 
 def stack_trajectories(trajectories):

@@ -157,18 +157,31 @@ def _jvp_columns(model, integrator, order, steps, z_ref, V):
 
 def _chunked(fn, X, chunk, axis):
     """``fn`` on fixed-size chunks of ``X`` along ``axis`` (the last one zero-padded), concatenated:
-    one compiled program whatever the count, bounded memory."""
+    one compiled program whatever the count, bounded memory. The chunks are cut and joined in
+    NumPy (on a CPU a copy; op by op in JAX each slice and join of a new shape is a compile)."""
+    X = np.asarray(X)
     n = X.shape[axis]
     out = []
     for i in range(0, n, chunk):
-        part = jnp.take(X, jnp.arange(i, min(i + chunk, n)), axis=axis)
+        part = np.take(X, np.arange(i, min(i + chunk, n)), axis=axis)
         pad = chunk - part.shape[axis]
         if pad:
-            part = jnp.concatenate([part, jnp.zeros_like(jnp.take(part, jnp.arange(pad) % part.shape[axis], axis=axis))],
-                                   axis=axis)
-        res = fn(part)
-        out.append(jnp.take(res, jnp.arange(chunk - pad), axis=axis))
-    return jnp.concatenate(out, axis=axis)
+            widths = [(0, 0)] * X.ndim
+            widths[axis] = (0, pad)
+            part = np.pad(part, widths)
+        res = np.asarray(fn(jnp.asarray(part)))
+        out.append(np.take(res, np.arange(chunk - pad), axis=axis))
+    return jnp.asarray(np.concatenate(out, axis=axis))
+
+
+@jax.jit
+def _remainder_svd(W, X):
+    """``‖X‖₂`` and the SVD of ``X`` minus its projection on ``span(W)`` (twice Gram-Schmidt)."""
+    scale = jnp.linalg.norm(X, 2)
+    for _ in range(2):
+        X = X - W @ (W.T @ X)
+    U, s, _ = jnp.linalg.svd(X, full_matrices=False)
+    return scale, U, s
 
 
 def _new_directions(W, X, rtol, max_new):
@@ -176,12 +189,10 @@ def _new_directions(W, X, rtol, max_new):
     remainder (twice Gram-Schmidt) with singular value above ``rtol · ‖X‖₂``, at most ``max_new``."""
     if X.shape[1] == 0 or max_new <= 0:
         return jnp.zeros((W.shape[0], 0), W.dtype)
-    scale = float(jnp.linalg.norm(X, 2))
-    for _ in range(2):
-        X = X - W @ (W.T @ X)
-    U, s, _ = jnp.linalg.svd(X, full_matrices=False)
+    scale, U, s = _remainder_svd(W, X)
+    scale = float(scale)
     keep = int(min(max_new, np.sum(np.asarray(s) > rtol * scale))) if scale > 0 else 0
-    return U[:, :keep]
+    return jnp.asarray(np.asarray(U)[:, :keep])
 
 
 def _stabilised(A):
@@ -236,40 +247,43 @@ def error_rom(model, basis, coords, z_true0=None, stride: int = 10, dense: int =
         raise ValueError("order must be 'post' or 'pre'")
     if sampling not in ("window", "point"):
         raise ValueError("sampling must be 'window' or 'point'")
-    basis, coords = jnp.asarray(basis), jnp.asarray(coords)
+    # the algebra around the full steps runs in NumPy: these arrays change shape with every call,
+    # and op by op each JAX primitive of a new shape is a compile (the full steps are compiled)
+    basis, coords = np.asarray(basis), np.asarray(coords)
     n = int(coords.shape[0]) - 1
     if n < 1:
         raise ValueError("error_rom: need at least one reduced step")
     stride, dense, steps = max(int(stride), 1), max(int(dense), 0), max(int(steps), 1)
     integrator = resolve_integrator(integrator, model)
     N = model.n_unknowns
-    obs = tracer_operator(model) if observe is None else jnp.asarray(observe)
-    obs = jnp.concatenate([obs, jnp.zeros_like(obs)], axis=1)
+    obs = np.asarray(tracer_operator(model) if observe is None else observe)
+    obs = np.concatenate([obs, np.zeros_like(obs)], axis=1)
 
     # residual windows: every step of the first `dense` (the start-up transient), then `stride`
     # steps each; per window the mean state and the mean successor
     starts = np.unique(np.concatenate([np.arange(min(dense, n)), np.arange(0, n, stride)]))
     edges = np.concatenate([starts, [n]])
     width = np.diff(edges)[:, None]
-    cum = np.concatenate([np.zeros((1, coords.shape[1])), np.cumsum(np.asarray(coords), axis=0)])
+    cum = np.concatenate([np.zeros((1, coords.shape[1])), np.cumsum(coords, axis=0)])
     mean_now = (cum[edges[1:]] - cum[edges[:-1]]) / width
     mean_next = (cum[edges[1:] + 1] - cum[edges[:-1] + 1]) / width
     if sampling == "point":
-        mean_now, mean_next = np.asarray(coords)[starts], np.asarray(coords)[starts + 1]
-    Fz = _chunked(lambda Z: _apply_steps(model, integrator, order, steps, Z), jnp.asarray(mean_now) @ basis.T, chunk, 0)
-    D = Fz - jnp.asarray(mean_next) @ basis.T  # (windows, 2N) window-mean residuals
+        mean_now, mean_next = coords[starts], coords[starts + 1]
+    Fz = _chunked(lambda Z: _apply_steps(model, integrator, order, steps, Z), mean_now @ basis.T, chunk, 0)
+    D = np.asarray(Fz) - mean_next @ basis.T  # (windows, 2N) window-mean residuals
 
     z0 = basis @ coords[0]
-    e0 = jnp.zeros_like(z0) if z_true0 is None else jnp.asarray(z_true0) - z0
+    e0 = np.zeros_like(z0) if z_true0 is None else np.asarray(z_true0) - z0
+    z0_j = jnp.asarray(z0)
 
     def J(V):
-        return _chunked(lambda X: _jvp_columns(model, integrator, order, steps, z0, X), V, chunk, 1)
+        return np.asarray(_chunked(lambda X: _jvp_columns(model, integrator, order, steps, z0_j, X), V, chunk, 1))
 
     # the subspace: the model's basis, the residual (and initial error) directions outside it,
     # and `krylov` images of those under the step's Jacobian
-    W = jnp.linalg.qr(basis)[0]
+    W = np.linalg.qr(basis)[0]
     JW = [J(W)]
-    blk = _new_directions(W, jnp.concatenate([D.T, e0[:, None]], axis=1), enrich_rtol, max_enrich)
+    blk = np.asarray(_new_directions(W, np.concatenate([D.T, e0[:, None]], axis=1), enrich_rtol, max_enrich))
     Wcols = [W]
     for level in range(krylov + 1):
         if blk.shape[1] == 0:
@@ -279,16 +293,16 @@ def error_rom(model, basis, coords, z_true0=None, stride: int = 10, dense: int =
         JW.append(Jb)
         if level == krylov:
             break
-        blk = _new_directions(jnp.concatenate(Wcols, axis=1), Jb, 1e-8, blk.shape[1])
-    W, JW = jnp.concatenate(Wcols, axis=1), jnp.concatenate(JW, axis=1)
+        blk = np.asarray(_new_directions(np.concatenate(Wcols, axis=1), Jb, 1e-8, blk.shape[1]))
+    W, JW = np.concatenate(Wcols, axis=1), np.concatenate(JW, axis=1)
     A, rho = _stabilised(W.T @ JW)
-    window = jnp.asarray(np.repeat(np.arange(len(starts)), np.diff(edges)))
-    err = _propagate(A, D @ W, window, obs @ W, W.T @ e0)
-    err_mm = jnp.sqrt(jnp.mean(err**2, axis=1)) * 1e3
+    window = np.repeat(np.arange(len(starts)), np.diff(edges))
+    err = np.asarray(_propagate(A, D @ W, window, obs @ W, W.T @ e0))
+    err_mm = np.sqrt(np.mean(err**2, axis=1)) * 1e3
     cost = dict(full_steps=int((len(starts) + 1) * steps), jvps=int(W.shape[1] * steps), windows=int(len(starts)))
     cost["full_step_equivalents"] = cost["full_steps"] + cost["jvps"]
-    return dict(error=err, error_mm=err_mm, rmse_mm=float(jnp.sqrt(jnp.mean(err_mm**2))),
-                max_mm=float(jnp.max(err_mm)), cost=cost, dim=int(W.shape[1]), rho=rho)
+    return dict(error=jnp.asarray(err), error_mm=jnp.asarray(err_mm), rmse_mm=float(np.sqrt(np.mean(err_mm**2))),
+                max_mm=float(np.max(err_mm)), cost=cost, dim=int(W.shape[1]), rho=rho)
 
 
 def dmd_coordinates(Z, fit, x_start, k: int) -> dict:
