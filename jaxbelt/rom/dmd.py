@@ -32,7 +32,13 @@ class DMDModel(eqx.Module):
 
     def select(self, keep: jax.Array) -> "DMDModel":
         """The model restricted to the modes where ``keep`` (a boolean mask or index array)."""
-        return DMDModel(self.eigs[keep], self.modes[:, keep])
+        import numpy as np
+
+        try:  # concrete arrays: indexed in NumPy (op by op, each new shape is a compile in JAX)
+            e, m, k = np.asarray(self.eigs), np.asarray(self.modes), np.asarray(keep)
+        except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
+            return DMDModel(self.eigs[keep], self.modes[:, keep])
+        return DMDModel(jnp.asarray(e[k]), jnp.asarray(m[:, k]))
 
     def stable(self, tol: float = 1e-5) -> "DMDModel":
         """Discard modes with ``|λ| > 1 + tol`` (outside Python control flow: shapes change).

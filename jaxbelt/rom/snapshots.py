@@ -36,10 +36,16 @@ def collect_first_order(model, n_steps: int, integrator=None, state: BeltState |
     (:mod:`jaxbelt.rom.reduced`)."""
     state = initial_state(model) if state is None else state
     final, rec = _scan_recorded(model, resolve_integrator(integrator, model), state, n_steps)
+    return (final,) + _first_order_snapshots(model, rec, state)
+
+
+@eqx.filter_jit
+def _first_order_snapshots(model, rec, state):
+    """``(Z_pre, Z_post)`` of :func:`collect_first_order` from the recorded run (one program)."""
     dt = model.dt
     Z_pre = jnp.concatenate([rec["x_solved"], dt * rec["v_solved"]], axis=1).T
     Z_post = jnp.concatenate([rec["x_grid"], dt * rec["v_grid"]], axis=1).T
-    return final, Z_pre, jnp.concatenate([state_to_z(model, state)[:, None], Z_post], axis=1)
+    return Z_pre, jnp.concatenate([state_to_z(model, state)[:, None], Z_post], axis=1)
 
 
 @eqx.filter_jit
