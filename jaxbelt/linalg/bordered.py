@@ -45,7 +45,8 @@ import numpy as np
 from jax import lax
 
 from .cyclic_reduction import CyclicReductionFactors, bcr_apply, bcr_factor
-from .thomas import ChainedThomasFactors, ThomasFactors, chain_thomas, chained_thomas_apply, thomas_apply, thomas_factor
+from .thomas import (ChainedThomasFactors, ThomasFactors, _chains, chain_thomas, chained_thomas_apply, thomas_apply,
+                     thomas_factor)
 
 
 class BorderedBlockCyclic(eqx.Module):
@@ -187,7 +188,7 @@ def _to_interior(v, rows, m):
         return v
     pos = np.full(m, len(rows))
     pos[np.asarray(rows, int)] = np.arange(len(rows))
-    return jnp.concatenate([v, jnp.zeros_like(v[:1]) if v.shape[0] else jnp.zeros((1,) + v.shape[1:], v.dtype)])[pos]
+    return jnp.concatenate([v, jnp.zeros((1,) + v.shape[1:], v.dtype)])[pos]
 
 
 def _effective_y_G(F: BorderedFactorisation) -> jax.Array:
@@ -222,17 +223,13 @@ def with_chained_interior(F: BorderedFactorisation, contact_columns) -> Bordered
 
 
 def _spans_through(breaks, blocks):
-    """The interior blocks of the maximal runs of non-break blocks that contain any of ``blocks``."""
-    m, out = len(breaks), set()
-    for j in blocks:
-        if breaks[j]:
-            continue
-        lo, hi = j, j
-        while lo > 0 and not breaks[lo - 1]:
-            lo -= 1
-        while hi < m - 1 and not breaks[hi + 1]:
-            hi += 1
-        out.update(range(lo, hi + 1))
+    """The interior blocks of the free spans (the non-break blocks of a chain, :func:`_chains`)
+    that contain any of ``blocks``."""
+    out = set()
+    for chain in _chains(len(breaks), breaks, reverse=False):
+        span = [i for i in chain if not breaks[i]]
+        if any(j in span for j in blocks):
+            out.update(span)
     return tuple(sorted(out))
 
 

@@ -174,31 +174,28 @@ def _chain_gathers(layout):
     return fwd, bwd
 
 
-def _sweep(phases, mats, first, carry):
-    """One sweep ``v_t = first(values_t) - mats_t v_{t-1}`` along the chains, phase by phase
-    (the carry cut to the chains still running); the values of every phase, flattened."""
+def _sweep(mats, values):
+    """One sweep ``v_t = values_t - mats_t v_{t-1}`` along the chains, phase by phase (per phase
+    (steps, chains, b, b) and (steps, chains, b, k); the carry cut to the chains still running,
+    zero at the start); the values of every phase, flattened."""
 
     def step(prev, blk):
         a, v = blk
         v = v - a @ prev
         return v, v
 
-    out = []
-    for t, a in zip(phases, mats):
-        carry = carry[: len(t[0])]
-        carry, vs = lax.scan(step, carry, (a, first(np.asarray(t))))
+    out, carry = [], jnp.zeros(values[0].shape[1:], values[0].dtype) if values else None
+    for a, v in zip(mats, values):
+        carry, vs = lax.scan(step, carry[: v.shape[1]], (a, v))
         out.append(vs.reshape((-1,) + vs.shape[2:]))
     return out
 
 
 def chained_thomas_apply(F: ChainedThomasFactors, rhs):
     """:func:`thomas_apply` along the chains; ``rhs`` (m, b, k)."""
-    f_ph, singles, b_ph, m = F.layout
+    f_ph, singles, b_ph, _ = F.layout
     fwd, bwd = _chain_gathers(F.layout)
-    tail = rhs.shape[1:]
-    inv = iter(F.f_inv)
-    ys = _sweep(f_ph, F.f_P, lambda t: next(inv) @ rhs[t],  # g = den⁻¹ r of each phase, batched
-                jnp.zeros((len(f_ph[0][0]) if f_ph else 0,) + tail, rhs.dtype))
-    y = jnp.concatenate(ys + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
-    xs = _sweep(b_ph, F.b_C, lambda t: y[t], jnp.zeros((len(b_ph[0][0]) if b_ph else 0,) + tail, rhs.dtype))
+    g = [inv @ rhs[np.asarray(t)] for inv, t in zip(F.f_inv, f_ph)]  # den⁻¹ r of each phase, batched
+    y = jnp.concatenate(_sweep(F.f_P, g) + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
+    xs = _sweep(F.b_C, [y[np.asarray(t)] for t in b_ph])
     return jnp.concatenate(xs + [y])[bwd]

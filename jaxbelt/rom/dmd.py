@@ -18,6 +18,7 @@ import functools
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 class DMDModel(eqx.Module):
@@ -32,8 +33,6 @@ class DMDModel(eqx.Module):
 
     def select(self, keep: jax.Array) -> "DMDModel":
         """The model restricted to the modes where ``keep`` (a boolean mask or index array)."""
-        import numpy as np
-
         try:  # concrete arrays: indexed in NumPy (op by op, each new shape is a compile in JAX)
             e, m, k = np.asarray(self.eigs), np.asarray(self.modes), np.asarray(keep)
         except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
@@ -46,8 +45,6 @@ class DMDModel(eqx.Module):
         The default is not round-off: the mode carrying the static offset sits at ``λ ≈ 1`` with
         ``|λ| - 1`` up to ~1e-6 from the fit, and dropping it costs millimetres (found on the
         1D Table 6.1 runs); ``(1 + 1e-5)^5000 ≈ 1.05`` over a whole 2D run."""
-        import numpy as np
-
         return self.select(np.flatnonzero(np.abs(np.asarray(self.eigs)) <= 1 + tol))
 
     def predict(self, x_start, n_steps: int, observe=None):
@@ -99,8 +96,6 @@ def fit_dmd(X, Y=None, rank: int | None = None) -> DMDModel:
         X, Y = _split_pairs(X)
     U, s, Vh = _pairs_svd(X)
     if rank is None:
-        import numpy as np
-
         sv = np.asarray(s)
         rank = int(np.sum(sv > sv[0] * max(X.shape) * np.finfo(sv.dtype).eps))
     return _exact_dmd(U, s, Vh, Y, int(rank))

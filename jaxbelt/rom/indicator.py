@@ -156,9 +156,10 @@ def _jvp_columns(model, integrator, order, steps, z_ref, V):
 
 
 def _chunked(fn, X, chunk, axis):
-    """``fn`` on fixed-size chunks of ``X`` along ``axis`` (the last one zero-padded), concatenated:
-    one compiled program whatever the count, bounded memory. The chunks are cut and joined in
-    NumPy (on a CPU a copy; op by op in JAX each slice and join of a new shape is a compile)."""
+    """``fn`` on fixed-size chunks of ``X`` along ``axis`` (the last one zero-padded), concatenated
+    (a NumPy array): one compiled program whatever the count, bounded memory. The chunks are cut
+    and joined in NumPy (on a CPU a copy; op by op in JAX each slice and join of a new shape is a
+    compile)."""
     X = np.asarray(X)
     n = X.shape[axis]
     out = []
@@ -171,7 +172,7 @@ def _chunked(fn, X, chunk, axis):
             part = np.pad(part, widths)
         res = np.asarray(fn(jnp.asarray(part)))
         out.append(np.take(res, np.arange(chunk - pad), axis=axis))
-    return jnp.asarray(np.concatenate(out, axis=axis))
+    return np.concatenate(out, axis=axis)
 
 
 @jax.jit
@@ -186,13 +187,14 @@ def _remainder_svd(W, X):
 
 def _new_directions(W, X, rtol, max_new):
     """Orthonormal directions of ``X`` (2N, m) outside ``span(W)``: left singular vectors of the
-    remainder (twice Gram-Schmidt) with singular value above ``rtol · ‖X‖₂``, at most ``max_new``."""
+    remainder (twice Gram-Schmidt) with singular value above ``rtol · ‖X‖₂``, at most ``max_new``
+    (a NumPy array)."""
     if X.shape[1] == 0 or max_new <= 0:
-        return jnp.zeros((W.shape[0], 0), W.dtype)
+        return np.zeros((W.shape[0], 0), W.dtype)
     scale, U, s = _remainder_svd(W, X)
     scale = float(scale)
     keep = int(min(max_new, np.sum(np.asarray(s) > rtol * scale))) if scale > 0 else 0
-    return jnp.asarray(np.asarray(U)[:, :keep])
+    return np.asarray(U)[:, :keep]
 
 
 def _stabilised(A):
@@ -270,20 +272,20 @@ def error_rom(model, basis, coords, z_true0=None, stride: int = 10, dense: int =
     if sampling == "point":
         mean_now, mean_next = coords[starts], coords[starts + 1]
     Fz = _chunked(lambda Z: _apply_steps(model, integrator, order, steps, Z), mean_now @ basis.T, chunk, 0)
-    D = np.asarray(Fz) - mean_next @ basis.T  # (windows, 2N) window-mean residuals
+    D = Fz - mean_next @ basis.T  # (windows, 2N) window-mean residuals
 
     z0 = basis @ coords[0]
     e0 = np.zeros_like(z0) if z_true0 is None else np.asarray(z_true0) - z0
     z0_j = jnp.asarray(z0)
 
     def J(V):
-        return np.asarray(_chunked(lambda X: _jvp_columns(model, integrator, order, steps, z0_j, X), V, chunk, 1))
+        return _chunked(lambda X: _jvp_columns(model, integrator, order, steps, z0_j, X), V, chunk, 1)
 
     # the subspace: the model's basis, the residual (and initial error) directions outside it,
     # and `krylov` images of those under the step's Jacobian
     W = np.linalg.qr(basis)[0]
     JW = [J(W)]
-    blk = np.asarray(_new_directions(W, np.concatenate([D.T, e0[:, None]], axis=1), enrich_rtol, max_enrich))
+    blk = _new_directions(W, np.concatenate([D.T, e0[:, None]], axis=1), enrich_rtol, max_enrich)
     Wcols = [W]
     for level in range(krylov + 1):
         if blk.shape[1] == 0:
@@ -293,7 +295,7 @@ def error_rom(model, basis, coords, z_true0=None, stride: int = 10, dense: int =
         JW.append(Jb)
         if level == krylov:
             break
-        blk = np.asarray(_new_directions(np.concatenate(Wcols, axis=1), Jb, 1e-8, blk.shape[1]))
+        blk = _new_directions(np.concatenate(Wcols, axis=1), Jb, 1e-8, blk.shape[1])
     W, JW = np.concatenate(Wcols, axis=1), np.concatenate(JW, axis=1)
     A, rho = _stabilised(W.T @ JW)
     window = np.repeat(np.arange(len(starts)), np.diff(edges))
