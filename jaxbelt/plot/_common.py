@@ -1,0 +1,28 @@
+"""Shared pieces of the figure functions: matplotlib (imported lazily), writing or returning a figure, a panel's axes."""
+
+from __future__ import annotations
+
+
+def _plt():
+    import matplotlib.pyplot as plt  # the user's / environment's backend (see the module docstring)
+
+    return plt
+
+
+def _finish(fig, path, dpi=120):
+    """Write ``fig`` to ``path`` and close it (returns ``path``), or return the open figure when
+    ``path`` is ``None``."""
+    if path is None:
+        return fig
+    fig.savefig(path, dpi=dpi)
+    _plt().close(fig)
+    return path
+
+
+def _ax(ax, figsize=(6, 4.5)):
+    """``ax`` or a new single-panel figure; returns ``(fig or None, ax)``."""
+    if ax is not None:
+        return None, ax
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=figsize, constrained_layout=True)
+    return fig, ax

@@ -1,0 +1,83 @@
+"""Tolerance design: the sensitivities, the tolerance box and the yield."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._common import _finish, _plt
+
+
+def plot_sensitivity(report: dict, path=None):
+    """Bars of the gradient per roller and component (``jaxbelt sensitivity``): translations in
+    µm/mm, rotations in µm/mrad, structurally zero components hatched."""
+    plt = _plt()
+    rollers = list(report["gradient"])
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    zero = {z["component"] for z in report.get("structural_zero", [])}
+    for ax, group, unit, comps in ((axes[0], "translation_um_per_mm", "µm/mm", "xyz"),
+                                   (axes[1], "rotation_um_per_mrad", "µm/mrad", "xyz")):
+        width = 0.8 / len(comps)
+        for c, axis in enumerate(comps):
+            vals = [report["gradient"][r][group][c] for r in rollers]
+            pos = np.arange(len(rollers)) + (c - (len(comps) - 1) / 2) * width
+            bars = ax.bar(pos, vals, width, label=axis)
+            key = ("d" if group.startswith("translation") else "a") + axis
+            for b, r in zip(bars, rollers):
+                if f"{r}:{key}" in zero:
+                    b.set_hatch("//")
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_xticks(np.arange(len(rollers)), rollers)
+        ax.set_ylabel(f"d {report['metric']} / d misalignment [{unit}]")
+        ax.set_title("translation" if group.startswith("translation") else "rotation (hatched: no static effect)")
+        ax.legend(title="axis")
+        ax.grid(alpha=0.3, axis="y")
+    fig.suptitle(f"{report['metric']} = {report['value_um']:.4g} µm at t = {report['t_eval_s']:.3g} s")
+    return _finish(fig, path)
+
+
+def plot_tolerance_box(result: dict, path=None):
+    """Half-widths of the tolerance box per component (log scale), binding components marked,
+    capped (unconstrained) ones grey; beside it the verification runs against the limit."""
+    plt = _plt()
+    labels, h, units = result["labels"], np.asarray(result["half_widths"]), result["units"]
+    binding = set(result["binding"][:3])
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True,
+                                  gridspec_kw={"width_ratios": [2, 1]})
+    colors = ["tab:red" if lab in binding else "tab:grey" if lab in result["unconstrained"] else "tab:blue"
+              for lab in labels]
+    ax.bar(np.arange(len(h)), h, color=colors)
+    ax.set_yscale("log")
+    ax.set_xticks(np.arange(len(h)), [f"{lab}\n[{u}]" for lab, u in zip(labels, units)], rotation=60, fontsize=7)
+    ax.set_ylabel("half-width (mm or mrad)")
+    ax.set_title("tolerance box (red: binding, grey: capped / not felt)")
+    ax.grid(alpha=0.3, axis="y")
+    rows = result["verification"]
+    ax2.scatter([r["predicted_um"] for r in rows], [r["full_um"] for r in rows],
+                c=["tab:red" if r["kind"] == "worst corner" else "tab:blue" for r in rows])
+    lim = result["limit_um"]
+    ax2.axhline(lim, color="k", ls="--", lw=0.8)
+    ax2.axhspan(0.97 * lim, lim, color="tab:green", alpha=0.15)
+    ax2.plot([0, 1.05 * lim], [0, 1.05 * lim], color="grey", lw=0.6)
+    ax2.set_xlabel("linear model [µm]")
+    ax2.set_ylabel("full run [µm]")
+    ax2.set_title("verification (red: worst corners)")
+    fig.suptitle(f"{result['metric']} ≤ {lim:g} µm: verified worst case {result['worst_case_um']:.3f} µm")
+    return _finish(fig, path)
+
+
+def plot_yield(metric_values, limit_um: float, result: dict, path=None):
+    """Histogram of the metric over the Monte-Carlo samples with the limit and the yield."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
+    ax.hist(np.asarray(metric_values), bins=40, color="tab:blue", alpha=0.8)
+    ax.axvline(limit_um, color="tab:red", lw=1.5, label=f"limit {limit_um:g} µm")
+    lo, hi = result["ci95"]
+    ax.set_title(f"yield {result['yield']:.4f} (95 %: {lo:.4f}–{hi:.4f}), {result['samples']} samples")
+    ax.set_xlabel(f"{result['metric']} [µm]")
+    ax.set_ylabel("configurations")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    return _finish(fig, path)
+
+
+# ----------------------------------------------------------------------------- belt segments and tracer labels

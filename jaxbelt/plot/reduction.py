@@ -1,0 +1,110 @@
+"""Reduced models: singular values, DMD eigenvalues, the tracer RMSE over time and the reduction report's figure."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._common import _ax, _finish, _plt
+
+
+def plot_singular_values(s, n_modes=None, ax=None):
+    """Normalised singular values ``σ_i / σ_0`` of a snapshot matrix (semilog), the source's
+    Figures 6.2 / 7.3, with the chosen number of modes ``n_modes`` marked. Returns the axes."""
+    _, ax = _ax(ax)
+    s = np.abs(np.asarray(s, float))
+    rel = s / s[0] if s.size and s[0] > 0 else s
+    i = np.arange(1, rel.size + 1)
+    ax.semilogy(i, np.where(rel > 0, rel, np.nan), ".-", ms=3, lw=0.8, color="tab:blue")
+    if n_modes is not None and 0 < n_modes <= rel.size:
+        ax.axvline(n_modes + 0.5, color="tab:red", lw=1, ls="--", label=f"{n_modes} modes kept")
+        ax.semilogy(i[:n_modes], np.where(rel[:n_modes] > 0, rel[:n_modes], np.nan), ".", ms=5, color="tab:red")
+        ax.legend(fontsize=8)
+    ax.set_xlabel("index i")
+    ax.set_ylabel("σᵢ / σ₀")
+    ax.set_title("singular values of the snapshots")
+    ax.grid(alpha=0.3, which="both")
+    return ax
+
+
+def plot_dmd_eigenvalues(eigs, weights=None, ax=None):
+    """DMD eigenvalues in the complex plane with the unit circle (the source's Figure 6.7),
+    coloured by ``weights`` — e.g. the scaled mode norms ``‖φ_i b_i‖``
+    (:meth:`~jaxbelt.rom.DMDModel.scaled_mode_norms`), on a log scale when they span more than two
+    decades — with a colorbar. Returns the axes."""
+    plt = _plt()
+    fig, ax = _ax(ax, figsize=(5.5, 5))
+    lam = np.asarray(eigs).reshape(-1)
+    th = np.linspace(0, 2 * np.pi, 400)
+    ax.plot(np.cos(th), np.sin(th), color="0.5", lw=0.8, ls="--", label="unit circle")
+    if weights is None:
+        ax.plot(lam.real, lam.imag, "o", ms=4, mfc="none", color="tab:blue", label=f"{lam.size} eigenvalues")
+    else:
+        from matplotlib.colors import LogNorm, Normalize
+
+        w = np.abs(np.asarray(weights, float)).reshape(-1)
+        pos = w[w > 0]
+        log = pos.size > 1 and pos.max() / pos.min() > 100
+        norm = LogNorm(pos.min(), pos.max()) if log else Normalize(w.min(), w.max())
+        order = np.argsort(w)  # strongest modes drawn last, on top
+        sc = ax.scatter(lam.real[order], lam.imag[order], c=np.maximum(w[order], pos.min() if log else 0), s=18,
+                        cmap="viridis", norm=norm, label=f"{lam.size} eigenvalues")
+        plt.colorbar(sc, ax=ax, label="scaled mode norm ‖φᵢ bᵢ‖")
+    ax.set_aspect("equal")
+    ax.set_xlabel("Re λ")
+    ax.set_ylabel("Im λ")
+    ax.set_title("DMD eigenvalues")
+    ax.legend(fontsize=8, loc="lower left")
+    ax.grid(alpha=0.3)
+    return ax
+
+
+def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, estimate_t=None):
+    """Tracer RMSE of a reduced model against the full one at every time step (mm, semilog), the
+    tolerance ``tol_mm`` and, optionally, the residual indicator's estimate ``estimate_mm``
+    (:func:`jaxbelt.rom.indicator.residual_indicator`) at times ``estimate_t`` (default ``t``).
+    Returns the axes."""
+    _, ax = _ax(ax)
+    t = np.asarray(t, float)
+    e = np.asarray(rmse_mm, float)
+    ax.semilogy(t, np.where(e > 0, e, np.nan), lw=1, color="tab:blue", label="RMSE vs full model")
+    if tol_mm is not None:
+        ax.axhline(tol_mm, color="tab:red", lw=1, ls="--", label=f"tolerance {tol_mm:g} mm")
+    if estimate_mm is not None:
+        est = np.asarray(estimate_mm, float)
+        te = t if estimate_t is None else np.asarray(estimate_t, float)
+        ax.semilogy(te, np.where(est > 0, est, np.nan), "o-", ms=3, lw=1, color="tab:orange",
+                    label="residual indicator estimate")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("tracer RMSE [mm]")
+    ax.set_title("error over time")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both")
+    return ax
+
+
+def plot_reduction(report, t, rmse_mm, path=None, singular_values=None, eigs=None, eig_weights=None,
+                   estimate_t=None, estimate_mm=None, tol_mm=0.02):
+    """The figure of ``jaxbelt reduce --plot``: singular values of the training snapshots (with
+    ``report["modes"]`` marked), the DMD eigenvalues when ``eigs`` is given (DMD-type methods),
+    and the RMSE over time ``t`` (s) with the indicator estimate — a 1 × 3 figure, or 1 × 2
+    without eigenvalues. ``report``: the dict the command prints (scene, method, modes, rmse_mm).
+    Returns ``path``, or the figure when ``path`` is ``None``."""
+    plt = _plt()
+    panels = (singular_values is not None) + (eigs is not None) + 1
+    fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.5), constrained_layout=True)
+    axes = np.atleast_1d(axes)
+    k = 0
+    if singular_values is not None:
+        plot_singular_values(singular_values, report.get("modes"), ax=axes[k])
+        k += 1
+    if eigs is not None:
+        plot_dmd_eigenvalues(eigs, eig_weights, ax=axes[k])
+        k += 1
+    plot_rmse_over_time(t, rmse_mm, tol_mm, estimate_mm, ax=axes[k], estimate_t=estimate_t)
+    rm = report.get("rmse_mm")
+    fig.suptitle(f"{report.get('scene', '')}: {report.get('method', '')}, {report.get('modes')} modes"
+                 + (f", RMSE {rm:.3g} mm" if isinstance(rm, (int, float)) else ""))
+    return _finish(fig, path)
+
+
+# ----------------------------------------------------------------------------- tolerance design
