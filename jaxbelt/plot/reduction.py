@@ -58,11 +58,13 @@ def plot_dmd_eigenvalues(eigs, weights=None, ax=None):
     return ax
 
 
-def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, estimate_t=None):
+def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, estimate_t=None,
+                        estimate_label="error estimate"):
     """Tracer RMSE of a reduced model against the full one at every time step (mm, semilog), the
-    tolerance ``tol_mm`` and, optionally, the residual indicator's estimate ``estimate_mm``
-    (:func:`jaxbelt.rom.indicator.residual_indicator`) at times ``estimate_t`` (default ``t``).
-    Returns the axes."""
+    tolerance ``tol_mm`` and, optionally, an error estimate ``estimate_mm``
+    (:func:`jaxbelt.rom.indicator.error_rom`'s ``error_mm``, or the older
+    :func:`~jaxbelt.rom.indicator.residual_indicator`'s ``estimate_mm``) at times ``estimate_t``
+    (default ``t``), labelled ``estimate_label``. Returns the axes."""
     _, ax = _ax(ax)
     t = np.asarray(t, float)
     e = np.asarray(rmse_mm, float)
@@ -73,7 +75,7 @@ def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, esti
         est = np.asarray(estimate_mm, float)
         te = t if estimate_t is None else np.asarray(estimate_t, float)
         ax.semilogy(te, np.where(est > 0, est, np.nan), "o-", ms=3, lw=1, color="tab:orange",
-                    label="residual indicator estimate")
+                    label=estimate_label)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("tracer RMSE [mm]")
     ax.set_title("error over time")
