@@ -14,7 +14,8 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, tracer_operator)
-from jaxbelt.rom.indicator import calibrate, error_rom, residual_indicator, safety_factor, snapshot_count
+from jaxbelt.rom.indicator import (_quasi_static_response, _split_changing_windows, calibrate, error_rom,
+                                   residual_indicator, safety_factor, snapshot_count)
 
 N_TRAIN, N_TEST = 100, 200
 
@@ -128,6 +129,36 @@ def test_dmdc_effectivity_on_a_held_out_configuration(setup):
     est = error_rom(m, **inputs(f, Z[:, 0], u, N_TEST))["rmse_mm"]
     assert 0.8 < est / true < 1.25
     assert 1.0 <= kappa * est / true <= 3.0
+
+
+def test_quasi_static_response_solves_i_minus_j_by_gmres():
+    """The settled error level ``(I - J)⁻¹ r`` for a non-normal contraction J (spectral radius
+    0.95, as the 2D step's slowest modes): the residual tolerance is met, and the answer is the
+    dense solve's; an iteration cap returns the best iterate so far."""
+    rng = np.random.default_rng(0)
+    n = 80
+    Q = np.linalg.qr(rng.standard_normal((n, n)))[0]
+    T = np.diag(np.linspace(-0.5, 0.95, n)) + np.triu(0.05 * rng.standard_normal((n, n)), 1)
+    J = Q @ T @ Q.T
+    r = rng.standard_normal(n)
+    x, its = _quasi_static_response(lambda v: J @ np.asarray(v), r, 1e-10, 200)
+    exact = np.linalg.solve(np.eye(n) - J, r)
+    assert its < n and np.linalg.norm(x - exact) < 1e-8 * np.linalg.norm(exact)
+    x5, its5 = _quasi_static_response(lambda v: J @ np.asarray(v), r, 1e-10, 5)
+    assert its5 == 5 and 0 < np.linalg.norm((np.eye(n) - J) @ x5 - r) < np.linalg.norm(r)
+    assert _quasi_static_response(lambda v: v, np.zeros(n), 1e-3, 10)[1] == 0
+
+
+def test_windows_whose_mean_residual_changes_are_cut_into_single_steps():
+    starts = np.array([0, 1, 2, 10, 20, 30, 40])  # 2 single steps, then windows of 10 up to n = 50
+    steady = np.ones((7, 3))
+    assert np.array_equal(_split_changing_windows(starts, 50, steady, 0.5, 0.0), starts)
+    D = steady.copy()
+    D[3] = 4.0  # window [10, 20) differs from both neighbours: it and they are evaluated step by step
+    fine = _split_changing_windows(starts, 50, D, 0.5, 0.0)
+    assert np.array_equal(fine, np.concatenate([np.arange(0, 30), [30, 40]]))
+    # below the floor a change is noise: nothing is cut
+    assert np.array_equal(_split_changing_windows(starts, 50, 1e-9 * D, 0.5, 1e-6), starts)
 
 
 def test_safety_factor_rule():
