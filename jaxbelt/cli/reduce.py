@@ -40,8 +40,10 @@ the nominal configuration plus one run per varied parameter, e.g. for a two-roll
 
 The error is the tracer RMSE in mm over the predicted steps (the source's tolerance: 0.02 mm).
 The error estimate (--stride K > 0; jaxbelt.rom.indicator.error_rom) needs no reference run: the
-reduced trajectory's full-order residuals, averaged over windows of K steps, are propagated
-through the full step's Jacobian in a residual-enriched subspace, and multiplied by a safety
+reduced trajectory's full-order residuals, averaged over windows of K steps (step by step where
+the window mean still changes, as on the start-up), are propagated through the full step's
+Jacobian in a residual-enriched subspace (with the quasi-static response of a settled
+residual), and multiplied by a safety
 factor calibrated on the training data (the same fit on the first half of the training window,
 predicting the training runs over the whole window). error_estimate_mm estimates rmse_mm,
 error_estimate_max_mm max_rmse_over_time_mm; effectivity = error_estimate_mm / rmse_mm.
