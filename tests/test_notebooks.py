@@ -1,7 +1,11 @@
-"""The notebooks run (their code cells executed in order), in their small mode
-(``JAXBELT_NOTEBOOK_SMALL=1``: coarse grids and short runs, set in each notebook's parameter
-cell) and, marked slow, full-size (minutes each); each ``.ipynb`` holds the same code as its
-jupytext ``.py`` pair."""
+"""The notebooks: each ``.ipynb`` holds the same code as its jupytext ``.py`` pair, and their use
+of the jaxbelt API resolves (``notebook_api.check_notebook_api``: imports, attribute chains, call
+keywords, CLI options; no cell run) — both in the default run. Their execution is slow: in the
+small mode (``JAXBELT_NOTEBOOK_SMALL=1``: coarse grids and short runs, set in each notebook's
+parameter cell) 9–22 s a notebook, 75 s for the six — a third of the default suite's time, nearly
+all of it compiling programs that the library's own tests compile on their scenes too; full-size,
+minutes each. ``python -m pytest --runslow tests/test_notebooks.py`` runs all of it,
+``-m slow -k "executes and not full_size"`` the small runs alone."""
 
 import json
 from pathlib import Path
@@ -36,6 +40,7 @@ def execute(path, capsys) -> dict:
     return namespace
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_executes(path, capsys, monkeypatch):
     monkeypatch.setenv("JAXBELT_NOTEBOOK_SMALL", "1")
@@ -59,3 +64,32 @@ def test_notebook_pair_in_sync(path):
     assert pair.exists(), f"{path.name} has no jupytext pair {pair.name}"
     assert code_cells(jupytext.reads(pair.read_text(), fmt="py:percent")) == code_cells(json.loads(path.read_text())), \
         f"{path.name} and {pair.name} differ: run `jupytext --sync {pair}`"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_api_resolves(path):
+    """Every jaxbelt import, attribute, call keyword and CLI option the notebook uses exists."""
+    from notebook_api import check_notebook_api
+
+    source = "\n".join(code_cells(json.loads(path.read_text())))
+    assert check_notebook_api(source, path.name) > 10
+
+
+@pytest.mark.parametrize("snippet,word", [
+    ("import jaxbelt as jb\njb.no_such_function()", "no attribute 'no_such_function'"),
+    ("from jaxbelt import design\ndesign.sampling.no_such_sampler", "no attribute 'no_such_sampler'"),
+    ("from jaxbelt.rom.indicator import no_such_name", "has no 'no_such_name'"),
+    ("import jaxbelt as jb\njb.simulate(m, n_step=10)", "takes no keyword 'n_step'"),
+    ("import jaxbelt as jb\njb.load_scene('a', 'b', 'c', 'd', 'e', 'f')", "positional arguments"),
+    ("from jaxbelt.cli import main as cli\ncli(['reduce', 'x', '--methd', 'dmd'])", "no option '--methd'"),
+    ("from jaxbelt.cli import main as cli\ncli(['nosuchcommand'])", "no command"),
+])
+def test_notebook_api_check_catches_drift(snippet, word):
+    """The static check fails on a renamed function, a missing submodule name, a wrong keyword,
+    too many positional arguments and an unknown CLI option or command (and passes their fixes)."""
+    from notebook_api import check_notebook_api
+
+    with pytest.raises(AssertionError, match=word):
+        check_notebook_api(snippet)
+    check_notebook_api("import jaxbelt as jb\nfrom jaxbelt.cli import main as cli\n"
+                       "jb.simulate(m, n_steps=10)\ncli(['reduce', 'x', '--method', 'dmd'])")
