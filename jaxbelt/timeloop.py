@@ -8,15 +8,28 @@ step's factors (:func:`jaxbelt.linalg.bordered.solve_with_adjoint`), and the sca
 checkpointed in chunks of ``~√n`` steps, so memory grows as ``√n``, not ``n``, for one extra
 forward pass. Outputs are scan outputs, decimated by ``model.every``; full fields are
 only produced when the scene asks for them (``[output] fields = "full"``).
+
+The step is traced and compiled once per run, whatever its length and record interval
+(:func:`loop_plan`): a run that is no whole number of chunks ends on padded slots that branch
+around the step, instead of a remainder chunk and a tail loop that would each compile another
+copy of it. On the coarse three-roller scene (XLA's default flags, 2-core CPU,
+``benchmarks/loop_compile.py``, ``results/loop_compile.json``) the compile of a run took
+2.8 s at 56 steps (one copy, either way), 3.5–4.1 s at 57, 1001 and 503 steps recorded every
+5th with the replaced layout, 3.1 s with this one; a padded run pays for its branches
+(``three-roller-t72``, reuse solver, 1001 steps: 0.469 vs 0.443 ms per step). Lengths with a
+divisor near ``√n`` (5000 steps: chunks of 50) are not padded.
 """
 
 from __future__ import annotations
 
 import math
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 
 from .assembly import (free_belt_matvec, free_belt_stencil, generalised_belt_force, nodal_masses, roller_R,
@@ -192,56 +205,141 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
     return step
 
 
-def _checkpointed_scan(body, carry, length: int, chunk: int):
-    """``lax.scan(body, carry, None, length=length)`` in chunks of ``chunk`` iterations, each
-    chunk under ``jax.checkpoint``: reverse mode keeps only the carries at chunk boundaries and
-    recomputes one chunk at a time (one extra forward pass, memory ∝ ``length / chunk`` carries
-    + ``chunk`` steps' residuals). A loop no longer than ``chunk`` is a plain scan. Outputs
-    (``None`` allowed) are stacked as by one scan; a forward-only run computes the same."""
-    if length <= chunk:
-        return lax.scan(body, carry, None, length=length)
-
-    def part(k, in_scan):  # inside a scan XLA cannot CSE the recomputation away
-        return jax.checkpoint(lambda c: lax.scan(body, c, None, length=k), prevent_cse=not in_scan)
-
-    n_chunks, rem = divmod(length, chunk)
-    carry, ys = lax.scan(lambda c, _: part(chunk, True)(c), carry, None, length=n_chunks)
-    ys = jax.tree.map(lambda a: a.reshape(n_chunks * chunk, *a.shape[2:]), ys)
-    if rem:
-        carry, ys_rem = part(rem, False)(carry)
-        ys = jax.tree.map(lambda a, b: jnp.concatenate([a, b]), ys, ys_rem)
-    return carry, ys
+def _checkpointed(f, on: bool):
+    """``f`` under ``jax.checkpoint`` where ``on`` (a chunk of a longer loop); inside a scan XLA
+    cannot CSE the recomputation away, so ``prevent_cse`` stays off."""
+    return jax.checkpoint(f, prevent_cse=False) if on else f
 
 
 def default_checkpoint_chunk(n_steps: int) -> int:
     """Steps per checkpointed chunk of :func:`run`: ``⌈√n⌉``, so reverse-mode memory grows as
-    ``√n`` (``√n`` carries and ``√n`` steps' residuals), at the price of one extra forward pass."""
+    ``√n`` (``√n`` carries and ``√n`` steps' residuals), at the price of one extra forward pass.
+    :func:`run` takes a divisor of the run's record count near it where there is one."""
     return max(1, math.isqrt(max(n_steps - 1, 0)) + 1)
+
+
+def _near_divisor(n: int, target: int) -> int:
+    """The divisor of ``n`` closest to ``target`` within ``[target/2, 2 target]``, else
+    ``target``: a whole number of chunks needs no masked padding steps."""
+    candidates = [d for d in range(max(1, (target + 1) // 2), 2 * target + 1) if n % d == 0]
+    return min(candidates, key=lambda d: (abs(d - target), d)) if candidates else target
+
+
+@dataclasses.dataclass(frozen=True)
+class LoopPlan:
+    """How :func:`run` lays ``n_steps`` steps out as nested scans (all static).
+
+    ``n_chunks`` checkpointed chunks × ``records_per_chunk`` record groups × ``n_sub`` sub-chunks
+    (checkpointed too where ``n_sub > 1``: a record interval longer than a chunk) × ``sub_steps``
+    steps; ``active`` (same nested shape, bool) marks the slots that take a step — ``None`` when
+    every slot does — the others pass the state through unchanged. The first ``n_out`` groups'
+    records are the run's."""
+
+    n_chunks: int
+    records_per_chunk: int
+    n_sub: int
+    sub_steps: int
+    n_out: int
+    active: np.ndarray | None
+
+    @property
+    def slots(self) -> int:
+        return self.n_chunks * self.records_per_chunk * self.n_sub * self.sub_steps
+
+
+def loop_plan(n_steps: int, every: int, checkpoint: int | None = None) -> LoopPlan:
+    """The nested-scan layout of a run of ``n_steps`` steps recording every ``every``-th.
+
+    The step appears **once** in the compiled program, whatever ``n_steps``: instead of a
+    remainder chunk and a tail loop (each a further copy of the step to compile), the last chunk
+    is padded with slots that skip the step (``lax.cond``: at run time a skipped slot costs a
+    branch; under ``vmap`` too, its predicate is not batched). With the default ``checkpoint``,
+    the records per chunk are a divisor of the number of record groups near ``⌈√n⌉ / every`` where
+    there is one (5000 steps: chunks of 50, none padded) — then nothing is padded and no slot
+    branches. An explicit ``checkpoint`` is kept as given (rounded to whole record intervals where
+    it is at least one)."""
+    n_steps, every = int(n_steps), max(1, int(every))
+    n_out = n_steps // every
+    groups = -(-n_steps // every)  # the last one partial (a tail without a record) where every ∤ n
+    chunk = default_checkpoint_chunk(n_steps) if checkpoint is None else (int(checkpoint) or max(n_steps, 1))
+    if every <= chunk:
+        n_sub, sub_steps = 1, every
+        per = max(1, groups) if checkpoint == 0 else max(1, chunk // every)
+        if checkpoint is None:
+            per = _near_divisor(groups, per)
+    else:  # a record interval longer than a chunk: the interval itself in checkpointed sub-chunks
+        per = 1
+        span = every if n_out else n_steps  # a run shorter than one interval: its steps only
+        sub_steps = _near_divisor(span, chunk) if checkpoint is None else chunk
+        n_sub = -(-span // sub_steps)
+    n_chunks = -(-groups // per) if groups else 0
+    shape = (n_chunks, per, n_sub, sub_steps)
+    i_local = np.arange(n_sub * sub_steps).reshape(n_sub, sub_steps)
+    g = np.arange(n_chunks * per).reshape(n_chunks, per)
+    k = g[:, :, None, None] * every + i_local[None, None]
+    active = (i_local[None, None] < every) & (k < n_steps)
+    return LoopPlan(n_chunks=n_chunks, records_per_chunk=per, n_sub=n_sub, sub_steps=sub_steps, n_out=n_out,
+                    active=None if bool(np.all(active)) else np.broadcast_to(active, shape).copy())
+
+
+def _scan(body, carry, xs, length: int):
+    """``lax.scan(body, carry, xs, length=length)``; a loop of one iteration is the body itself
+    (no while loop to compile: the plan's levels are often one iteration long)."""
+    if length != 1:
+        return lax.scan(body, carry, xs, length=length)
+    carry, y = body(carry, None if xs is None else xs[0])
+    return carry, jax.tree.map(lambda a: a[None], y)
 
 
 def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, n_steps: int,
         checkpoint: int | None = None):
-    """``n_steps`` steps from ``state``; records every ``model.every``-th step.
+    """``n_steps`` steps from ``state``; records every ``model.every``-th.
 
-    The loop is a two-level scan: chunks of ``checkpoint`` steps (default
-    :func:`default_checkpoint_chunk`; ``0``: none) under ``jax.checkpoint``, so reverse mode
-    through a long run stays in bounded memory; the forward result is the same.
+    The loop is nested scans (:func:`loop_plan`): chunks of about ``checkpoint`` steps (default
+    ``⌈√n⌉``, :func:`default_checkpoint_chunk`; ``0``: none) under ``jax.checkpoint``, so reverse
+    mode through a long run stays in bounded memory (the forward result is the same), each chunk a
+    scan over record intervals, each interval a scan over its steps. The step is traced and
+    compiled once whatever ``n_steps`` and ``model.every`` are; a run whose length is no whole
+    number of chunks ends on slots that skip the step.
 
     **Returns:** ``(final_state, Trajectory)``.
     """
     step = make_step(model, integrator)
-    every = model.every
-    n_out, tail = divmod(n_steps, every)
-    chunk = default_checkpoint_chunk(n_steps) if checkpoint is None else (checkpoint or n_steps)
-    advance = lambda s, _: (step(s)[0], None)
+    plan = loop_plan(n_steps, model.every, checkpoint)
+    if plan.n_chunks == 0:  # no step: the records' shapes with no row
+        shapes = jax.eval_shape(step, state)[1]
+        rec = jax.tree.map(lambda a: jnp.zeros((0, *a.shape), a.dtype), shapes)
+        return state, Trajectory(u=rec.pop("u", None), **rec)
+    if plan.active is None and plan.n_sub * plan.sub_steps == 1:  # a record every step, none padded
+        state, rec = _scan(_checkpointed(lambda s, _: _scan(lambda s, _: step(s), s, None, plan.records_per_chunk),
+                                         plan.n_chunks > 1), state, None, plan.n_chunks)
+        rec = jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), rec)
+        return state, Trajectory(u=rec.pop("u", None), **rec)
+    # the record of an interval is the last one its steps make: carried, from zeros of its shapes
+    rec0 = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(step, state)[1])
 
-    def record(s, _):
-        s = _checkpointed_scan(advance, s, every - 1, chunk)[0] if every > 1 else s
-        return step(s)
+    if plan.active is None:
+        def slot(carry, _):
+            return step(carry[0]), None
+        active = None
+    else:
+        def slot(carry, on):
+            return lax.cond(on, lambda c: step(c[0]), lambda c: c, carry), None
+        active = jnp.asarray(plan.active)
 
-    state, rec = _checkpointed_scan(record, state, n_out, max(1, chunk // every))
-    if tail:
-        state = _checkpointed_scan(advance, state, tail, chunk)[0]
+    def sub_chunk(carry, on):
+        return _scan(slot, carry, on, plan.sub_steps)[0], None
+
+    def record(s, on):
+        body = _checkpointed(sub_chunk, plan.n_sub > 1)
+        s, rec = _scan(body, (s, rec0), on, plan.n_sub)[0]
+        return s, rec
+
+    def chunk(s, on):
+        return _scan(record, s, on, plan.records_per_chunk)
+
+    state, rec = _scan(_checkpointed(chunk, plan.n_chunks > 1), state, active, plan.n_chunks)
+    rec = jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:])[:plan.n_out], rec)
     return state, Trajectory(u=rec.pop("u", None), **rec)
 
 

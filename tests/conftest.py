@@ -63,14 +63,14 @@ def pytest_addoption(parser):
 # turns off xdist's own reordering by test count). Rough seconds per module (CPU, plus the
 # subprocesses' for test_sharding); a stale or missing entry (default 5) only costs balance.
 MODULE_SECONDS = {
-    "test_notebooks": 130, "test_grad": 40, "test_design": 35, "test_validation": 25, "test_rom_indicator": 25,
+    "test_grad": 40, "test_design": 35, "test_validation": 25, "test_rom_indicator": 25,
     "test_cli_reduce": 25, "test_model2d": 20, "test_sharding": 20, "test_stability": 20, "test_kept_interior": 20,
     "test_rom_dmdc": 15, "test_rom_reduced": 15, "test_design_surrogate": 15, "test_cli_design": 15,
     "test_linalg": 12, "test_reuse": 12, "test_lateral_theory": 12, "test_integrators": 10, "test_plot_fields": 10,
     "test_transport": 10, "test_rom_training": 8, "test_bench": 8, "test_readme": 8, "test_invariants": 8,
     "test_rom_snapshots": 7, "test_scene": 7, "test_cli": 7, "test_rom_modal": 6, "test_vmap": 6,
     "test_rom_ranks": 6, "test_rom_dmd": 6, "test_rom_pod": 5, "test_pymor_reference": 5, "test_elements": 3,
-    "test_reference": 3, "test_prestress": 2, "test_docs": 1, "test_geometry": 1,
+    "test_reference": 3, "test_prestress": 2, "test_docs": 1, "test_geometry": 1, "test_notebooks": 1, "test_timeloop": 4,
 }
 
 

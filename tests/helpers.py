@@ -56,9 +56,9 @@ def central_difference(f, x, h):
 
 
 def whole_chunks(n_steps: int) -> int:
-    """The smallest run length ``≥ n_steps`` that is a whole number of the time loop's checkpoint
-    chunks (``jaxbelt.timeloop.default_checkpoint_chunk``): its compiled scan then holds one copy
-    of the step, not a second one for the remainder (about a third less to compile)."""
+    """The smallest run length ``≥ n_steps`` that is a whole number of ``⌈√n⌉``-step checkpoint
+    chunks (``jaxbelt.timeloop.default_checkpoint_chunk``): its loop has no padded slots that
+    branch around the step (``jaxbelt.timeloop.loop_plan``; the step is compiled once either way)."""
     from jaxbelt.timeloop import default_checkpoint_chunk
 
     n = n_steps

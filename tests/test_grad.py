@@ -1,8 +1,9 @@
 """Gradients through the whole run match central finite differences.
 
 Run lengths are whole numbers of the scan's checkpoint chunks (``⌈√n⌉`` steps: 9, 30, 56, 400)
-wherever the test does not need a remainder, so that a compiled gradient holds one copy of the
-step's forward, recomputation and adjoint (a remainder chunk doubles the program)."""
+wherever the test does not need padding, so that no slot of the loop branches around the step
+(``jaxbelt.timeloop.loop_plan``; the compiled gradient holds one copy of the step's forward,
+recomputation and adjoint either way)."""
 
 import jax
 import jax.numpy as jnp
@@ -221,8 +222,9 @@ def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, s
 
 def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
     """Chunked ``jax.checkpoint`` with ``every = 3`` and a tail of 2 steps: 1-step chunks (nested
-    inside each record, the tail checkpointed too) give the same trajectory and gradient as no
-    checkpointing, 6-step chunks (2 records, and a remainder chunk of 1) the same trajectory."""
+    inside each record interval, the tail's padded interval too) give the same trajectory and
+    gradient as no checkpointing, 6-step chunks (2 records each, the last chunk padded) the same
+    trajectory."""
     model = jb.load_model("two-roller-1d").replace(every=3)
     state = jb.initial_state(model)
 
