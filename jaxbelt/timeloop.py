@@ -22,9 +22,8 @@ divisor near ``√n`` (5000 steps: chunks of 50) are not padded.
 
 from __future__ import annotations
 
-import math
-
 import dataclasses
+import math
 
 import equinox as eqx
 import jax
@@ -306,34 +305,25 @@ def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, n_st
     """
     step = make_step(model, integrator)
     plan = loop_plan(n_steps, model.every, checkpoint)
-    if plan.n_chunks == 0:  # no step: the records' shapes with no row
-        shapes = jax.eval_shape(step, state)[1]
-        rec = jax.tree.map(lambda a: jnp.zeros((0, *a.shape), a.dtype), shapes)
-        return state, Trajectory(u=rec.pop("u", None), **rec)
     if plan.active is None and plan.n_sub * plan.sub_steps == 1:  # a record every step, none padded
-        state, rec = _scan(_checkpointed(lambda s, _: _scan(lambda s, _: step(s), s, None, plan.records_per_chunk),
-                                         plan.n_chunks > 1), state, None, plan.n_chunks)
-        rec = jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), rec)
-        return state, Trajectory(u=rec.pop("u", None), **rec)
-    # the record of an interval is the last one its steps make: carried, from zeros of its shapes
-    rec0 = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(step, state)[1])
+        def record(s, _):
+            return step(s)
+    else:  # the record of an interval is the last one its steps make: carried, from zeros of its shapes
+        rec0 = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(step, state)[1])
 
-    if plan.active is None:
-        def slot(carry, _):
-            return step(carry[0]), None
-        active = None
-    else:
         def slot(carry, on):
+            if on is None:
+                return step(carry[0]), None
             return lax.cond(on, lambda c: step(c[0]), lambda c: c, carry), None
-        active = jnp.asarray(plan.active)
 
-    def sub_chunk(carry, on):
-        return _scan(slot, carry, on, plan.sub_steps)[0], None
+        def sub_chunk(carry, on):
+            return _scan(slot, carry, on, plan.sub_steps)[0], None
 
-    def record(s, on):
-        body = _checkpointed(sub_chunk, plan.n_sub > 1)
-        s, rec = _scan(body, (s, rec0), on, plan.n_sub)[0]
-        return s, rec
+        def record(s, on):
+            body = _checkpointed(sub_chunk, plan.n_sub > 1)
+            return _scan(body, (s, rec0), on, plan.n_sub)[0]
+
+    active = None if plan.active is None else jnp.asarray(plan.active)
 
     def chunk(s, on):
         return _scan(record, s, on, plan.records_per_chunk)

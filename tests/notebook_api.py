@@ -10,6 +10,7 @@ its signature takes and no more positional arguments than it has; and every opti
 Calls on values the notebook computes (``model.with_misalignment(...)``) cannot be resolved
 without running it and are left to the execution test."""
 
+import argparse
 import ast
 import importlib
 import inspect
@@ -93,8 +94,7 @@ def _check_call(call: ast.Call, fn, label, lineno):
 def _cli_options(command: str) -> set[str]:
     from jaxbelt.cli import build_parser
 
-    parser = build_parser()
-    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     if command not in sub.choices:
         raise AssertionError(f"jaxbelt has no command {command!r}")
     return {opt for a in sub.choices[command]._actions for opt in a.option_strings}
