@@ -22,7 +22,7 @@ import numpy as np
 import jaxbelt as jb
 from _common import RESULTS, write
 from jaxbelt import design
-from jaxbelt.design import params
+from jaxbelt import misalignment as params
 
 
 def settling(model, steps=500):

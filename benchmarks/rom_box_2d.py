@@ -24,7 +24,7 @@ import numpy as np
 import jaxbelt as jb
 from _common import write
 from jaxbelt.design import parameter_space
-from jaxbelt.design.params import apply
+from jaxbelt.misalignment import apply
 from jaxbelt.integrators import ReusedFactorisationBackwardEuler
 from jaxbelt.rom import (axial_design, belt_inputs, collect_first_order, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, state_to_z, tracer_operator)

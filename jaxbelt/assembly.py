@@ -142,12 +142,13 @@ def dae_matrices(model: BeltModel, m_e, R=None):
     return K, M
 
 
-def dae_rhs(model: BeltModel, u_prev, chi_prev, R=None):
-    """Right-hand side ``F`` for the step from the (transported, reset) state ``(u_prev, χ_prev)``."""
+def dae_rhs(model: BeltModel, u_prev, chi_prev, dt, R=None):
+    """Right-hand side ``F`` for the step of size ``dt`` (s) from the (transported, reset) state
+    ``(u_prev, χ_prev)``: ``(belt (n, b), roller (q,))``."""
     R = model.R if R is None else R
     con = model.is_constraint
     F_belt = jnp.where(con, u_prev - roller_times(model, R, chi_prev), -model.f0)
-    target = model.chi_static + jnp.where(model.is_az, chi_prev, 0.0) + model.omega * model.dt
+    target = model.chi_static + jnp.where(model.is_az, chi_prev, 0.0) + model.omega * dt
     F_roll = jnp.where(model.dynamic, model.Q_ext - belt_force_on_rollers(model, R, model.f0), target)
     return F_belt, F_roll
 

@@ -1,8 +1,10 @@
-"""The compiled belt model: a frozen, jit-friendly pytree holding only what a scene needs.
+"""The belt model: a frozen pytree of the physical and discretised system, nothing else.
 
-:func:`compile_scene` turns a validated :class:`~jaxbelt.scene.Scene` into a
-:class:`BeltModel`. Array fields are pytree leaves (so ``jax.grad``/``vmap`` reach e.g. the
-misalignment ``chi_static``); sizes and settings are static fields.
+:func:`jaxbelt.build_model` makes one from a scene. Array fields are pytree leaves, so
+``jax.grad`` and ``jax.vmap`` reach material data and the misalignment ``chi_static``; only
+true structure (the kind, the roller names and DOFs, which unknowns are algebraic, which
+columns touch rollers) is static. How to integrate and what to record are not here: they are
+arguments of :func:`jaxbelt.simulate`, so a new time step or misalignment is no new compile.
 
 Unknowns (MODEL.md §2, §4): ``x = [belt DOFs column by column (n_xi, b); roller DOFs (q,)]``
 with ``b = 1`` (1D: ``u``) and per roller ``(d_x, α_z)`` in 1D, so ``N = n_xi + 2p``.
@@ -17,12 +19,8 @@ import dataclasses
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from . import elements, rollers
-from .mesh import Mesh, build_mesh
-from .scene import Scene, SceneError
 
 
 class BeltModel(eqx.Module):
@@ -55,18 +53,12 @@ class BeltModel(eqx.Module):
     tracer_eta: jax.Array  # (n_tr,) local lateral coordinate in [0, 1]
     roller_half_width: jax.Array  # (p,) half of each roller's face width (along its axis), m
 
-    dt: float = eqx.field(static=True)
-    n_steps: int = eqx.field(static=True)
     kind: str = eqx.field(static=True)
     roller_names: tuple = eqx.field(static=True)
     dofs: tuple = eqx.field(static=True)
-    every: int = eqx.field(static=True)
-    full_fields: bool = eqx.field(static=True)
-    integrator: str = eqx.field(static=True)
-    linear_solver: str = eqx.field(static=True)
-    transport: str = eqx.field(static=True, default="shift")
     lateral_transport: bool = eqx.field(static=True, default=False)
     contact_columns: tuple | None = eqx.field(static=True, default=None)  # node columns on rollers (None: unknown)
+    algebraic_index: tuple | None = eqx.field(static=True, default=None)  # flat unknowns with algebraic rows
 
     @property
     def n_eta(self) -> int:
@@ -94,152 +86,24 @@ class BeltModel(eqx.Module):
 
     @property
     def n_algebraic(self) -> int:
-        return int(np.sum(np.asarray(self.is_constraint))) + int(np.sum(~np.asarray(self.dynamic)))
+        return len(self.partition[1])
+
+    @property
+    def partition(self) -> tuple[tuple, tuple]:
+        """Static index tuples ``(dynamic, algebraic)`` into the flat unknown vector
+        ``[belt; rollers]``: algebraic are the no-slip rows and the prescribed roller DOFs."""
+        if self.algebraic_index is None:
+            alg = np.concatenate([np.asarray(self.is_constraint).reshape(-1), ~np.asarray(self.dynamic)])
+            algebraic = tuple(int(i) for i in np.flatnonzero(alg))
+        else:
+            algebraic = self.algebraic_index
+        rest = sorted(set(range(self.n_unknowns)) - set(algebraic))
+        return tuple(rest), tuple(algebraic)
 
     @property
     def n_tracers(self) -> int:
         return self.tracer_col.shape[0]
 
     def replace(self, **changes) -> "BeltModel":
-        """Copy with fields replaced (static settings too, e.g. ``transport="source"``)."""
+        """Copy with fields replaced (arrays, e.g. ``chi_static``, or static structure)."""
         return dataclasses.replace(self, **changes)
-
-    def with_misalignment(self, translation=None, rotation=None) -> "BeltModel":
-        """Copy with new static roller misalignments (traceable, for ``grad``/``vmap``).
-
-        **Arguments:** ``translation``: (p,) x translations in 1D or (p, 3), m;
-        ``rotation``: (p, 3) tilts, rad (2D only). ``None`` keeps the current value.
-        """
-        chi = self.chi_static.reshape(self.n_rollers, len(self.dofs))
-        if translation is not None:
-            t = jnp.asarray(translation)
-            if t.ndim == 1:
-                t = jnp.stack([t, jnp.zeros_like(t), jnp.zeros_like(t)], axis=1)
-            for k, ax in enumerate("xyz"):
-                if f"d{ax}" in self.dofs:
-                    chi = chi.at[:, self.dofs.index(f"d{ax}")].set(t[:, k])
-                else:
-                    _require_zero(t[:, k], f"translation along {ax}", self.kind)
-        if rotation is not None:
-            a = jnp.asarray(rotation)
-            for k, ax in enumerate("xy"):
-                if f"a{ax}" in self.dofs:
-                    chi = chi.at[:, self.dofs.index(f"a{ax}")].set(a[:, k])
-                else:
-                    _require_zero(a[:, k], f"rotation about {ax}", self.kind)
-        return eqx.tree_at(lambda m: m.chi_static, self, chi.reshape(-1))
-
-
-def _require_zero(v, what, kind):
-    if not isinstance(v, jax.core.Tracer) and np.any(np.asarray(v) != 0):
-        raise ValueError(f"the {kind} model has no {what}")
-
-
-def compile_scene(scene: Scene, mesh: Mesh | None = None) -> BeltModel:
-    """Build the model for a validated scene (1D: MODEL.md §2; 2D: MODEL.md §4)."""
-    mesh = build_mesh(scene) if mesh is None else mesh
-    return _compile_1d(scene, mesh) if scene.kind == "1d" else _compile_2d(scene, mesh)
-
-
-def _node_geometry(mesh):
-    on = mesh.node_roller >= 0
-    j = np.maximum(mesh.node_roller, 0)
-    radius = np.where(on, mesh.path.radii[j], 0.0)
-    sense = np.where(on, mesh.path.senses[j], 0).astype(float)
-    return dict(node_roller=jnp.asarray(mesh.node_roller), node_theta=jnp.asarray(mesh.node_theta),
-                node_radius=jnp.asarray(radius), node_sense=jnp.asarray(sense), z0=jnp.asarray(mesh.z),
-                contact_columns=tuple(int(i) for i in np.flatnonzero(on)))
-
-
-def _tracers(mesh):
-    col, xi = mesh.tracer_location()
-    if mesh.n_eta == 1:
-        row, eta = np.zeros_like(col), np.zeros_like(xi)
-    else:
-        row = np.clip(np.searchsorted(mesh.z, mesh.tracer_z, side="right") - 1, 0, mesh.n_eta - 2)
-        eta = (mesh.tracer_z - mesh.z[row]) / (mesh.z[row + 1] - mesh.z[row])
-    return dict(tracer_col=jnp.asarray(col), tracer_xi=jnp.asarray(xi), tracer_row=jnp.asarray(row.astype(np.int32)),
-                tracer_eta=jnp.asarray(eta))
-
-
-def _roller_dofs(scene, mesh, dofs):
-    """Prescribed values, dynamic mask, drive rates and external loads per roller DOF."""
-    p, d = len(scene.rollers), len(dofs)
-    dynamic, chi, omega, Q = np.zeros((p, d), bool), np.zeros((p, d)), np.zeros((p, d)), np.zeros((p, d))
-    for j, r in enumerate(scene.rollers):
-        for k, ax in enumerate("xyz"):
-            if f"d{ax}" in dofs:
-                c = dofs.index(f"d{ax}")
-                chi[j, c], dynamic[j, c], Q[j, c] = r.translation[k], r.force[k] != 0.0, r.force[k]
-        for k, ax in enumerate("xy"):
-            if f"a{ax}" in dofs:
-                c = dofs.index(f"a{ax}")
-                chi[j, c], dynamic[j, c], Q[j, c] = r.rotation[k], r.torque[k] != 0.0, r.torque[k]
-        c = dofs.index("az")
-        dynamic[j, c] = r.role != "drive"
-        if r.role == "drive":
-            omega[j, c] = mesh.path.senses[j] * r.speed / r.radius  # belt moves forward at V
-    is_az = np.zeros((p, d), bool)
-    is_az[:, dofs.index("az")] = True
-    return dict(dynamic=jnp.asarray(dynamic.reshape(-1)), chi_static=jnp.asarray(chi.reshape(-1)),
-                omega=jnp.asarray(omega.reshape(-1)), is_az=jnp.asarray(is_az.reshape(-1)),
-                Q_ext=jnp.asarray(Q.reshape(-1)))
-
-
-def _settings(scene, dofs, kind):
-    return dict(dt=scene.time.dt, n_steps=scene.time.n_steps, kind=kind,
-                roller_names=tuple(r.name for r in scene.rollers), dofs=dofs, every=scene.output.every,
-                full_fields=scene.output.fields == "full", integrator=scene.solver.integrator,
-                linear_solver=scene.solver.linear_solver, transport=scene.solver.transport,
-                lateral_transport=scene.solver.lateral_transport)
-
-
-def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
-    belt, rl = scene.belt, scene.rollers
-    E, nu, t = belt.youngs_modulus, belt.poisson_ratio, belt.thickness
-    ell = jnp.asarray(mesh.ell)
-    w_rows = jnp.asarray(np.diff(mesh.z))
-    free = jnp.asarray(mesh.elem_free, float)
-    Kd, Kl, Ku = elements.free_belt_stiffness_2d(ell, w_rows, free, E, nu, t, element=scene.mesh.element)
-    eps0 = belt.pre_strain(mesh.length)
-    f0 = elements.prestress_force_2d(ell, w_rows, free, E, eps0, t)
-    radii = np.array([r.radius for r in rl])
-    R0, Rdz = rollers.roller_constraint_rows_2d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii, mesh.z)
-    is_con = np.repeat((mesh.node_roller >= 0)[:, None], 2 * mesh.n_eta, axis=1)
-    M_r = rollers.roller_inertia_2d([r.mass for r in rl], radii, [r.width for r in rl])
-    model = BeltModel(
-        x=jnp.asarray(mesh.x), ell=ell, K_diag=Kd, K_lower=Kl, K_upper=Ku, f0=f0,
-        R=jnp.asarray(R0), R_dz=jnp.asarray(Rdz), is_constraint=jnp.asarray(is_con),
-        m_e0=elements.quad_masses(ell, w_rows, belt.density, t), M_roller=jnp.asarray(M_r),
-        **_node_geometry(mesh), **_roller_dofs(scene, mesh, rollers.DOFS_2D), **_tracers(mesh),
-        roller_half_width=jnp.asarray([0.5 * r.width for r in rl]),
-        **_settings(scene, rollers.DOFS_2D, "2d"),
-    )
-    if scene.solver.tension_stiffening:
-        from .prestress import with_tension_stiffening
-
-        model = with_tension_stiffening(model, free, E, nu, t, eps0)
-    return model
-
-
-def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
-    belt, rl = scene.belt, scene.rollers
-    p = len(rl)
-    EA = belt.youngs_modulus * belt.area
-    rhoA = belt.density * belt.area
-    ell = jnp.asarray(mesh.ell)
-    free = jnp.asarray(mesh.elem_free, float)
-    Kd, Kl, Ku = elements.free_belt_stiffness_1d(ell, free, EA)
-    eps0 = belt.pre_strain(mesh.length)  # uniform pre-strain of a belt shorter than its path
-    f0 = elements.prestress_force_1d(free, EA, eps0)
-    radii = np.array([r.radius for r in rl])
-    R = rollers.roller_constraint_rows_1d(mesh.node_roller, mesh.node_theta, mesh.path.senses, radii)
-    is_con = (mesh.node_roller >= 0)[:, None]
-    return BeltModel(
-        x=jnp.asarray(mesh.x), ell=ell, K_diag=Kd, K_lower=Kl, K_upper=Ku, f0=f0,
-        R=jnp.asarray(R), R_dz=jnp.zeros(R.shape), is_constraint=jnp.asarray(is_con),
-        m_e0=rhoA * ell, M_roller=jnp.asarray(rollers.roller_inertia_1d([r.mass for r in rl], radii)),
-        **_node_geometry(mesh), **_roller_dofs(scene, mesh, rollers.DOFS_1D), **_tracers(mesh),
-        roller_half_width=jnp.asarray([0.5 * r.width for r in rl]),
-        **_settings(scene, rollers.DOFS_1D, "1d"),
-    )

@@ -30,6 +30,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .state import initial_state
 from .elements import _GAUSS, _quad_dofs, column_pair_to_blocks, plane_stress_D, quad_B
 
 
@@ -86,8 +87,6 @@ def geometric_stiffness_blocks(model, sig, t):
 def with_tension_stiffening(model, elem_free, E, nu, t, eps0):
     """``model`` with ``K_σ`` of the aligned machine's static membrane stress added to its
     free-belt stiffness blocks (module docstring)."""
-    from .state import initial_state
-
     aligned = model.replace(chi_static=jnp.zeros_like(model.chi_static))
     u0 = initial_state(aligned).u
     sig = membrane_stress(model, u0, elem_free, E, nu, eps0)

@@ -17,6 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from .registry import (DEFAULT_INTEGRATOR, DEFAULT_LINEAR_SOLVER, DEFAULT_TRANSPORT, INTEGRATORS, LINEAR_SOLVERS,
+                       TRANSPORT_RULES)
+
 
 class SceneError(ValueError):
     """A scene that cannot be simulated; the message names the key and the value."""
@@ -90,9 +93,9 @@ class OutputSpec:
 
 @dataclasses.dataclass(frozen=True)
 class SolverSpec:
-    integrator: str = "direct"  # naive | direct | eliminated
-    linear_solver: str = "structured"  # structured | dense | reuse
-    transport: str = "shift"  # shift (moving-reference relabelling) | source (eq. 3.56)
+    integrator: str = DEFAULT_INTEGRATOR  # a name of jaxbelt.registry.INTEGRATORS
+    linear_solver: str = DEFAULT_LINEAR_SOLVER  # a name of jaxbelt.registry.LINEAR_SOLVERS
+    transport: str = DEFAULT_TRANSPORT  # a name of jaxbelt.registry.TRANSPORT_RULES
     lateral_transport: bool = False  # 2D: also transport v (lets a skewed roller steer the belt)
     tension_stiffening: bool = True  # 2D: initial-stress (geometric) stiffness of the membrane tension
 
@@ -118,8 +121,6 @@ class Scene:
 
 _ROLES = ("drive", "idle", "tension")
 _SIDES = ("internal", "external")
-_INTEGRATORS = ("naive", "direct", "eliminated")
-_LINEAR = ("structured", "dense", "reuse")
 _ELEMENTS = ("qm6", "q4")  # jaxbelt.elements.QUAD_ELEMENTS; the default (first) is argued in quad_qm6_stiffness
 
 _TABLES = {
@@ -322,9 +323,10 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
     solver = data.get("solver", {})
     _check_keys(solver, _TABLES["solver"], "solver")
     solver_spec = SolverSpec(
-        integrator=_choice(solver, "integrator", "solver", _INTEGRATORS, default="direct"),
-        linear_solver=_choice(solver, "linear_solver", "solver", _LINEAR, default="structured"),
-        transport=_choice(solver, "transport", "solver", ("shift", "source"), default="shift"),
+        integrator=_choice(solver, "integrator", "solver", tuple(INTEGRATORS), default=DEFAULT_INTEGRATOR),
+        linear_solver=_choice(solver, "linear_solver", "solver", tuple(LINEAR_SOLVERS),
+                              default=DEFAULT_LINEAR_SOLVER),
+        transport=_choice(solver, "transport", "solver", tuple(TRANSPORT_RULES), default=DEFAULT_TRANSPORT),
         lateral_transport=_choice(solver, "lateral_transport", "solver", (True, False), default=False),
         tension_stiffening=_choice(solver, "tension_stiffening", "solver", (True, False), default=True),
     )

@@ -1,23 +1,18 @@
-"""The time loop: solve → transport → outputs, as one jit-compiled ``lax.scan``.
+"""The time loop: solve → transport → outputs, as one jit-compiled ``lax.scan``; :func:`simulate`.
 
-``simulate`` is pure: ``jax.grad`` differentiates through the whole run (e.g. a tracer metric
-w.r.t. ``model.chi_static``) and ``jax.vmap`` batches it over models that differ in array
-fields (misalignments). Reverse mode costs about three forward runs
-(``benchmarks/gradient_cost.py``): the step's linear solve has its own adjoint, which reuses the
-step's factors (:func:`jaxbelt.linalg.bordered.solve_with_adjoint`), and the scan is
-checkpointed in chunks of ``~√n`` steps, so memory grows as ``√n``, not ``n``, for one extra
-forward pass. Outputs are scan outputs, decimated by ``model.every``; full fields are
-only produced when the scene asks for them (``[output] fields = "full"``).
+:func:`simulate` is the one way to run a model, in the shape of ``diffrax.diffeqsolve``: the
+model is the physics, the call says how to integrate it (``solver``, ``dt``, ``n_steps``), what
+to record (:class:`SaveAt`) and how reverse mode keeps memory (:class:`Checkpointed`). ``dt``,
+material data and misalignments are traced values: another time step or another misalignment
+runs the same compiled program. Only the step count and the structure of the solver and of the
+records are static (a scan's length and its carry's shapes must be).
 
-The step is traced and compiled once per run, whatever its length and record interval
-(:func:`loop_plan`): a run that is no whole number of chunks ends on padded slots that branch
-around the step, instead of a remainder chunk and a tail loop that would each compile another
-copy of it. On the coarse three-roller scene (XLA's default flags, 2-core CPU,
-``benchmarks/loop_compile.py``, ``results/loop_compile.json``) the compile of a run took
-2.8 s at 56 steps (one copy, either way), 3.5–4.1 s at 57, 1001 and 503 steps recorded every
-5th with the replaced layout, 3.1 s with this one; a padded run pays for its branches
-(``three-roller-t72``, reuse solver, 1001 steps: 0.469 vs 0.443 ms per step). Lengths with a
-divisor near ``√n`` (5000 steps: chunks of 50) are not padded.
+The run is pure: ``jax.grad`` differentiates through it (e.g. a tracer metric w.r.t.
+``model.chi_static``) and ``jax.vmap`` batches it over models that differ in array fields. The
+step's linear solve carries its own adjoint, which reuses the step's factors
+(:mod:`jaxbelt.integrators.linear`), and the scan is checkpointed in chunks of ``~√n`` steps,
+so memory grows as ``√n``, not ``n``, for one extra forward pass. The step is traced and compiled
+once per run, whatever its length and record interval (:func:`loop_plan`).
 """
 
 from __future__ import annotations
@@ -33,11 +28,41 @@ from jax import lax
 
 from .assembly import (free_belt_matvec, free_belt_stencil, generalised_belt_force, nodal_masses, roller_R,
                        static_surface_offset, stencil_matvec)
-from .integrators import AbstractIntegrator, resolve_integrator
+from .integrators import AbstractIntegrator, make_solver
 from .linalg import join
 from .model import BeltModel
+from .scene import Scene
 from .state import BeltState, initial_state
 from .transport import transport_step_with_weights
+
+
+class SaveAt(eqx.Module):
+    """What a run records (all static: they shape the compiled program).
+
+    **Fields:** ``every``: keep every ``every``-th step (the records are the steps
+    ``every, 2 every, …``); ``fields``: also the full displacement field ``u`` (k, n_xi, b);
+    ``solved``: also the flat states before and after each step's transport
+    (``x_solved``/``v_solved``, ``x_grid``/``v_grid``, (k, N)): the snapshots of model order
+    reduction, returned by :func:`make_step` only.
+    """
+
+    every: int = eqx.field(static=True, default=1)
+    fields: bool = eqx.field(static=True, default=False)
+    solved: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        if int(self.every) < 1:
+            raise ValueError(f"SaveAt(every={self.every}): must be at least 1")
+
+
+class Checkpointed(eqx.Module):
+    """Reverse mode through the run in checkpointed chunks (the forward result is the same).
+
+    ``steps``: steps per chunk; ``None`` takes ``⌈√n⌉`` (:func:`default_checkpoint_chunk`, moved to
+    a divisor of the record count where there is one), so memory grows as ``√n`` for one extra
+    forward pass; ``0``: no checkpointing (memory grows as ``n``)."""
+
+    steps: int | None = eqx.field(static=True, default=None)
 
 
 class Trajectory(eqx.Module):
@@ -89,8 +114,6 @@ def nonfinite_code(u, u_dot, chi, chi_dot):
 
 def first_nonfinite(traj: "Trajectory"):
     """``(k, t, cause)`` of the first recorded step whose state is not finite, or ``None``."""
-    import numpy as np
-
     code = np.asarray(traj.nonfinite)
     bad = np.flatnonzero(code)
     if bad.size == 0:
@@ -108,7 +131,7 @@ def check_finite(traj: "Trajectory", dt: float | None = None):
     hit = first_nonfinite(traj)
     if hit is not None:
         k, t, cause = hit
-        step = round(t / dt) if dt else k + 1
+        step = round(t / float(dt)) if dt is not None else k + 1
         raise NonFiniteStateError(f"the simulation diverged: non-finite {cause} at step {step} (t = {t:g} s); "
                                   "check the time step against the CFL limit, the transport weights and the scene")
 
@@ -144,13 +167,17 @@ def edge_margin(model: BeltModel, u, chi):
     return jnp.where(model.node_roller[None, :] == jnp.arange(p)[:, None], margin[None, :], jnp.inf).min(axis=1)
 
 
-def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: bool = False):
-    """``step(state) -> (state, record)``: one solve + transport with its outputs; with
-    ``record_solved`` the record also holds the full pre-transport state ``x_solved``,
-    ``v_solved`` (flat ``[belt; rollers]``), the snapshots of model order reduction, and the
-    state after transport ``x_grid``, ``v_grid``."""
+def make_step(model: BeltModel, integrator: AbstractIntegrator, dt, run_data=None, saveat: SaveAt = SaveAt()):
+    """``step(state) -> (state, record)``: one solve + transport with its outputs.
+
+    **Arguments:** ``dt`` the time step, s; ``run_data`` what ``integrator.init`` returned for this
+    run (computed here from ``model`` and its initial state when ``None``, a convenience for single
+    steps); ``saveat`` which records (:class:`SaveAt`; with ``solved`` the record also holds the
+    flat states before and after transport, the snapshots of model order reduction).
+    """
     p, d = model.n_rollers, len(model.dofs)
-    integrator = integrator.prepare(model)
+    if run_data is None:
+        run_data = integrator.init(model, initial_state(model), dt)
     stencil = free_belt_stencil(model)  # once per run, outside the scan
     offset = static_surface_offset(model)
     on = model.contact_columns  # R_r vanishes off the rollers: the loads need those columns only
@@ -161,8 +188,8 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
         delivers); at a dynamic DOF the residual of its equation (≈ 0). The nodal forces ``f_k``
         are evaluated on the roller columns only (``model.contact_columns``), where ``R_r`` is
         non-zero."""
-        a_u = (solved.u_dot - state.u_dot) / model.dt
-        a_chi = (solved.chi_dot - state.chi_dot) / model.dt
+        a_u = (solved.u_dot - state.u_dot) / dt
+        a_chi = (solved.chi_dot - state.chi_dot) / dt
         m = nodal_masses(model, state.m_e)
         if on is None or stencil is None:
             Kf_u = free_belt_matvec(model, solved.u) if stencil is None else stencil_matvec(stencil, solved.u)
@@ -174,13 +201,13 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
             - model.Q_ext
 
     def step(state: BeltState):
-        solved = integrator.solve_step(model, state)
+        solved = integrator.step(model, state, dt, run_data)
         u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e,
-                                                               static_offset=offset)
+                                                               static_offset=offset, rule=integrator.transport)
         new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=state.step + 1)
         tu, tv = tracer_values(model, u)
         rec = dict(
-            t=(state.step + 1) * model.dt,
+            t=(state.step + 1) * dt,
             tracer_u=tu,
             tracer_v=tv,
             tracer_u_solved=tracer_values(model, solved.u)[0],
@@ -192,9 +219,9 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, record_solved: b
             edge_margin=edge_margin(model, u, new.chi) if model.kind == "2d" else None,
             nonfinite=nonfinite_code(u, ud, new.chi, new.chi_dot),
         )
-        if model.full_fields:
+        if saveat.fields:
             rec["u"] = u
-        if record_solved:
+        if saveat.solved:
             rec["x_solved"] = join(solved.u, solved.chi)
             rec["v_solved"] = join(solved.u_dot, solved.chi_dot)
             rec["x_grid"] = join(new.u, new.chi)
@@ -290,21 +317,24 @@ def _scan(body, carry, xs, length: int):
     return carry, jax.tree.map(lambda a: a[None], y)
 
 
-def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, n_steps: int,
-        checkpoint: int | None = None):
-    """``n_steps`` steps from ``state``; records every ``model.every``-th.
+def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, dt, n_steps: int,
+        saveat: SaveAt = SaveAt(), checkpoint: int | None = None, run_data=None):
+    """``n_steps`` steps from ``state``; records every ``saveat.every``-th (traceable; no checks).
 
     The loop is nested scans (:func:`loop_plan`): chunks of about ``checkpoint`` steps (default
     ``⌈√n⌉``, :func:`default_checkpoint_chunk`; ``0``: none) under ``jax.checkpoint``, so reverse
     mode through a long run stays in bounded memory (the forward result is the same), each chunk a
     scan over record intervals, each interval a scan over its steps. The step is traced and
-    compiled once whatever ``n_steps`` and ``model.every`` are; a run whose length is no whole
-    number of chunks ends on slots that skip the step.
+    compiled once whatever ``n_steps`` and ``saveat.every`` are; a run whose length is no whole
+    number of chunks ends on slots that skip the step. ``run_data``: ``integrator.init``'s, default
+    computed from ``state``.
 
     **Returns:** ``(final_state, Trajectory)``.
     """
-    step = make_step(model, integrator)
-    plan = loop_plan(n_steps, model.every, checkpoint)
+    if run_data is None:
+        run_data = integrator.init(model, state, dt)
+    step = make_step(model, integrator, dt, run_data, SaveAt(saveat.every, saveat.fields))
+    plan = loop_plan(n_steps, saveat.every, checkpoint)
     if plan.active is None and plan.n_sub * plan.sub_steps == 1:  # a record every step, none padded
         def record(s, _):
             return step(s)
@@ -334,70 +364,140 @@ def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, n_st
 
 
 @eqx.filter_jit
-def _run_jit(model, integrator, state, n_steps, checkpoint=None):
-    return run(model, integrator, state, n_steps, checkpoint)
+def _simulate(model, solver, y0, dt, n_steps, saveat, adjoint, run_data):
+    state = initial_state(model) if y0 is None else y0
+    return run(model, solver, state, dt, n_steps, saveat, adjoint.steps, run_data)
 
 
-def simulate(model: BeltModel, integrator: AbstractIntegrator | str | None = None,
-             state: BeltState | None = None, n_steps: int | None = None, checkpoint: int | None = None,
-             check: bool = True):
-    """Simulate a compiled model (jit-compiled; differentiable; vmap-able over array fields).
+@eqx.filter_jit
+def _init_run(model, solver, y0, dt):
+    state = initial_state(model) if y0 is None else y0
+    return state, solver.init(model, state, dt)
+
+
+def belt_speed(model: BeltModel) -> float:
+    """The belt speed the drive rollers impose, m/s (concrete models only)."""
+    v = np.einsum("nbq,q->nb", np.asarray(model.R), np.asarray(model.omega))
+    return float(np.max(np.abs(v[:, 0::2] if model.kind == "2d" else v), initial=0.0))
+
+
+def check_time_step(model: BeltModel, dt) -> None:
+    """``ValueError`` unless ``dt`` is a positive finite number meeting the transport step's CFL
+    condition ``V Δt < ℓ_min`` (the belt moves less than the shortest element per step); skipped
+    for traced values."""
+    if isinstance(dt, jax.core.Tracer) or any(isinstance(a, jax.core.Tracer) for a in (model.R, model.omega, model.ell)):
+        return
+    dt = float(np.asarray(dt))
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt = {dt}: must be a positive number of seconds")
+    V, h = belt_speed(model), float(np.min(np.asarray(model.ell)))
+    if V * dt >= h:
+        raise ValueError(f"dt = {dt:g} s violates the CFL condition of the transport step (belt speed {V:g} m/s × dt "
+                         f"= {V * dt * 1e3:.4g} mm >= smallest element {h * 1e3:.4g} mm); use dt < {h / V:.4g} s")
+
+
+def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,
+             saveat: SaveAt = SaveAt(), adjoint: Checkpointed = Checkpointed(), y0: BeltState | None = None,
+             check: bool = True, progress: bool = False):
+    """Simulate a model: ``n_steps`` steps of size ``dt`` from ``y0`` (jit-compiled; differentiable;
+    vmap-able over the model's array fields, ``dt`` and ``y0``).
 
     **Arguments:**
-    - ``model``: from :func:`jaxbelt.compile_scene`.
-    - ``integrator``: an integrator, its name (``"naive" | "direct" | "eliminated"``) or
-      ``None`` for the scene's choice.
-    - ``state``: start state; default :func:`jaxbelt.initial_state` (static equilibrium).
-    - ``n_steps``: default ``model.n_steps`` (``t_end / dt``).
-    - ``checkpoint``: steps per checkpointed chunk for reverse mode (:func:`run`); default
-      ``⌈√n_steps⌉``, ``0`` for none.
-    - ``check``: raise :class:`NonFiniteStateError` (step, time, cause) if the state became
-      NaN/inf — a flag computed inside the scan and read once here; skipped under
-      ``jit``/``grad``/``vmap``, where ``Trajectory.nonfinite`` carries it to the caller.
+    - ``model``: from :func:`jaxbelt.build_model`.
+    - ``solver``: an integrator (:mod:`jaxbelt.integrators`), default
+      ``DirectBackwardEuler(KeptInterior())`` with the shift transport.
+    - ``n_steps``: number of steps (static: a new count is a new compile).
+    - ``dt``: time step, s (traced: a new value is not). Checked against the transport step's CFL
+      condition when concrete (:func:`check_time_step`).
+    - ``saveat``: what to record (:class:`SaveAt`).
+    - ``adjoint``: checkpointing of reverse mode (:class:`Checkpointed`).
+    - ``y0``: start state; default :func:`jaxbelt.initial_state` (static equilibrium).
+    - ``check``: raise :class:`NonFiniteStateError` (step, time, cause) if the state became NaN/inf
+      — a flag computed inside the scan and read once here; skipped under ``jit``/``grad``/``vmap``,
+      where ``Trajectory.nonfinite`` carries it to the caller.
+    - ``progress``: run in compiled chunks of ~200 steps with a progress bar (the result is the
+      same; for long runs at the command line).
+
+    :class:`RunOptions` holds a scene's own choices of all but ``y0``:
+    ``simulate(model, **RunOptions.from_scene(scene))``.
 
     **Returns:** ``(final_state, Trajectory)``.
     """
-    integrator = resolve_integrator(integrator, model)
-    if state is None:
-        state = initial_state(model)
-    out = _run_jit(model, integrator, state, int(model.n_steps if n_steps is None else n_steps), checkpoint)
+    solver = make_solver() if solver is None else solver
+    n_steps = int(n_steps)
+    if n_steps < 0:
+        raise ValueError(f"n_steps = {n_steps}: must be at least 0")
+    check_time_step(model, dt)
+    dt = jnp.asarray(dt, dtype=model.ell.dtype)
+    if progress:
+        out = _simulate_in_chunks(model, solver, y0, dt, n_steps, saveat, adjoint)
+    else:
+        out = _simulate(model, solver, y0, dt, n_steps, saveat, adjoint, None)
     if check:
-        check_finite(out[1], model.dt)
+        check_finite(out[1], dt)
     return out
 
 
-def simulate_with_progress(model: BeltModel, integrator=None, n_steps: int | None = None,
-                           chunk: int = 200, progress: bool = True, check: bool = True):
-    """:func:`simulate` in jit-compiled chunks with a progress bar (for the CLI and long runs).
-
-    Chunks are whole multiples of ``model.every``; the result equals one :func:`simulate` call
-    (``check`` as there).
-    Compilation is done ahead of the run so the two can be timed apart.
-
-    **Returns:** ``(final_state, Trajectory, timing)`` with ``timing = {"compile_s", "run_s"}``.
-    """
-    import time
-
+def _simulate_in_chunks(model, solver, y0, dt, n_steps, saveat, adjoint, chunk: int = 200):
+    """:func:`simulate` in compiled chunks (whole record intervals) with a tqdm progress bar; the
+    run data is computed once, so the result equals one call."""
     from tqdm import tqdm
 
-    integrator = resolve_integrator(integrator, model)
-    n_steps = int(model.n_steps if n_steps is None else n_steps)
-    chunk = max(model.every, (chunk // model.every) * model.every)
-    state = initial_state(model)
-    sizes = [min(chunk, n_steps - k) for k in range(0, n_steps, chunk)]
-    t0 = time.perf_counter()
-    compiled = {k: _run_jit.lower(model, integrator, state, k).compile() for k in sorted(set(sizes))}
-    compile_s = time.perf_counter() - t0
+    chunk = max(saveat.every, (chunk // saveat.every) * saveat.every)
+    state, run_data = _init_run(model, solver, y0, dt)
     parts = []
-    t0 = time.perf_counter()
-    with tqdm(total=n_steps, unit="step", disable=not progress, leave=False) as bar:
-        for k in sizes:
-            state, traj = compiled[k](model, integrator, state, k)
-            jax.block_until_ready(state.u)
+    with tqdm(total=n_steps, unit="step", leave=False) as bar:
+        for k in [min(chunk, n_steps - k) for k in range(0, n_steps, chunk)]:
+            state, traj = _simulate(model, solver, state, dt, k, saveat, adjoint, run_data)
             parts.append(traj)
             bar.update(k)
-    run_s = time.perf_counter() - t0
-    traj = jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=0), *parts)
-    if check:
-        check_finite(traj, model.dt)
-    return state, traj, {"compile_s": compile_s, "run_s": run_s}
+    if not parts:
+        return _simulate(model, solver, state, dt, 0, saveat, adjoint, run_data)
+    return state, jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=0), *parts)
+
+
+def compile_simulation(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,
+                       saveat: SaveAt = SaveAt(), adjoint: Checkpointed = Checkpointed(), y0: BeltState | None = None):
+    """:func:`simulate`'s compiled program, ahead of time (to time compilation apart from the run).
+
+    **Returns:** ``run(model, dt) -> (final_state, Trajectory)`` for models of the same structure
+    (any misalignment, material data or ``dt``); no finiteness check."""
+    solver = make_solver() if solver is None else solver
+    check_time_step(model, dt)
+    dt = jnp.asarray(dt, dtype=model.ell.dtype)
+    compiled = _simulate.lower(model, solver, y0, dt, int(n_steps), saveat, adjoint, None).compile()
+    return lambda m, t: compiled(m, solver, y0, jnp.asarray(t, dtype=dt.dtype), int(n_steps), saveat, adjoint, None)
+
+
+@dataclasses.dataclass(frozen=True)
+class RunOptions:
+    """A scene's own run settings, as :func:`simulate`'s keyword arguments.
+
+    **Fields:** ``solver`` (from ``[solver]``), ``n_steps`` and ``dt`` (from ``[time]``), ``saveat``
+    (from ``[output]``). A mapping, so ``simulate(model, **options)`` works; :meth:`replace`
+    changes some."""
+
+    solver: AbstractIntegrator
+    n_steps: int
+    dt: float
+    saveat: SaveAt = SaveAt()
+
+    @classmethod
+    def from_scene(cls, scene: Scene) -> "RunOptions":
+        s = scene.solver
+        return cls(make_solver(s.integrator, s.linear_solver, s.transport), scene.time.n_steps, scene.time.dt,
+                   SaveAt(every=scene.output.every, fields=scene.output.fields == "full"))
+
+    @property
+    def t_end(self) -> float:
+        """``n_steps × dt``, s."""
+        return self.n_steps * self.dt
+
+    def replace(self, **changes) -> "RunOptions":
+        return dataclasses.replace(self, **changes)
+
+    def keys(self):
+        return ("solver", "n_steps", "dt", "saveat")
+
+    def __getitem__(self, key):
+        return getattr(self, key)

@@ -71,7 +71,9 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from .assembly import roller_R, roller_surface_displacement
 from .model import BeltModel
+from .registry import TRANSPORT_RULES
 
 
 def upwind_weights(u, ell):
@@ -133,29 +135,30 @@ def _x_dofs(model: BeltModel, f):
     return f if model.kind == "1d" else f[:, 0::2]
 
 
-def transport_step(model: BeltModel, u, u_dot, chi, m_e):
+def transport_step(model: BeltModel, u, u_dot, chi, m_e, rule: str = "shift"):
     """Interpolate the solved state back onto the grid.
 
     **Arguments:** ``u``, ``u_dot`` (n, b) after the solve; ``chi`` (q,) roller DOFs;
-    ``m_e`` element masses, (n,) in 1D, (n, n_eta - 1) in 2D. The rule is ``model.transport``;
-    in 2D only x is transported unless ``model.lateral_transport`` (module docstring).
+    ``m_e`` element masses, (n,) in 1D, (n, n_eta - 1) in 2D; ``rule`` ``"shift"`` or
+    ``"source"`` (module docstring). In 2D only x is transported unless ``model.lateral_transport``.
     **Returns:** ``(u, u_dot, chi, m_e)`` on the grid, ``α_z`` reset to 0.
     """
-    u_new, u_dot_new, chi_new, m_new, _ = transport_step_with_weights(model, u, u_dot, chi, m_e)
+    u_new, u_dot_new, chi_new, m_new, _ = transport_step_with_weights(model, u, u_dot, chi, m_e, rule=rule)
     return u_new, u_dot_new, chi_new, m_new
 
 
-def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=None, static_offset=None):
+def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=None, static_offset=None,
+                                rule: str = "shift"):
     """:func:`transport_step` plus the ``(min, max)`` of the interpolation weights (diagnostic).
 
     ``s`` (shift rule only) imposes the shift instead of ``mean(ũ)`` and ``R`` freezes the roller
     kinematics used for the roller-relative correction: with both given the step is affine in
     ``(u, u_dot, chi)`` — what the fully reduced step (:mod:`jaxbelt.rom.reduced`) projects.
     ``static_offset``: :func:`jaxbelt.assembly.static_surface_offset`, if already computed."""
-    from .assembly import roller_R, roller_surface_displacement
-
     ux = _x_dofs(model, u)
-    shift = model.transport == "shift"
+    if rule not in TRANSPORT_RULES:
+        raise ValueError(f"unknown transport rule {rule!r} (one of {', '.join(TRANSPORT_RULES)})")
+    shift = rule == "shift"
     if s is None:
         s = jnp.mean(ux)
     elif not shift:

@@ -151,7 +151,7 @@ show(fig)
 # `jaxbelt.design.evaluate_configs`), each compared tracer by tracer with the aligned machine.
 
 # %%
-aligned = design.params.aligned(model)  # the same machine, every misalignment zero (= three-roller)
+aligned = misalignment.aligned(model)  # the same machine, every misalignment zero (= three-roller)
 study = design.make_study(aligned, "lateral_max", t_eval=STEPS * model.dt,
                           integrator=make_integrator("direct", aligned, linear_solver="reuse"))
 labels_p = study.space.labels()

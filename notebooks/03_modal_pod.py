@@ -232,14 +232,14 @@ show(fig)
 # unknowns, as the source's POD reduced — run as one `vmap` batch:
 
 # %%
-base = design.params.aligned(m2)
+base = misalignment.aligned(m2)
 space = design.parameter_space(base, ["roller 1:dx", "roller 1:dy", "roller 2:ax", "roller 2:ay",
                                       "roller 3:ax", "roller 3:dy"])
 thetas = jnp.diag(jnp.array([5.0, 5.0, 0.5, 0.5, 0.5, 5.0]))  # mm / mrad: Table 7.4, row by row
 
 
 def snapshots(theta):
-    m = design.params.apply(base, space, theta)
+    m = misalignment.apply(base, space, theta)
     return rom.collect_snapshots(m, 50, reuse2)[1][:, 3:]  # pre-transport x̃, steps 4 … 50
 
 

@@ -11,7 +11,11 @@
 * ``<!-- reexports -->`` in ``api/jaxbelt.md``: the table of the names ``jaxbelt`` re-exports, each
   linked to its definition;
 * ``<!-- decisions -->`` in ``decisions.md`` is replaced by the list of the model decisions, each
-  a link to the docstring or README section that states it (:func:`decisions_markdown`);
+  a link to the docstring or the section of ``implementation.md`` that states it
+  (:func:`decisions_markdown`);
+* ``<!-- benchmark-results -->`` in ``benchmarks.md`` is replaced by one section per
+  ``benchmarks/results/*.json``: its values rendered as tables, its PNG and generated Markdown
+  beside it (:func:`benchmark_markdown`), so that no measured figure is typed by hand;
 * the API pages must cover every module of the packages they document: a module missing from
   them is a warning (an error under ``mkdocs build --strict``).
 """
@@ -86,6 +90,8 @@ def on_files(files, config):
     for f in files:
         if f.src_uri.endswith(".md"):
             text = f.content_string if f.generated_by else Path(f.abs_src_path).read_text()
+            if BENCHMARK_MARKER in text:
+                text = text.replace(BENCHMARK_MARKER, benchmark_markdown())
             _rewrite_links(text, f.src_uri, docs, found)
     for repo_rel in sorted(found):
         files.append(File(repo_rel, str(ROOT), config["site_dir"], config["use_directory_urls"]))
@@ -96,6 +102,8 @@ def on_files(files, config):
 
 def on_page_markdown(markdown, page, config, files):
     docs = _docs_dir(config)
+    if BENCHMARK_MARKER in markdown:
+        markdown = markdown.replace(BENCHMARK_MARKER, benchmark_markdown())
     markdown = _rewrite_links(markdown, page.file.src_uri, docs)
     if "<!-- cli-reference -->" in markdown:
         markdown = markdown.replace("<!-- cli-reference -->", _cli_reference().markdown())
@@ -166,17 +174,28 @@ def _docstring_decisions():
     return out
 
 
-def _readme_decisions():
-    """The bold lead-ins of the bullets under the README's decisions heading, with the anchor."""
-    text = (ROOT / "README.md").read_text()
-    m = re.search(r"^## (The model, and the decisions[^\n]*)\n(.*?)(?=^## )", text, re.S | re.M)
-    if not m:
-        log.warning("README.md: no section 'The model, and the decisions …' for docs/decisions.md")
-        return "", []
+DECISIONS_PAGE = "implementation.md"
+
+
+def _page_decisions():
+    """``[(heading, anchor, bold lead-ins)]`` of the bulleted sections of the implementation notes
+    (``docs/implementation.md``): every ``## `` section with bullets that start with a bold lead-in."""
     from markdown.extensions.toc import slugify
 
-    anchor = slugify(m.group(1), "-")
-    return anchor, re.findall(r"^\* \*\*(.+?)\*\*", m.group(2), re.M)
+    text = (ROOT / "docs" / DECISIONS_PAGE).read_text()
+    out = []
+    for m in re.finditer(r"^## ([^\n]*)\n(.*?)(?=^## |\Z)", text, re.S | re.M):
+        heading = m.group(1).strip()
+        explicit = re.search(r"\{#([\w-]+)\}\s*$", heading)
+        if explicit:
+            heading = heading[:explicit.start()].strip()
+        anchor = explicit.group(1) if explicit else slugify(heading, "-")
+        leads = [lead.rstrip(".:") for lead in re.findall(r"^\* \*\*(.+?)\*\*", m.group(2), re.M)]
+        if leads:
+            out.append((heading, anchor, leads))
+    if not out:
+        log.warning(f"docs/{DECISIONS_PAGE}: no bulleted decisions for docs/decisions.md")
+    return out
 
 
 def decisions_markdown() -> str:
@@ -185,11 +204,253 @@ def decisions_markdown() -> str:
     for obj, first in _docstring_decisions():
         first = first.replace("|", "\\|")
         lines.append(f'| <autoref identifier="{obj}" optional><code>{obj}</code></autoref> | {first} |')
-    anchor, leads = _readme_decisions()
-    lines += ["", "## In the README\n",
-              f"[The model, and the decisions where the source and MODEL.md are silent](readme.md#{anchor}):\n"]
-    lines += [f"- {lead.rstrip('.:')}" for lead in leads]
+    lines += ["", "## In the implementation notes\n"]
+    for heading, anchor, leads in _page_decisions():
+        lines += [f"[{heading}]({DECISIONS_PAGE}#{anchor}):\n"]
+        lines += [f"- {lead}" for lead in leads]
+        lines.append("")
     return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------- benchmark results
+
+BENCHMARK_MARKER = "<!-- benchmark-results -->"
+RESULTS = ROOT / "benchmarks" / "results"
+
+# file stem (or the stem of its script) -> (title, what it measures); every figure comes from the JSON.
+BENCHMARKS = {
+    "baselines": ("jaxbelt against SciPy SuperLU", "The per-step cost of jaxbelt's exact and reuse steps "
+                  "beside SciPy's sparse LU on the same matrix, the whole default run, compilation, `vmap` batches "
+                  "and the speedups the source reports, side by side in one run (`jaxbelt bench --only baselines`)."),
+    "bending_locking": ("Bending locking of the 2D element", "In-plane bending of a clamped belt strip against "
+                        "the Timoshenko beam: the bilinear quad locks when its elements are long and few across, "
+                        "the incompatible-modes element (QM6, the default) does not."),
+    "float32": ("float32 against float64", "Tracer error and belt-mass drift of whole runs in single precision "
+                "(`JAXBELT_X64=0`) against double precision."),
+    "full_run_2d": ("The whole default run", "The 100 s run of `three-roller-t72` (5000 steps) with the reuse solver, "
+                    "compilation timed apart, with the process's peak memory."),
+    "gpu_2d": ("On a GPU", "Per-step times of the exact solver (block Thomas and block cyclic reduction) and the reuse "
+               "solver on an accelerator, and a `vmap` batch of misalignment configurations."),
+    "gradient_cost": ("Cost of a gradient", "Reverse-mode gradient of a lateral tracer metric with respect to all "
+                      "roller misalignments, through a whole run, against the forward run alone, with and without "
+                      "checkpointing."),
+    "integrators_1d": ("The 1D integrators", "Per-step cost of the naive, direct and eliminated Backward-Euler "
+                       "integrators on the 1D scene, and how far their tracers are from the direct one's."),
+    "lateral_theory": ("Belt walk against theory", "Walk rate of a belt on a skewed or twisted roller against the "
+                       "loop of moving tensioned beams, over the span parameter K L ([lateral mechanics](lateral.md))."),
+    "lateral_span_shape": ("Span shapes in steady walk", "The simulated centre line of both spans during a steady "
+                           "walk against the reference's Timoshenko span shapes."),
+    "linearity_range": ("Where linearity ends", "The error of the linear prediction of the tracer response against "
+                        "the size of each misalignment component."),
+    "loop_compile": ("Compile time of the time loop", "Compile time and per-step cost of the time loop's layout "
+                     "against awkward run lengths and record intervals."),
+    "modal_vs_pod": ("Modal reduction against POD", "The modal reduced integrator beside POD-Galerkin: tracer error "
+                     "against the number of modes."),
+    "openblas_threads": ("OpenBLAS threads", "LAPACK calls behind `jnp.linalg` with one OpenBLAS thread and with "
+                         "several, on a busy machine."),
+    "pareto": ("Speed against accuracy", "Tracer error against wall time and memory for grids, time steps, "
+               "solvers, float32 and reduced models over the first 20 s of `three-roller-t72`, against a converged "
+               "run (`jaxbelt bench --only pareto`)."),
+    "pdmd_2d": ("Parametric DMD in 2D", "Parametric DMD over a box of misalignments, trained from the static state "
+                "and from after the start-up step."),
+    "refinement": ("Refinement iterations of the reuse solver", "Time and tracer error of the whole run for 0–3 "
+                   "iterative-refinement iterations of the frozen-factor solver, against the exact solver."),
+    "rom_1d": ("Reduced models on the 1D scenes", "POD, DMD, DMD with control and parametric DMD on the 1D scenes, "
+               "on the training configuration and on a held-out one."),
+    "rom_2d": ("Reduced models on the 2D scene", "POD and DMD on `three-roller-t72`, single- and "
+               "multi-configuration, with accuracy and total speedups beside the source's."),
+    "rom_box_2d": ("One reduced model for every misalignment", "POD and DMD with control trained on an axial design "
+                   "over a box of all free misalignment components, tested on configurations with every roller "
+                   "misaligned at once."),
+    "rom_indicator": ("Error estimate of the reduced models", "The a-posteriori error estimate against the true "
+                      "error on held-out configurations (effectivity = estimate / true error)."),
+    "rom_indicator_box": ("Error estimate over the box", "What sets the error estimate's effectivity for DMD with "
+                          "control over the misalignment box: exact Jacobian, residual windows, quasi-static "
+                          "response."),
+    "scaling_2d": ("Cost against grid size", "Per-step cost of the exact and reuse solvers against the number of "
+                   "unknowns, with the fitted log-log slope."),
+    "solver_2d": ("The 2D solvers against SciPy", "Per-step cost of the exact solver (block Thomas, cyclic "
+                  "reduction) and the reuse solver against a numpy + SciPy SuperLU step."),
+    "step_profile": ("Where the time of a step goes", "Assembly, solve, transport and outputs of one step, each "
+                     "compiled on its own, for the reuse and exact solvers."),
+    "step_vs_superlu": ("Per step against SuperLU, quick", "The two per-step comparisons of the baselines benchmark "
+                        "alone, for tracking the machine's state between full runs."),
+    "suite_compile_time": ("Where the test suite's time goes", "Tracing, lowering and XLA compilation per test "
+                           "module."),
+    "sweep_streaming": ("Streaming the Thomas sweeps", "Time of a block sweep against the amount of factor data it "
+                        "streams from memory."),
+    "sweep_throughput": ("Sweep throughput", "Configuration-steps per second of the sweep against the batch size, "
+                         "exact and reuse solvers."),
+    "tension_stiffening_a1": ("What tension stiffening changes", "Tracer differences with and without the "
+                              "initial-stress stiffness on the source's Appendix A.1 runs and the tension-roller "
+                              "scene."),
+    "transport_rules": ("The two transport rules", "The source's relabelling rule and the shift rule against the "
+                        "analytic steady strain of a translated idle roller, and their interpolation weights."),
+    "validation": ("Validation set at fine resolution", "The checks of `tests/test_validation.py` (wave speed, "
+                   "statics, lateral translation, convergence, Backward Euler's damping) at resolutions the tests "
+                   "cannot afford ([validation](validation.md))."),
+    "whole_run_ab": ("Whole run, two versions side by side", "The whole 100 s reuse run timed for two versions of "
+                     "the code in alternating fresh processes."),
+    "yield_rom": ("Yield with a reduced model standing in", "A Monte-Carlo yield study with full runs only and with "
+                  "the surrogate standing in (`--rom auto`), with the surrogate's error bounds and the pass/fail "
+                  "agreement on every sample."),
+}
+
+_INLINE_LIST = 8        # lists of at most this many scalars are shown inline
+_TABLE_ROWS = 40        # tables of at most this many rows
+_TABLE_COLS = 14        # ... and columns
+_MAX_DEPTH = 3
+_PLAIN_ROWS = 50       # key/value rows per results file, at most
+_FILE_LINES = 160      # lines of tables per results file, at most
+
+
+def _scalar(v) -> bool:
+    return v is None or isinstance(v, (bool, int, float, str))
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if v != v or v in (float("inf"), float("-inf")):
+            return str(v)
+        if v == 0 or 1e-3 <= abs(v) < 1e5:
+            return f"{v:.4g}"
+        return f"{v:.3e}"
+    if isinstance(v, str):
+        return v.replace("|", "\\|").replace("\n", " ")
+    return ", ".join(_fmt(x) for x in v)  # a short list of scalars
+
+
+def _inline(v) -> bool:
+    return _scalar(v) or (isinstance(v, list) and len(v) <= _INLINE_LIST and all(_scalar(x) for x in v))
+
+
+def _flat_dict(v) -> bool:
+    return isinstance(v, dict) and bool(v) and all(_inline(x) for x in v.values())
+
+
+def _table(header, rows) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(row) + " |" for row in rows]
+    return out + [""]
+
+
+def _records_table(records, first=None):
+    """A table of flat dicts (the union of their keys as columns), ``first`` naming a leading column
+    that holds the dict's keys."""
+    cols = []
+    for r in records.values() if isinstance(records, dict) else records:
+        cols += [k for k in r if k not in cols and _inline(r[k])]
+    dropped = len(cols) > _TABLE_COLS
+    cols = cols[:_TABLE_COLS]
+    header = ([first] if first is not None else []) + [f"`{c}`" for c in cols]
+    items = records.items() if isinstance(records, dict) else ((None, r) for r in records)
+    rows = [([_fmt(k)] if first is not None else []) + [_fmt(r[c]) if c in r else "" for c in cols]
+            for k, r in items]
+    out = _table(header, rows)
+    if dropped:
+        out += ["*(further columns in the JSON file)*", ""]
+    return out
+
+
+def _walk(obj: dict, path: str, depth: int, plain: list, blocks: list, skipped: list):
+    for k, v in obj.items():
+        key = f"{path}{k}"
+        if k == "machine" and not path:
+            continue
+        if _inline(v):
+            plain.append((key, v))
+        elif isinstance(v, dict) and v and all(_flat_dict(x) for x in v.values()) and len(v) <= _TABLE_ROWS:
+            blocks.append([f"**`{key}`**", ""] + _records_table(v, first=""))
+        elif isinstance(v, list) and v and all(_flat_dict(x) for x in v) and len(v) <= _TABLE_ROWS:
+            blocks.append([f"**`{key}`**", ""] + _records_table(v))
+        elif isinstance(v, dict) and v and depth < _MAX_DEPTH:
+            _walk(v, f"{key}.", depth + 1, plain, blocks, skipped)
+        else:
+            skipped.append(f"`{key}` ({len(v)} entries)" if isinstance(v, (list, dict)) else f"`{key}`")
+
+
+def _render(obj: dict, budget: int = _FILE_LINES) -> list[str]:
+    """Markdown for one JSON object: its inline values (nested keys dotted) as one key/value table,
+    then a table per list or dict of records; what does not fit is named, not shown."""
+    plain, blocks, skipped = [], [], []
+    _walk(obj, "", 0, plain, blocks, skipped)
+    shown = plain[:_PLAIN_ROWS]
+    out = _table(["key", "value"], [[f"`{k}`", _fmt(v)] for k, v in shown]) if shown else []
+    if len(plain) > len(shown):
+        out += [f"*… and {len(plain) - len(shown)} more values in the JSON file.*", ""]
+    for i, block in enumerate(blocks):
+        if len(out) + len(block) > budget:
+            skipped += [b[0].strip("*") for b in blocks[i:]]
+            break
+        out += block
+    if skipped:
+        names = ", ".join(skipped[:10]) + (f" and {len(skipped) - 10} more" if len(skipped) > 10 else "")
+        out += [f"*Not shown here (see the JSON file):* {names}.", ""]
+    return out
+
+
+def _machine(d) -> str:
+    m = d.get("machine") if isinstance(d, dict) else None
+    if not isinstance(m, dict):
+        return ""
+    parts = [f"{k} {m[k]}" for k in ("device", "cpu_count", "jax", "python", "openblas_num_threads") if k in m]
+    return "Measured on: " + ", ".join(parts).replace("cpu_count", "CPUs") + "." if parts else ""
+
+
+def _benchmark_key(stem: str) -> str:
+    """The ``BENCHMARKS`` entry of a results file: its stem, or the stem with its last ``_part``
+    dropped (``full_run_2d_gpu`` → ``full_run_2d``, ``rom_2d_quick`` → ``rom_2d``)."""
+    key = stem
+    while key not in BENCHMARKS and "_" in key:
+        key = key.rsplit("_", 1)[0]
+    return key if key in BENCHMARKS else stem
+
+
+def benchmark_markdown(results: Path = RESULTS) -> str:
+    """One section per ``results/*.json``: title and lead from :data:`BENCHMARKS`, the script that
+    writes it, the machine, the values as tables, the PNG and a generated ``.md`` of the same stem."""
+    import json
+
+    out = []
+    stems = sorted(p.stem for p in results.glob("*.json"))
+    seen: dict[str, int] = {}
+    for stem in stems:
+        key = _benchmark_key(stem)
+        title, lead = BENCHMARKS.get(key, (stem.replace("_", " "), ""))
+        n = sum(_benchmark_key(s) == key for s in stems)
+        seen[key] = seen.get(key, 0) + 1
+        anchor = key if seen[key] == 1 else f"{key}-{seen[key]}"
+        suffix = stem[len(key):].lstrip("_")
+        if n == 1 or not suffix:
+            label = ""
+        elif re.fullmatch(r"[0-9a-f]{7,40}", suffix):  # a run labelled by the version it measured
+            label = f" (run {sorted(s for s in stems if _benchmark_key(s) == key).index(stem) + 1})"
+        else:
+            label = f" ({suffix.replace('_', ' ')})"
+        out += [f"## {title}{label} {{#{anchor}}}", ""]
+        script = ROOT / "benchmarks" / f"{key}.py"
+        made = f"Written by `python benchmarks/{key}.py`" if script.exists() else "Written by a benchmark script"
+        out += [(lead + " " if lead else "") + f"{made} to [{stem}.json](../benchmarks/results/{stem}.json).", ""]
+        try:
+            data = json.loads((results / f"{stem}.json").read_text())
+        except ValueError as e:
+            log.warning(f"benchmarks/results/{stem}.json: {e}")
+            continue
+        machine = _machine(data)
+        if machine:
+            out += [machine, ""]
+        out += _render(data) if isinstance(data, dict) else [f"*({type(data).__name__} of {len(data)} entries)*", ""]
+        if (results / f"{stem}.md").exists():
+            out += [(results / f"{stem}.md").read_text().strip(), ""]
+        if (results / f"{stem}.png").exists():
+            out += [f"![{title}](../benchmarks/results/{stem}.png)", ""]
+    return "\n".join(out) + "\n"
 
 
 # ----------------------------------------------------------------------------- API coverage

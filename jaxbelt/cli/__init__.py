@@ -69,6 +69,18 @@ def enable_compilation_cache():
     return path
 
 
+def configure_process():
+    """The process settings of the command line: float64 (:func:`jaxbelt.enable_x64`) and one
+    OpenBLAS thread unless the user chose otherwise. The LAPACK calls behind ``jnp.linalg`` (the
+    reduced models' SVD, QR, eig) spin extra OpenBLAS threads against XLA's own pool, which on a
+    small, busy machine is several times slower (the OpenBLAS-threads benchmark); the variable is
+    read when OpenBLAS loads, at the first LAPACK call."""
+    from .. import enable_x64
+
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    enable_x64()
+
+
 def main(argv=None) -> int:
     import warnings
 
@@ -83,6 +95,7 @@ def main(argv=None) -> int:
             default_show(message, category, *a, **k)
 
     args = build_parser().parse_args(argv)
+    configure_process()
     # figures are written to files: a non-interactive backend unless the user chose one (the
     # library's plot functions never choose one, so that notebooks keep their inline backend)
     os.environ.setdefault("MPLBACKEND", "Agg")

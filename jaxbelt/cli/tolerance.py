@@ -24,7 +24,7 @@ def add_parser(subparsers):
 
 def run(args):
     from ..design import tolerance_box
-    from ..design.params import weights_from_dict
+    from ..design.tolerance import weights_from_dict
 
     check_limit(args.limit_um)
     check_plot(args.plot)

@@ -22,9 +22,9 @@ from .metrics import make_study as make_study
 from .metrics import metric_value as metric_value
 from .metrics import response as response
 from .metrics import tracer_deviation as tracer_deviation
-from .params import COMPONENTS as COMPONENTS
-from .params import ParameterSpace as ParameterSpace
-from .params import parameter_space as parameter_space
+from ..misalignment import COMPONENTS as COMPONENTS
+from ..misalignment import ParameterSpace as ParameterSpace
+from ..misalignment import parameter_space as parameter_space
 from .sampling import Distribution as Distribution
 from .sampling import distribution_from_dict as distribution_from_dict
 from .sampling import evaluate_configs as evaluate_configs

@@ -1,7 +1,7 @@
 """Belt-position metrics of a tolerance study, in µm, relative to the aligned machine.
 
 Every metric compares a misaligned run with the *aligned* run of the same scene (every
-misalignment zero, :func:`jaxbelt.design.params.aligned`), tracer by tracer and step by step,
+misalignment zero, :func:`jaxbelt.misalignment.aligned`), tracer by tracer and step by step,
 so the static stretching of the belt by its pre-tension and drive does not count. With
 ``d_u``, ``d_v`` (steps, tracers) the longitudinal and lateral tracer deviations in µm and
 ``k`` the evaluation step (``t_eval``, default the scene's last step):
@@ -31,7 +31,7 @@ import numpy as np
 from ..integrators import AbstractIntegrator, resolve_integrator
 from ..model import BeltModel
 from ..timeloop import simulate
-from .params import ParameterSpace, aligned, apply, parameter_space
+from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 
 M_TO_UM = 1e6
 METRICS = {
@@ -84,7 +84,7 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
 
     **Arguments:** ``metric`` (one of :data:`METRICS`); ``t_eval`` evaluation time in s (default
     the scene's ``t_end``; rounded to whole steps); ``components`` as in
-    :func:`jaxbelt.design.params.parameter_space`; ``integrator`` (default the scene's choice);
+    :func:`jaxbelt.misalignment.parameter_space`; ``integrator`` (default the scene's choice);
     ``window_fraction`` of ``[0, t_eval]`` for ``lateral_peak``.
     """
     if metric not in METRICS:

@@ -33,7 +33,7 @@ import numpy as np
 from jax.scipy.stats import norm
 
 from .metrics import Study, evaluate, metric_value
-from .params import COMPONENTS, TRANSLATIONS, parameter_space
+from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
 
 DISTRIBUTIONS = ("normal", "uniform")
 

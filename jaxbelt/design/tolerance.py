@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from .metrics import Study, aggregate
 from .sensitivity import response_jacobian
 
@@ -278,3 +279,33 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
         "rss_um": rss_stackup(lin, h / 3.0)["three_sigma_um"],
         "jacobian_um": J, "response0_um": r0,
     }
+
+
+def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:
+    """Cost weights (P,) from a weights table (the ``--weights`` TOML file); default 1.
+
+    Format: ``[roller."NAME"]`` with ``translation = [wx, wy, wz]`` and/or ``rotation = [wx, wy,
+    wz]``, positive numbers; a larger weight makes a component costlier to tighten, so it gets a
+    wider share of the budget. Raises ``ValueError`` naming the key and value.
+    """
+    w = np.ones(space.size)
+    if set(data) - {"roller"}:
+        raise ValueError(f"weights file: unknown table(s) {sorted(set(data) - {'roller'})} (only [roller.\"NAME\"])")
+    for name, table in data.get("roller", {}).items():
+        if name not in space.roller_names:
+            raise ValueError(f"roller.{name!r}: no roller of that name (rollers: {', '.join(space.roller_names)})")
+        if not isinstance(table, dict):
+            raise ValueError(f"roller.{name!r}: must be a table")
+        j = space.roller_names.index(name)
+        for group, vals in table.items():
+            if group not in ("translation", "rotation"):
+                raise ValueError(f"roller.{name!r}.{group}: unknown key (translation or rotation)")
+            if not isinstance(vals, list) or len(vals) != 3 or not all(isinstance(v, (int, float)) for v in vals):
+                raise ValueError(f"roller.{name!r}.{group} = {vals!r}: must be a list of 3 numbers")
+            for k, v in enumerate(vals):
+                if not (np.isfinite(v) and v > 0):
+                    raise ValueError(f"roller.{name!r}.{group}[{k}] = {v}: must be a positive number")
+                comp = (TRANSLATIONS if group == "translation" else ROTATIONS)[k]
+                if (j, comp) in space.entries:
+                    w[space.entries.index((j, comp))] = float(v)
+    return w

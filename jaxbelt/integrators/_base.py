@@ -3,25 +3,35 @@
 from __future__ import annotations
 
 import abc
+from typing import Any
 
 import equinox as eqx
 
 from ..model import BeltModel
+from ..registry import DEFAULT_TRANSPORT
 from ..state import BeltState
 
 
 class AbstractIntegrator(eqx.Module):
-    """One Backward-Euler step of ``K x + M ẍ = F`` from a transported state.
+    """One Backward-Euler step of ``K x + M ẍ = F`` from a transported state, and the transport
+    rule that puts its result back on the grid (:mod:`jaxbelt.transport`).
 
-    ``solve_step`` returns the *pre-transport* state ``(x̃, x̃̇)`` at ``t + Δt`` (masses and
-    step counter untouched); :func:`jaxbelt.simulate` then applies the transport step.
+    :func:`jaxbelt.simulate` calls :meth:`init` once per run, inside the compiled program, and
+    :meth:`step` every step; :meth:`step` returns the *pre-transport* state ``(x̃, x̃̇)`` at
+    ``t + Δt`` (masses and step counter untouched), and the time loop then applies the transport
+    step with :attr:`transport`.
+
+    ``transport``: ``"shift"`` or ``"source"`` (:data:`jaxbelt.registry.TRANSPORT_RULES`).
     """
 
-    @abc.abstractmethod
-    def solve_step(self, model: BeltModel, state: BeltState) -> BeltState:
-        """Advance ``state`` by one step of size ``model.dt`` (before transport)."""
+    transport: str = eqx.field(static=True, default=DEFAULT_TRANSPORT, kw_only=True)
 
-    def prepare(self, model: BeltModel) -> "AbstractIntegrator":
-        """Per-run set-up, called by the time loop once before its scan (inside ``jit``): the
-        integrator to use for ``model``'s steps. Default: ``self``."""
-        return self
+    def init(self, model: BeltModel, state: BeltState, dt) -> Any:
+        """Data kept for the run (factors, stencils), from the model, the start state and the time
+        step ``dt`` (s, traced). Default: ``None``."""
+        return None
+
+    @abc.abstractmethod
+    def step(self, model: BeltModel, state: BeltState, dt, run_data) -> BeltState:
+        """Advance ``state`` by one step of size ``dt`` (before transport); ``run_data`` is what
+        :meth:`init` returned."""

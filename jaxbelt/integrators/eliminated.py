@@ -17,26 +17,21 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 
 from ..assembly import dae_matrices, dae_rhs, roller_R
 from ..linalg import join, split
 from ._base import AbstractIntegrator
 
 
-def algebraic_partition(model):
-    """Static index tuples ``(dynamic, algebraic)`` into the flat unknown vector."""
-    alg = np.concatenate([np.asarray(model.is_constraint).reshape(-1), ~np.asarray(model.dynamic)])
-    return tuple(int(i) for i in np.flatnonzero(~alg)), tuple(int(i) for i in np.flatnonzero(alg))
-
-
-def eliminated_system(model, state, dyn_idx, alg_idx):
-    """The condensed ODE at the current step: ``(M̂, K̂, F̂, P, g, p)`` with ``p = x + Δt ẋ``."""
-    dt = model.dt
+def eliminated_system(model, state, dt, dyn_idx=None, alg_idx=None):
+    """The condensed ODE at the current step of size ``dt``: ``(M̂, K̂, F̂, P, g, p)`` with
+    ``p = x + Δt ẋ``; the partition defaults to ``model.partition``."""
+    if dyn_idx is None:
+        dyn_idx, alg_idx = model.partition
     R = roller_R(model, state.u)
     K, M = dae_matrices(model, state.m_e, R)
     Kd, Md = K.to_dense(), M.to_dense()
-    F = join(*dae_rhs(model, state.u, state.chi, R))
+    F = join(*dae_rhs(model, state.u, state.chi, dt, R))
     f, e = jnp.asarray(dyn_idx), jnp.asarray(alg_idx)
     p = join(state.u, state.chi) + dt * join(state.u_dot, state.chi_dot)
     Kee, Kef, Kfe, Kff = Kd[e][:, e], Kd[e][:, f], Kd[f][:, e], Kd[f][:, f]
@@ -65,20 +60,13 @@ def recover_state(state, dt, x_f, v_f, P, g, dyn_idx, alg_idx):
 
 
 class EliminatedBackwardEuler(AbstractIntegrator):
-    """Backward Euler on the condensed ODE; build with :meth:`for_model`."""
+    """Backward Euler on the condensed ODE (the partition is the model's static structure)."""
 
-    dyn_idx: tuple = eqx.field(static=True)
-    alg_idx: tuple = eqx.field(static=True)
-
-    @classmethod
-    def for_model(cls, model) -> "EliminatedBackwardEuler":
-        return cls(*algebraic_partition(model))
-
-    def solve_step(self, model, state):
-        dt = model.dt
-        M_hat, K_hat, F_hat, P, g, p = eliminated_system(model, state, self.dyn_idx, self.alg_idx)
-        f = jnp.asarray(self.dyn_idx)
+    def step(self, model, state, dt, run_data=None):
+        dyn_idx, alg_idx = model.partition
+        M_hat, K_hat, F_hat, P, g, p = eliminated_system(model, state, dt, dyn_idx, alg_idx)
+        f = jnp.asarray(dyn_idx)
         a_f = jnp.linalg.solve(M_hat + dt**2 * K_hat, F_hat - K_hat @ p[f])
         v_f = join(state.u_dot, state.chi_dot)[f] + dt * a_f
         x_f = join(state.u, state.chi)[f] + dt * v_f
-        return recover_state(state, dt, x_f, v_f, P, g, self.dyn_idx, self.alg_idx)
+        return recover_state(state, dt, x_f, v_f, P, g, dyn_idx, alg_idx)

@@ -26,15 +26,14 @@ class NaiveBackwardEuler(AbstractIntegrator):
     integrator to round-off.
     """
 
-    def solve_step(self, model, state):
-        dt = model.dt
+    def step(self, model, state, dt, run_data=None):
         R = roller_R(model, state.u)
         K, M = dae_matrices(model, state.m_e, R)
         Kd, Md = K.to_dense(), M.to_dense()
         N = Kd.shape[0]
         I, Z = jnp.eye(N), jnp.zeros((N, N))
         A = jnp.block([[Kd, Z, Md], [I, -dt * I, Z], [Z, I, -dt * I]])
-        F = join(*dae_rhs(model, state.u, state.chi, R))
+        F = join(*dae_rhs(model, state.u, state.chi, dt, R))
         rhs = jnp.concatenate([F, join(state.u, state.chi), join(state.u_dot, state.chi_dot)])
         r = 1.0 / jnp.max(jnp.abs(A), axis=1)
         A = A * r[:, None]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..design.params import TO_SI, aligned, apply, parameter_space
+from ..misalignment import TO_SI, aligned, apply, parameter_space
 
 
 def box_from_distribution(dist) -> np.ndarray:

@@ -1,4 +1,8 @@
-"""The misalignment parameters of a tolerance study: which roller components vary, in which units.
+"""Roller misalignments as parameters: which components can vary, in which units, and how they
+enter a model. Shared by the reduced models (:mod:`jaxbelt.rom`, their training designs) and
+tolerance design (:mod:`jaxbelt.design`).
+
+:func:`with_misalignment` sets translations and rotations in SI units.
 
 A design vector ``theta`` (P,) holds *deviations from the scene's own misalignment* of the
 selected components, in design units: translations in **mm**, rotations in **mrad**. Metrics are
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -134,31 +139,34 @@ def aligned(model):
     return model.replace(chi_static=jnp.zeros_like(model.chi_static))
 
 
-def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:
-    """Cost weights (P,) from a weights table (the ``--weights`` TOML file); default 1.
+def with_misalignment(model, translation=None, rotation=None):
+    """``model`` with new static roller misalignments (traceable, for ``grad`` and ``vmap``).
 
-    Format: ``[roller."NAME"]`` with ``translation = [wx, wy, wz]`` and/or ``rotation = [wx, wy,
-    wz]``, positive numbers; a larger weight makes a component costlier to tighten, so it gets a
-    wider share of the budget. Raises ``ValueError`` naming the key and value.
+    **Arguments:** ``translation``: (p,) x translations in 1D or (p, 3), m; ``rotation``: (p, 3)
+    tilts, rad (2D only). ``None`` keeps the current value. A component the model does not carry
+    (1D: anything but x translation) must be zero: ``ValueError`` otherwise.
+    **Returns:** the model with its ``chi_static`` (q,) replaced.
     """
-    w = np.ones(space.size)
-    if set(data) - {"roller"}:
-        raise ValueError(f"weights file: unknown table(s) {sorted(set(data) - {'roller'})} (only [roller.\"NAME\"])")
-    for name, table in data.get("roller", {}).items():
-        if name not in space.roller_names:
-            raise ValueError(f"roller.{name!r}: no roller of that name (rollers: {', '.join(space.roller_names)})")
-        if not isinstance(table, dict):
-            raise ValueError(f"roller.{name!r}: must be a table")
-        j = space.roller_names.index(name)
-        for group, vals in table.items():
-            if group not in ("translation", "rotation"):
-                raise ValueError(f"roller.{name!r}.{group}: unknown key (translation or rotation)")
-            if not isinstance(vals, list) or len(vals) != 3 or not all(isinstance(v, (int, float)) for v in vals):
-                raise ValueError(f"roller.{name!r}.{group} = {vals!r}: must be a list of 3 numbers")
-            for k, v in enumerate(vals):
-                if not (np.isfinite(v) and v > 0):
-                    raise ValueError(f"roller.{name!r}.{group}[{k}] = {v}: must be a positive number")
-                comp = (TRANSLATIONS if group == "translation" else ROTATIONS)[k]
-                if (j, comp) in space.entries:
-                    w[space.entries.index((j, comp))] = float(v)
-    return w
+    chi = model.chi_static.reshape(model.n_rollers, len(model.dofs))
+    if translation is not None:
+        t = jnp.asarray(translation)
+        if t.ndim == 1:
+            t = jnp.stack([t, jnp.zeros_like(t), jnp.zeros_like(t)], axis=1)
+        for k, ax in enumerate("xyz"):
+            if f"d{ax}" in model.dofs:
+                chi = chi.at[:, model.dofs.index(f"d{ax}")].set(t[:, k])
+            else:
+                _require_zero(t[:, k], f"translation along {ax}", model.kind)
+    if rotation is not None:
+        a = jnp.asarray(rotation)
+        for k, ax in enumerate("xy"):
+            if f"a{ax}" in model.dofs:
+                chi = chi.at[:, model.dofs.index(f"a{ax}")].set(a[:, k])
+            else:
+                _require_zero(a[:, k], f"rotation about {ax}", model.kind)
+    return model.replace(chi_static=chi.reshape(-1))
+
+
+def _require_zero(v, what, kind):
+    if not isinstance(v, jax.core.Tracer) and np.any(np.asarray(v) != 0):
+        raise ValueError(f"the {kind} model has no {what}")
