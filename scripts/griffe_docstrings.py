@@ -7,7 +7,10 @@ mkdocstrings renders well, for the docs only (the source is not changed):
   ``:attr:``, ``:exc:``) become optional cross-references (``<autoref … optional>``): a link
   where the target is on an API page (re-exports resolved to their definition, bare names to
   the object's own module), plain code where it is not (no warning);
-* a list or table that follows a text line directly gets the blank line Python-Markdown needs.
+* a list or table that follows a text line directly gets the blank line Python-Markdown needs;
+* a section of the model specification cited as ``MODEL.md §4``, ``docs/model.md §4`` or
+  ``model specification §4`` (also ``§2–§4``, ``§2, §4``) becomes a link to that section of
+  ``docs/model.md`` (its ``[](){#model-4}`` anchors).
 """
 
 from __future__ import annotations
@@ -18,6 +21,19 @@ import griffe
 
 ROLE = re.compile(r":(?:func|class|meth|mod|data|attr|exc|obj):`(~?)([\w.]+)(?:\(\))?`")
 BLOCK_START = re.compile(r"^\s*(?:[-*] |\d+\. |\|)")
+SPEC = re.compile(r"(?:MODEL\.md|docs/model\.md|model specification(?: \(docs/model\.md\))?),?\s*"
+                  r"§\s*(\d+)(?![.\d])((?:\s*(?:,|and|–|-)\s*§\s*\d+(?![.\d]))*)")
+
+
+def spec_links(line: str) -> str:
+    """Citations of the model specification's sections as links to ``docs/model.md``."""
+
+    def link(m):
+        first = f"[model specification §{m.group(1)}][model-{m.group(1)}]"
+        rest = re.sub(r"§\s*(\d+)", lambda k: f"[§{k.group(1)}][model-{k.group(1)}]", m.group(2))
+        return first + rest
+
+    return SPEC.sub(link, line)
 
 
 def _resolve(collection, identifier: str, context) -> str:
@@ -55,7 +71,7 @@ def convert(text: str, collection=None, context=None) -> str:
         if line.lstrip().startswith("```"):
             fence = not fence
         if not fence:
-            line = ROLE.sub(role, line)
+            line = spec_links(ROLE.sub(role, line))
             if (BLOCK_START.match(line) and prev.strip() and not BLOCK_START.match(prev)
                     and not prev.startswith((" ", "\t")) and len(line) - len(line.lstrip()) == 0):
                 out.append("")

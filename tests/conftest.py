@@ -15,7 +15,7 @@ import os
 # LLVM at -O0 instead of -O3 compiles ~35 % faster and runs the programs 2–4× slower, a net
 # ~25 % less CPU time for the suite (the few long 2D runs use helpers.simulate_optimised).
 # XLA:CPU's newer MLIR fusion emitters off (the classic elemental IR emitters instead) halves
-# what is left of a compile again (a 1D run 2.1 → 1.2 s, compile_scene of a 2D scene 3.1 → 1.5 s)
+# what is left of a compile again (a 1D run 2.1 → 1.2 s, build_model of a 2D scene 3.1 → 1.5 s)
 # and does not slow the runs; results agree with the default emitters to round-off (~1e-12
 # relative). One LLVM module per program instead of parallel codegen's pieces: ~7 % less again
 # (the two workers already keep both cores busy). Set before jax starts its backend; a caller's
@@ -48,7 +48,7 @@ jax.config.update("jax_enable_x64", True)
 # what an earlier run left. Within one run the workers share a fresh cache directory, so a
 # program compiled by one module (or one worker) is loaded, not recompiled, by the next (the
 # per-module clearing below would otherwise recompile every shared model). Every program is
-# kept, however quickly it compiled: compile_scene alone runs ~150 small eager programs
+# kept, however quickly it compiled: build_model alone runs ~150 small eager programs
 # (~30 ms each to compile, ~5 ms to load).
 os.environ["JAXBELT_COMPILATION_CACHE"] = "0"
 
@@ -118,7 +118,7 @@ def _release_compiled_programs():
     limit (``vm.max_map_count``, 65530 by default) and the next compile segfaults. Clearing JAX's
     caches between modules keeps the count bounded (module-scoped fixtures are torn down first).
     They are cleared only once the process holds more than half the limit: until then the next
-    module reuses what this one traced and compiled (the shared scenes' ``compile_scene`` and
+    module reuses what this one traced and compiled (the shared scenes' ``build_model`` and
     ``initial_state``, whole runs of the same shapes) instead of tracing it again and loading it
     from the compilation cache. Only then is the garbage collector run too: with the caches
     kept, a full collection walks every cached program's Python objects (~1.5 s a module late

@@ -67,19 +67,32 @@ def whole_chunks(n_steps: int) -> int:
     return n
 
 
-def simulate_optimised(model, n_steps=None):
-    """``jb.simulate(model, n_steps=n_steps)[1]`` from a program compiled at XLA's optimisation
-    level 1, for the few long 2D runs (over a thousand steps) whose running time outweighs their
-    compile: the suite compiles at -O0 (tests/conftest.py), and a -O0 program runs a 2D step ~4×
-    slower, for ~2 s less compile. Checks the run for non-finite states as ``jb.simulate`` does."""
-    n = model.n_steps if n_steps is None else n_steps
-    tr = _optimised_run(model, n)
-    jb.check_finite(tr, model.dt)
+def load(source, **changes):
+    """``(model, options)`` of a scene (built-in name, path or :class:`jaxbelt.Scene`): its model and
+    its own run settings (:class:`jaxbelt.RunOptions`), ``changes`` applied to the latter."""
+    scene = jb.load_scene(source) if isinstance(source, str) else source
+    return jb.build_model(scene), jb.RunOptions.from_scene(scene).replace(**changes)
+
+
+def trajectory(model, options, **changes):
+    """The :class:`jaxbelt.Trajectory` of ``jb.simulate(model, **options)``, ``changes`` applied."""
+    return jb.simulate(model, **options.replace(**changes))[1]
+
+
+def simulate_optimised(model, options, n_steps=None):
+    """The trajectory of ``jb.simulate(model, **options)`` from a program compiled at XLA's
+    optimisation level 1, for the few long 2D runs (over a thousand steps) whose running time
+    outweighs their compile: the suite compiles at -O0 (tests/conftest.py), and a -O0 program runs
+    a 2D step ~4× slower, for ~2 s less compile. Checks the run for non-finite states as
+    ``jb.simulate`` does."""
+    n = options.n_steps if n_steps is None else n_steps
+    tr = _optimised_run(model, options.solver, options.dt, n, options.saveat)
+    jb.check_finite(tr, options.dt)
     return tr
 
 
-def _run(model, n_steps):
-    return jb.simulate(model, n_steps=n_steps, check=False)[1]
+def _run(model, solver, dt, n_steps, saveat):
+    return jb.simulate(model, solver, n_steps=n_steps, dt=dt, saveat=saveat, check=False)[1]
 
 
-_optimised_run = jax.jit(_run, static_argnums=1, compiler_options={"xla_backend_optimization_level": 1})
+_optimised_run = jax.jit(_run, static_argnums=(3, 4), compiler_options={"xla_backend_optimization_level": 1})
