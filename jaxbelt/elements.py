@@ -54,7 +54,7 @@ def prestress_force_1d(elem_free, EA, eps0):
 
 # ----------------------------------------------------------------------------- 2D plane stress
 
-_GAUSS = (0.5 - 0.5 / 3**0.5, 0.5 + 0.5 / 3**0.5)
+GAUSS_POINTS = (0.5 - 0.5 / 3**0.5, 0.5 + 0.5 / 3**0.5)  # 2-point Gauss rule on [0, 1]
 
 
 def plane_stress_D(E, nu):
@@ -79,8 +79,8 @@ def quad_stiffness(ell, w, E, nu, t):
     """``K_e = t ∫ Bᵀ D B`` (eq. 4.21) by 2 × 2 Gauss quadrature, exact on rectangles (8 × 8)."""
     D = plane_stress_D(E, nu)
     K = jnp.zeros((8, 8))
-    for gx in _GAUSS:
-        for gz in _GAUSS:
+    for gx in GAUSS_POINTS:
+        for gz in GAUSS_POINTS:
             B = quad_B(gx, gz, ell, w)
             K = K + B.T @ D @ B
     return t * K * (ell * w / 4.0)
@@ -125,8 +125,8 @@ def quad_qm6_stiffness(ell, w, E, nu, t):
     """
     D = plane_stress_D(E, nu)
     Kcc, Kci, Kii = jnp.zeros((8, 8)), jnp.zeros((8, 4)), jnp.zeros((4, 4))
-    for gx in _GAUSS:
-        for gz in _GAUSS:
+    for gx in GAUSS_POINTS:
+        for gz in GAUSS_POINTS:
             Bc, Bi = quad_B(gx, gz, ell, w), quad_bubble_B(gx, gz, ell, w)
             Kcc = Kcc + Bc.T @ D @ Bc
             Kci = Kci + Bc.T @ D @ Bi
@@ -144,13 +144,13 @@ def quad_prestress_force(ell, w, E, eps0, t):
     """Nodal internal forces (8,) of a uniaxial pre-stress ``σ₀ = (E ε₀, 0, 0)`` (pre-tension)."""
     sig = jnp.array([E * eps0, 0.0, 0.0])
     f = jnp.zeros(8)
-    for gx in _GAUSS:
-        for gz in _GAUSS:
+    for gx in GAUSS_POINTS:
+        for gz in GAUSS_POINTS:
             f = f + quad_B(gx, gz, ell, w).T @ sig
     return t * f * (ell * w / 4.0)
 
 
-def _quad_dofs(n_eta):
+def quad_dofs(n_eta):
     """Column-pair DOF indices (n_eta-1, 8) of every quad in an element column."""
     b = 2 * n_eta
     j = jnp.arange(n_eta - 1)[:, None]
@@ -169,7 +169,7 @@ def free_belt_stiffness_2d(ell, w_rows, elem_free, E, nu, t, element="q4"):
     Kq = jax.vmap(jax.vmap(QUAD_ELEMENTS[element], in_axes=(None, 0, None, None, None)),
                   in_axes=(0, None, None, None, None))(ell, w_rows, E, nu, t)  # (n, n_eta-1, 8, 8)
     Kq = Kq * elem_free[:, None, None, None]
-    idx = _quad_dofs(n_eta)
+    idx = quad_dofs(n_eta)
     Kc = jnp.zeros((n, 4 * n_eta, 4 * n_eta)).at[:, idx[:, :, None], idx[:, None, :]].add(Kq)
     return column_pair_to_blocks(Kc)
 
@@ -180,7 +180,7 @@ def prestress_force_2d(ell, w_rows, elem_free, E, eps0, t):
     n, n_eta = ell.shape[0], w_rows.shape[0] + 1
     fq = jax.vmap(jax.vmap(quad_prestress_force, in_axes=(None, 0, None, None, None)),
                   in_axes=(0, None, None, None, None))(ell, w_rows, E, eps0, t) * elem_free[:, None, None]
-    fc = jnp.zeros((n, 4 * n_eta)).at[:, _quad_dofs(n_eta)].add(fq)
+    fc = jnp.zeros((n, 4 * n_eta)).at[:, quad_dofs(n_eta)].add(fq)
     return column_pair_to_nodes(fc)
 
 

@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 
 from .state import initial_state
-from .elements import _GAUSS, _quad_dofs, column_pair_to_blocks, plane_stress_D, quad_B
+from .elements import GAUSS_POINTS, quad_dofs, column_pair_to_blocks, plane_stress_D, quad_B
 
 
 def quad_geometric_stiffness(ell, w, sig_gp, t):
@@ -40,8 +40,8 @@ def quad_geometric_stiffness(ell, w, sig_gp, t):
     ``(g0, g0), (g0, g1), (g1, g0), (g1, g1)``); DOFs interleaved ``u, v`` as in :func:`quad_B`."""
     K = jnp.zeros((4, 4))
     k = 0
-    for gx in _GAUSS:
-        for gz in _GAUSS:
+    for gx in GAUSS_POINTS:
+        for gz in GAUSS_POINTS:
             B = quad_B(gx, gz, ell, w)
             G = jnp.stack([B[0, 0::2], B[1, 1::2]])  # (2, 4): ∂N/∂x, ∂N/∂z
             sx, sz, txz = sig_gp[k]
@@ -55,7 +55,7 @@ def quad_gauss_stress(ell, w, u_e, E, nu, sig_pre):
     """Stresses (4, 3) at the Gauss points of one quad with nodal displacements ``u_e`` (8,):
     ``D B u_e + σ_pre``."""
     D = plane_stress_D(E, nu)
-    return jnp.stack([D @ (quad_B(gx, gz, ell, w) @ u_e) + sig_pre for gx in _GAUSS for gz in _GAUSS])
+    return jnp.stack([D @ (quad_B(gx, gz, ell, w) @ u_e) + sig_pre for gx in GAUSS_POINTS for gz in GAUSS_POINTS])
 
 
 @eqx.filter_jit
@@ -63,7 +63,7 @@ def membrane_stress(model, u, elem_free, E, nu, eps0):
     """Gauss-point stresses (n, n_eta-1, 4, 3) of the belt displacement ``u`` (n, b) plus the
     pre-tension ``σ_xx = E ε₀``; zero on roller elements (``elem_free`` (n,) 0/1)."""
     w_rows = jnp.diff(model.z0)
-    idx = _quad_dofs(model.n_eta)  # (n_eta-1, 8) into the column pair [u_i; u_{i+1}]
+    idx = quad_dofs(model.n_eta)  # (n_eta-1, 8) into the column pair [u_i; u_{i+1}]
     pair = jnp.concatenate([u, jnp.roll(u, -1, axis=0)], axis=1)  # (n, 2b)
     u_e = pair[:, idx]  # (n, n_eta-1, 8)
     sig_pre = jnp.array([E * eps0, 0.0, 0.0])
@@ -79,7 +79,7 @@ def geometric_stiffness_blocks(model, sig, t):
     w_rows = jnp.diff(model.z0)
     Kq = jax.vmap(jax.vmap(quad_geometric_stiffness, in_axes=(None, 0, 0, None)),
                   in_axes=(0, None, 0, None))(model.ell, w_rows, sig, t)  # (n, n_eta-1, 8, 8)
-    idx = _quad_dofs(n_eta)
+    idx = quad_dofs(n_eta)
     Kc = jnp.zeros((n, 4 * n_eta, 4 * n_eta)).at[:, idx[:, :, None], idx[:, None, :]].add(Kq)
     return column_pair_to_blocks(Kc)
 

@@ -45,7 +45,7 @@ import numpy as np
 from jax import lax
 
 from .cyclic_reduction import CyclicReductionFactors, bcr_apply, bcr_factor
-from .thomas import (ChainedThomasFactors, ThomasFactors, _chains, chain_thomas, chained_thomas_apply, thomas_apply,
+from .thomas import (ChainedThomasFactors, ThomasFactors, elimination_chains, chain_thomas, chained_thomas_apply, thomas_apply,
                      thomas_factor)
 
 
@@ -223,10 +223,10 @@ def with_chained_interior(F: BorderedFactorisation, contact_columns) -> Bordered
 
 
 def _spans_through(breaks, blocks):
-    """The interior blocks of the free spans (the non-break blocks of a chain, :func:`_chains`)
+    """The interior blocks of the free spans (the non-break blocks of a chain, :func:`elimination_chains`)
     that contain any of ``blocks``."""
     out = set()
-    for chain in _chains(len(breaks), breaks, reverse=False):
+    for chain in elimination_chains(len(breaks), breaks, reverse=False):
         span = [i for i in chain if not breaks[i]]
         if any(j in span for j in blocks):
             out.update(span)

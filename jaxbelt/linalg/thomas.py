@@ -111,7 +111,9 @@ class ChainedThomasFactors(eqx.Module):
     layout: tuple = eqx.field(static=True)  # (f_phases, singles, b_phases, m): block-index tables
 
 
-def _chains(m: int, breaks, reverse: bool):
+def elimination_chains(m: int, breaks, reverse: bool):
+    """The chains of dependent blocks of an ``m``-block interior cut at the ``breaks`` (bool per
+    block): lists of block indices in sweep order (``reverse``: the backward sweep's)."""
     order = range(m - 1, -1, -1) if reverse else range(m)
     out, cur = [], []
     for i in order:
@@ -143,10 +145,10 @@ def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
     e.g. the belt's roller columns)."""
     m = F.inv.shape[0]
     breaks = [bool(x) for x in breaks]
-    fw = _chains(m, breaks, reverse=False)
+    fw = elimination_chains(m, breaks, reverse=False)
     singles = tuple(c[0] for c in fw if len(c) == 1)
     fw = [c for c in fw if len(c) > 1]
-    bw = [c for c in _chains(m, breaks, reverse=True) if len(c) > 1]
+    bw = [c for c in elimination_chains(m, breaks, reverse=True) if len(c) > 1]
     f_ph, b_ph = _phases(fw), _phases(bw)
     f_inv = tuple(F.inv[np.asarray(t)] for t in f_ph)
     f_P = tuple(fi @ F.L[np.asarray(t)] for fi, t in zip(f_inv, f_ph))
