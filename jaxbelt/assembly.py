@@ -100,7 +100,7 @@ def nodal_masses(model: BeltModel, m_e) -> jnp.ndarray:
 
 def generalised_belt_force(R, f) -> jnp.ndarray:
     """``Σ_k R_rᵀ f_k`` for nodal forces ``f`` (n, b): the belt's load on the roller DOFs (q,)."""
-    return f.reshape(-1) @ R.reshape(-1, R.shape[-1])  # one product (an einsum over (n, b): 7× slower on a CPU)
+    return f.reshape(-1) @ R.reshape(-1, R.shape[-1])  # one product (an einsum over (n, b) is slower on a CPU)
 
 
 def roller_stiffness_rows(R, Kd, Kl, Ku) -> jnp.ndarray:
@@ -201,7 +201,7 @@ def stencil_matvec(S, u, columns=None):
 
     Written as the nine shifted 2 × 2 products, elementwise (XLA fuses them into one loop over
     the nodes): the same sum as an ``einsum`` over the stencil axes, which XLA's CPU backend
-    lowered to a batched dot 9× slower (0.157 vs 0.017 ms per product on ``three-roller-t72``)."""
+    lowers to a batched dot several times slower."""
     n, ne = S.shape[0], S.shape[1]
     U = jnp.pad(u.reshape(n, ne, 2), ((0, 0), (1, 1), (0, 0)))
     near = (jnp.roll(U, 1, axis=0), U, jnp.roll(U, -1, axis=0))  # columns i-1, i, i+1

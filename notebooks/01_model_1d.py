@@ -45,6 +45,7 @@ from IPython.display import Image, display
 import jaxbelt as jb
 from jaxbelt import plot
 
+jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
 STEPS = 100 if SMALL else 1000  # Δt = 5 ms: 0.5 s / 5 s of belt motion (the source's Figure 6.4a)
 STEADY_S = STEPS * 0.005 if SMALL else 6.0  # s of belt motion for the steady strain of the transport study
@@ -66,11 +67,12 @@ def show(fig):
 # %%
 scene = jb.load_scene("two-roller-1d-train1")
 mesh = jb.build_mesh(scene)
-model = jb.compile_scene(scene, mesh).replace(full_fields=True)  # record u at every step
+model = jb.build_model(scene, mesh)  # the physics and the grid
+DT = jb.RunOptions.from_scene(scene).dt  # the scene's time step
 N, N_a = model.n_unknowns, model.n_algebraic
 print(f"{scene.name}: {scene.description}")
 print(f"N = {N} unknowns, {N_a} algebraic, {N - N_a} dynamic  (source §6.2: N = 224, 139 after elimination)")
-print(f"elements: arcs {mesh.roller_elements}, spans {mesh.free_elements}; Δt = {model.dt * 1e3:g} ms")
+print(f"elements: arcs {mesh.roller_elements}, spans {mesh.free_elements}; Δt = {DT * 1e3:g} ms")
 with tempfile.TemporaryDirectory() as tmp:
     display(Image(filename=plot.plot_scene(scene, mesh, os.path.join(tmp, "scene.png")), width=520))
 
@@ -80,24 +82,28 @@ with tempfile.TemporaryDirectory() as tmp:
 # * **naive** — the 3N system of the DAE and the Backward-Euler relations (unknowns x, ẋ, ẍ),
 #   row- and column-equilibrated, dense LU;
 # * **direct** — Backward Euler substituted into the DAE, one N × N solve per step: the
-#   structured cyclic block-tridiagonal solver (default) or a dense LU;
+#   structured cyclic block-tridiagonal solver with the belt interior's factors kept for the run
+#   (`KeptInterior`, the default) or a dense LU (`Dense`);
 # * **eliminated** — the algebraic unknowns eliminated, Backward Euler on the 139-unknown ODE
 #   (the form modal decomposition and POD need, notebook 3).
 #
-# All step the same model from the same initial state (static equilibrium on the moved roller).
+# All step the same model from the same initial state (static equilibrium on the moved roller),
+# each run recording the whole displacement field `u` at every step (`SaveAt(fields=True)`).
 
 # %%
 integrators = {
-    "direct (structured)": jb.DirectBackwardEuler("structured"),
-    "direct (dense)": jb.DirectBackwardEuler("dense"),
-    "eliminated": jb.make_integrator("eliminated", model),
+    "direct (kept interior)": jb.DirectBackwardEuler(jb.KeptInterior()),
+    "direct (dense)": jb.DirectBackwardEuler(jb.Dense()),
+    "eliminated": jb.make_solver("eliminated"),
     "naive 3N": jb.NaiveBackwardEuler(),
 }
 state0 = jb.initial_state(model)
+FIELDS = jb.SaveAt(fields=True)  # record u at every step
+NO_CHECKPOINTS = jb.Checkpointed(steps=0)  # forward runs only: one scan, no checkpointed chunks
 
 
-def run(integ, m=model, n=STEPS):
-    return jb.simulate(m, integ, state=jb.initial_state(m) if m is not model else state0, n_steps=n, checkpoint=0)
+def run(integ, n=STEPS):
+    return jb.simulate(model, integ, n_steps=n, dt=DT, saveat=FIELDS, adjoint=NO_CHECKPOINTS, y0=state0)
 
 
 runs, per_step_ms = {}, {}
@@ -110,7 +116,7 @@ for name, integ in integrators.items():
         best = min(best, time.perf_counter() - t0)
     per_step_ms[name] = best / STEPS * 1e3
 
-ref = runs["direct (structured)"][1]
+ref = runs["direct (kept interior)"][1]
 print(f"{'integrator':22s} {'max |Δ tracer u| vs direct':>28s} {'ms / step':>10s}")
 for name, (_, tr) in runs.items():
     d = float(jnp.max(jnp.abs(tr.tracer_u - ref.tracer_u)))
@@ -132,7 +138,7 @@ names = list(per_step_ms)
 vals = [per_step_ms[k] for k in names]
 ax.barh(names, vals, color=["tab:blue", "tab:cyan", "tab:green", "tab:red"])
 for y, v in enumerate(vals):
-    ax.text(v, y, f" {v:.2f} ms ({v / per_step_ms['direct (structured)']:.1f}×)", va="center", fontsize=8)
+    ax.text(v, y, f" {v:.2f} ms ({v / per_step_ms['direct (kept interior)']:.1f}×)", va="center", fontsize=8)
 ax.set_xscale("log")
 ax.set_xlabel("wall time per step (solve + transport), ms — this machine")
 ax.set_title(f"{scene.name}, N = {N}: cost per step")
@@ -143,10 +149,10 @@ show(fig)
 # **Ours vs the source.** The direct step is the one to use, as the source concluded, but the
 # ratios are not the source's. jaxbelt's naive system is solved by a dense LU of the 3N matrix —
 # 27× the flops of an N × N LU — so it costs some 15–30× the dense direct step, not the ~3× of a
-# banded count. The structured direct solver keeps the factorisation of the belt's interior for
-# the whole run (with the shift transport only the roller columns and a small Schur complement
-# change from step to step), which makes it an order of magnitude faster than a dense LU even at
-# N = 224. The eliminated ODE costs about as much as the dense direct step: its elimination is
+# banded count. The kept-interior direct solver keeps the factorisation of the belt's interior
+# for the whole run (with the shift transport only the roller columns and a small Schur
+# complement change from step to step), which makes it an order of magnitude faster than a dense
+# LU even at N = 224. The eliminated ODE costs about as much as the dense direct step: its elimination is
 # two small dense products, where the source's per-step substitution made it slower than direct
 # integration. Timings on a shared 2-core machine vary by ~20 % between runs.
 #
@@ -184,19 +190,19 @@ show(axes[0, 0].figure)
 #
 # The grid is fixed in space while the belt moves; after every solve the material is moved back
 # onto the grid points. The source's rule (eq. 3.55–3.56) interpolates between neighbours with a
-# weight from the *total* displacement ũ. jaxbelt's default (`transport = "shift"`) relabels the
-# material by the mean displacement s = mean(ũ) — every grid point takes the material labelled
-# X − s (uniform weight s/ℓ), the consistent relabelling of a moving frame. The source's rule is
-# kept as `transport = "source"`; every run records the weight range (outside [0, 1) is
-# extrapolation).
+# weight from the *total* displacement ũ. jaxbelt's default (the integrator's
+# `transport="shift"`, a scene's `[solver] transport = "shift"`) relabels the material by the
+# mean displacement s = mean(ũ) — every grid point takes the material labelled X − s (uniform
+# weight s/ℓ), the consistent relabelling of a moving frame. The source's rule is kept as
+# `transport="source"`; every run records the weight range (outside [0, 1) is extrapolation).
 #
 # On Table 6.1 run 1 (10 mm translation, 3.9 mm elements) the displacement itself exceeds an
 # element length:
 
 # %%
 for rule in ("shift", "source"):
-    m = model.replace(transport=rule, full_fields=False)
-    _, tr = jb.simulate(m, n_steps=STEPS, checkpoint=0, check=False)
+    _, tr = jb.simulate(model, jb.make_solver("direct", transport=rule), n_steps=STEPS, dt=DT,
+                        adjoint=NO_CHECKPOINTS, check=False)
     w = np.asarray(tr.transport_weights)
     mass = np.asarray(tr.belt_mass)
     bad = np.flatnonzero(np.asarray(tr.nonfinite))
@@ -215,20 +221,26 @@ for rule in ("shift", "source"):
 # %%
 import dataclasses
 
-from jaxbelt.integrators import make_integrator
+
+@jax.jit
+def solve_once(integ, m, s, dt):
+    """One solve from the state ``s``, before its transport."""
+    return integ.step(m, s, dt, integ.init(m, s, dt))
 
 
 def steady_strain(rule, dt, refine=1, seconds=STEADY_S):
     sc = jb.load_scene("two-roller-1d-idle-translated")
     sc = sc.replace(mesh=dataclasses.replace(sc.mesh, roller_elements=(40 * refine,) * 2,
-                                             free_elements=(70 * refine,) * 2),
-                    time=dataclasses.replace(sc.time, dt=dt), solver=dataclasses.replace(sc.solver, transport=rule))
+                                             free_elements=(70 * refine,) * 2))
     msh = jb.build_mesh(sc)
-    # the quick run's shift case is the program of the runs above (same grid, steps, full fields)
-    m = jb.compile_scene(sc, msh).replace(full_fields=SMALL and refine == 1 and dt == 0.005 and rule == "shift")
-    integ = make_integrator("direct", m)
-    s, tr = jb.simulate(m, integ, n_steps=int(round(seconds / dt)), checkpoint=0)
-    u = np.asarray(jax.jit(integ.solve_step)(m, s).u)[:, 0]  # the last solve, before transport
+    m = jb.build_model(sc, msh)
+    integ = jb.make_solver("direct", transport=rule)
+    # Δt is a traced argument: the quick run's shift case is the program of the runs above (same
+    # grid, steps, records and start-state argument)
+    saveat = FIELDS if SMALL and refine == 1 and rule == "shift" else jb.SaveAt()
+    s, tr = jb.simulate(m, integ, n_steps=int(round(seconds / dt)), dt=dt, saveat=saveat, adjoint=NO_CHECKPOINTS,
+                        y0=jb.initial_state(m))
+    u = np.asarray(solve_once(integ, m, s, dt).u)[:, 0]  # the last solve, before transport
     first = msh.segment_starts[1] - 1  # the first span, from the drive's outgoing contact line
     ids = np.arange(first, first + msh.free_elements[0] + 1)
     eps = float(np.mean(np.diff(u[ids]) / np.asarray(m.ell)[ids[:-1]]))

@@ -40,9 +40,9 @@ import numpy as np
 from IPython.display import Image, display
 
 import jaxbelt as jb
-from jaxbelt import design, plot
-from jaxbelt.integrators import make_integrator
+from jaxbelt import design, misalignment, plot
 
+jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
 N_ETA = 2 if SMALL else 18  # elements across the belt (the source: 18)
 STEPS = 100 if SMALL else 1000  # Δt = 0.02 s: 2 s / 20 s (the source's Figure 7.3)
@@ -70,7 +70,8 @@ def on_grid(name, n_eta=N_ETA):
 # %%
 scene = on_grid("three-roller-t72")
 mesh = jb.build_mesh(scene)
-model = jb.compile_scene(scene, mesh)
+model = jb.build_model(scene, mesh)
+DT = jb.RunOptions.from_scene(scene).dt  # the scene's time step, 0.02 s
 print(f"{scene.name}: {scene.description}")
 print(f"grid {model.n_eta - 1} × {model.n_xi} elements, N = {model.n_unknowns} unknowns "
       f"({model.n_algebraic} algebraic); {model.n_tracers} tracers (5 per segment, as the source)")
@@ -82,15 +83,14 @@ with tempfile.TemporaryDirectory() as tmp:
 #
 # The full run uses the factorisation-reuse solver: the frozen factors of the first step solve
 # every step exactly here (to ~1e-13 mm of the exact structured solver, README "reuse"), at a
-# fraction of the cost. `full_fields=True` records the whole displacement field for the
+# fraction of the cost. `SaveAt(fields=True)` records the whole displacement field for the
 # pictures below.
 
 # %%
-reuse = make_integrator("direct", model, linear_solver="reuse")
-model_f = model.replace(full_fields=True)
+reuse = jb.DirectBackwardEuler(jb.Reuse())
 t0 = time.perf_counter()
-state, traj = jax.block_until_ready(jb.simulate(model_f, reuse, n_steps=STEPS))
-print(f"{STEPS} steps ({STEPS * model.dt:g} s of belt motion) in {time.perf_counter() - t0:.1f} s, compilation included")
+state, traj = jax.block_until_ready(jb.simulate(model, reuse, n_steps=STEPS, dt=DT, saveat=jb.SaveAt(fields=True)))
+print(f"{STEPS} steps ({STEPS * DT:g} s of belt motion) in {time.perf_counter() - t0:.1f} s, compilation included")
 
 t = np.asarray(traj.t)
 tu, tv = np.asarray(traj.tracer_u) * 1e3, np.asarray(traj.tracer_v) * 1e3
@@ -130,13 +130,13 @@ print(f"largest |u| {np.abs(tu).max():.3f} mm, |v| {np.abs(tv).max() * 1e3:.1f} 
 # contact line; dark bands: the roller arcs), `plot_belt_3d` the belt surface on the rollers.
 
 # %%
-axes = plot.plot_fields(model_f, traj, times=[0.4, t[-1] / 2, t[-1]])
+axes = plot.plot_fields(model, traj, times=[0.4, t[-1] / 2, t[-1]])
 show(axes[0, 0].figure)
 
 # %%
 fig = plt.figure(figsize=(9, 7))
 ax = fig.add_subplot(projection="3d")
-plot.plot_belt_3d(model_f, state.u, chi=state.chi, mesh=mesh, exaggerate=100, ax=ax, color_by="v",
+plot.plot_belt_3d(model, state.u, chi=state.chi, mesh=mesh, exaggerate=100, ax=ax, color_by="v",
                   title=f"{scene.name} at t = {t[-1]:g} s")
 ax.view_init(elev=25, azim=-60)
 show(fig)
@@ -152,8 +152,7 @@ show(fig)
 
 # %%
 aligned = misalignment.aligned(model)  # the same machine, every misalignment zero (= three-roller)
-study = design.make_study(aligned, "lateral_max", t_eval=STEPS * model.dt,
-                          integrator=make_integrator("direct", aligned, linear_solver="reuse"))
+study = design.make_study(aligned, "lateral_max", t_eval=STEPS * DT, integrator=reuse)
 labels_p = study.space.labels()
 size = np.array([5.0 if lab.split(":")[1][0] == "d" else 0.5 for lab in labels_p])  # mm / mrad
 thetas = np.diag(size)
@@ -232,30 +231,31 @@ for i, c in enumerate("uv"):
 # The source compared the naive 3N system with direct time integration over grid sizes and found
 # the direct step faster by less than the factor 3 of its flop count (Table 7.1), the gain
 # growing with the grid. jaxbelt's naive step solves the equilibrated 3N system with a dense LU;
-# the direct step uses the structured (cyclic block-tridiagonal, bordered) solver, exact, or the
-# frozen factors of the first step (reuse).
+# the direct step uses the structured (cyclic block-tridiagonal, bordered) solver with the belt
+# interior's factors kept for the run, exact, or the frozen factors of the first step (reuse).
 
 # %%
 cost = {}
 for n_eta in COST_GRIDS:
-    m = jb.compile_scene(on_grid("three-roller-t72", n_eta))
+    m = jb.build_model(on_grid("three-roller-t72", n_eta))
     row = {}
     for name, integ in (("naive 3N (dense)", jb.NaiveBackwardEuler()),
-                        ("direct (structured)", make_integrator("direct", m, linear_solver="structured")),
-                        ("direct (reuse)", make_integrator("direct", m, linear_solver="reuse"))):
+                        ("direct (kept interior)", jb.make_solver("direct", "kept-interior")),
+                        ("direct (reuse)", jb.make_solver("direct", "reuse"))):
         n = 1 if name.startswith("naive") else 20  # a dense 3N step takes seconds on the finer grids
-        jax.block_until_ready(jb.simulate(m, integ, n_steps=n, checkpoint=0))  # compile
+        forward = jb.Checkpointed(steps=0)  # forward runs only: one scan, no checkpointed chunks
+        jax.block_until_ready(jb.simulate(m, integ, n_steps=n, dt=DT, adjoint=forward))  # compile
         t0 = time.perf_counter()
-        jax.block_until_ready(jb.simulate(m, integ, n_steps=n, checkpoint=0))
+        jax.block_until_ready(jb.simulate(m, integ, n_steps=n, dt=DT, adjoint=forward))
         row[name] = (time.perf_counter() - t0) / n * 1e3
     cost[m.n_unknowns] = row
     print(f"n_eta = {n_eta:2d}, N = {m.n_unknowns:5d}: " + ", ".join(f"{k} {v:.1f} ms" for k, v in row.items())
-          + f"; naive / structured = {row['naive 3N (dense)'] / row['direct (structured)']:.0f}×")
+          + f"; naive / kept interior = {row['naive 3N (dense)'] / row['direct (kept interior)']:.0f}×")
 
 # %%
 fig, ax = plt.subplots(figsize=(6.5, 4))
 Ns = sorted(cost)  # empty in the quick run
-for name, mk in (("naive 3N (dense)", "s-"), ("direct (structured)", "o-"), ("direct (reuse)", "^-")):
+for name, mk in (("naive 3N (dense)", "s-"), ("direct (kept interior)", "o-"), ("direct (reuse)", "^-")):
     ax.loglog(Ns, [cost[n][name] for n in Ns], mk, label=name)
 ax.set(xlabel="unknowns N", ylabel="ms per step (solve + transport)", title="cost per step on this machine")
 ax.grid(alpha=0.3, which="both")

@@ -39,9 +39,9 @@ import numpy as np
 from IPython.display import Image, display
 
 import jaxbelt as jb
-from jaxbelt import design, plot, rom
-from jaxbelt.integrators import algebraic_partition, make_integrator
+from jaxbelt import misalignment, plot, rom
 
+jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
 STEPS_1D = 100 if SMALL else 1000  # 1D runs (Δt = 5 ms): the source's Figure 6.5 ran 1000 steps
 TRAIN_1D = 50  # the source's 50 snapshots (§6.3.1)
@@ -75,9 +75,10 @@ def err_mm(a, b):
 # frequency (Figure 6.1).
 
 # %%
-m1 = jb.load_model("two-roller-1d-train1")
+sc1 = jb.load_scene("two-roller-1d-train1")
+m1, DT1 = jb.build_model(sc1), sc1.time.dt  # Δt = 5 ms
 s1 = jb.initial_state(m1)
-omega, Phi, force = jax.jit(lambda s: rom.modal_basis(m1, s))(s1)  # one compiled program, not op by op
+omega, Phi, force = jax.jit(lambda s: rom.modal_basis(m1, s, DT1))(s1)  # one compiled program, not op by op
 omega, Phi, force = np.asarray(omega), np.asarray(Phi), np.asarray(force)
 print(f"{Phi.shape[0]} dynamic unknowns (source: 139); lowest frequencies {np.round(omega[:4] / 2 / np.pi, 2)} Hz")
 
@@ -105,11 +106,12 @@ print(f"median |φᵀF| of the first 40 modes: odd {np.median(proj[:40:2]):.3g},
 # (`fit_modal` → the `PODGalerkin` integrator), run here over the whole horizon:
 
 # %%
-_, ref1 = jb.simulate(m1, "eliminated", n_steps=STEPS_1D, checkpoint=0)
+forward = jb.Checkpointed(steps=0)  # forward runs only: one scan, no checkpointed chunks
+_, ref1 = jb.simulate(m1, jb.make_solver("eliminated"), n_steps=STEPS_1D, dt=DT1, adjoint=forward)
 modal = {}
 for order in ("frequency", "forcing"):
-    modal[order] = [err_mm(ref1.tracer_u, jb.simulate(m1, rom.fit_modal(m1, r, order), n_steps=STEPS_1D,
-                                                      checkpoint=0)[1].tracer_u) for r in RANKS_MODAL]
+    modal[order] = [err_mm(ref1.tracer_u, jb.simulate(m1, rom.fit_modal(m1, r, DT1, order), n_steps=STEPS_1D,
+                                                      dt=DT1, adjoint=forward)[1].tracer_u) for r in RANKS_MODAL]
     print(f"modal, {order:9s} order: RMSE " + ", ".join(f"{r} modes {e:.3g} mm" for r, e in zip(RANKS_MODAL, modal[order])))
 
 # %% [markdown]
@@ -119,13 +121,13 @@ for order in ("frequency", "forcing"):
 # the first 50 steps, the reduced solve in their span, the transport on the full state.
 
 # %%
-_, X1, _ = rom.collect_snapshots(m1, TRAIN_1D, "eliminated")
-dyn, _ = algebraic_partition(m1)
+_, X1, _ = rom.collect_snapshots(m1, TRAIN_1D, DT1, jb.make_solver("eliminated"))
+dyn, _ = m1.partition  # (dynamic, algebraic) unknowns
 _, sv1 = rom.pod_basis(X1[jnp.asarray(dyn)], n_modes=1)
 # check=False: a basis with modes of numerically zero energy can make the projected step unstable;
 # such a run is reported as diverged (nan) instead of stopping the notebook
-pod1 = {r: err_mm(ref1.tracer_u, jb.simulate(m1, rom.fit_pod(m1, X1, n_modes=r), n_steps=STEPS_1D,
-                                             checkpoint=0, check=False)[1].tracer_u) for r in RANKS_POD_1D}
+pod1 = {r: err_mm(ref1.tracer_u, jb.simulate(m1, rom.fit_pod(m1, X1, n_modes=r), n_steps=STEPS_1D, dt=DT1,
+                                             adjoint=forward, check=False)[1].tracer_u) for r in RANKS_POD_1D}
 print("POD-Galerkin (50 snapshots): " + ", ".join(f"{r} modes " + (f"{e:.2g} mm" if np.isfinite(e) else "diverged")
                                                   for r, e in pod1.items()))
 print(f"singular values σ_r/σ_1 at r = 5, 10, 20: " + ", ".join(f"{sv1[r - 1] / sv1[0]:.1e}" for r in (5, 10, 20)))
@@ -163,20 +165,20 @@ show(fig)
 # %%
 sc2 = jb.load_scene("three-roller-t72")
 sc2 = sc2.replace(mesh=sc2.mesh.__class__(n_eta=N_ETA, n_xi=104))
-m2 = jb.compile_scene(sc2)
-reuse2 = make_integrator("direct", m2, linear_solver="reuse")
+m2, DT2 = jb.build_model(sc2), sc2.time.dt  # Δt = 0.02 s
+reuse2 = jb.make_solver("direct", "reuse")
 t0 = time.perf_counter()
 # one full run gives both the training snapshots (its first TRAIN_2D steps) and the reference
-_, Zpre, Zpost = jax.block_until_ready(rom.collect_first_order(m2, STEPS_2D, reuse2))
+_, Zpre, Zpost = jax.block_until_ready(rom.collect_first_order(m2, STEPS_2D, DT2, reuse2))
 N2 = m2.n_unknowns
 ref_u = (rom.tracer_operator(m2, "x") @ Zpost[:N2, 1:]).T  # tracers after each step's transport
 ref_v = (rom.tracer_operator(m2, "z") @ Zpost[:N2, 1:]).T
-t2 = np.arange(1, STEPS_2D + 1) * m2.dt
+t2 = np.arange(1, STEPS_2D + 1) * DT2
 print(f"N = {N2}; the {STEPS_2D}-step full run with snapshots: {time.perf_counter() - t0:.1f} s (compilation included)")
 
 Z = jnp.concatenate([Zpre[:, :TRAIN_2D], Zpost[:, :TRAIN_2D + 1]], axis=1)
 t0 = time.perf_counter()
-roms = rom.fit_reduced_pod_ranks(m2, Z, RANKS_2D)  # one SVD and one projection for every rank
+roms = rom.fit_reduced_pod_ranks(m2, Z, DT2, RANKS_2D)  # one SVD and one projection for every rank
 fit_s = time.perf_counter() - t0
 sv2 = np.asarray(next(iter(roms.values())).singular_values)
 n_rule = rom.choose_modes(sv2, rule="source")
@@ -233,19 +235,19 @@ show(fig)
 
 # %%
 base = misalignment.aligned(m2)
-space = design.parameter_space(base, ["roller 1:dx", "roller 1:dy", "roller 2:ax", "roller 2:ay",
+space = misalignment.parameter_space(base, ["roller 1:dx", "roller 1:dy", "roller 2:ax", "roller 2:ay",
                                       "roller 3:ax", "roller 3:dy"])
 thetas = jnp.diag(jnp.array([5.0, 5.0, 0.5, 0.5, 0.5, 5.0]))  # mm / mrad: Table 7.4, row by row
 
 
 def snapshots(theta):
     m = misalignment.apply(base, space, theta)
-    return rom.collect_snapshots(m, 50, reuse2)[1][:, 3:]  # pre-transport x̃, steps 4 … 50
+    return rom.collect_snapshots(m, 50, DT2, reuse2)[1][:, 3:]  # pre-transport x̃, steps 4 … 50
 
 
 t0 = time.perf_counter()
 X74 = jax.vmap(snapshots)(thetas)  # (6, N, 47)
-dyn2, _ = algebraic_partition(m2)
+dyn2, _ = m2.partition
 X74 = jnp.concatenate(list(X74), axis=1)[jnp.asarray(dyn2)]
 sv74 = np.asarray(jnp.linalg.svd(X74, compute_uv=False))
 n74 = rom.choose_modes(sv74, rule="source")

@@ -47,8 +47,8 @@ from IPython.display import Image, display
 import jaxbelt as jb
 from jaxbelt import plot, rom
 from jaxbelt.cli import main as jaxbelt_cli
-from jaxbelt.integrators import make_integrator
 
+jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
 N_ETA = 2 if SMALL else 18  # elements across (the source: 18 × 104, N = 3762)
 STEPS = 300 if SMALL else 5000  # Δt = 0.02 s: the whole 100 s in the full notebook
@@ -81,11 +81,11 @@ def on_grid(name):
 
 # %%
 scene = on_grid("three-roller-t72")
-model = jb.compile_scene(scene)
+model, DT = jb.build_model(scene), scene.time.dt  # Δt = 0.02 s
 N = model.n_unknowns
-reuse = make_integrator("direct", model, linear_solver="reuse")
+reuse = jb.make_solver("direct", "reuse")
 t0 = time.perf_counter()
-_, Zpre, _ = jax.block_until_ready(rom.collect_first_order(model, STEPS, reuse))
+_, Zpre, _ = jax.block_until_ready(rom.collect_first_order(model, STEPS, DT, reuse))
 print(f"N = {N} (2N = {2 * N} per snapshot); {STEPS} steps in {time.perf_counter() - t0:.1f} s (compilation included)")
 Cx, Cz = rom.tracer_operator(model, "x"), rom.tracer_operator(model, "z")
 obs = jnp.concatenate([jnp.concatenate([Cx, 0 * Cx], 1), jnp.concatenate([Cz, 0 * Cz], 1)])  # tracers from z
@@ -118,7 +118,7 @@ n_unst = dmd100.eigs.shape[0] - dmd100.stable().eigs.shape[0]
 fig, axs = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
 plot.plot_dmd_eigenvalues(lam, w, ax=axs[0])
 axs[0].set_title(f"DMD eigenvalues, {SNAPSHOTS} snapshots (Fig. 7.15)")
-tt = np.arange(101, STEPS + 1) * model.dt
+tt = np.arange(101, STEPS + 1) * DT
 axs[1].semilogy(tt, np.maximum(ex_all, 1e-16), label=f"all modes ({n_unst} with |λ| > 1 + 1e-5)")
 axs[1].semilogy(tt, np.maximum(ex_st, 1e-16), label="unstable modes discarded")
 axs[1].axhline(TOL, color="r", lw=0.8, ls="--", label=f"tolerance {TOL} mm")
@@ -166,7 +166,7 @@ axs[0].set(xlabel="snapshots (first steps of the run)", ylabel="RMSE over the pr
            title="error against the number of snapshots (Fig. 7.14)")
 axs[0].legend(fontsize=8)
 axs[0].grid(alpha=0.3, which="both")
-tt = np.arange(SNAPSHOTS + 1, STEPS + 1) * model.dt
+tt = np.arange(SNAPSHOTS + 1, STEPS + 1) * DT
 plot.plot_rmse_over_time(tt, ex10, TOL, ax=axs[1])
 axs[1].semilogy(tt, np.maximum(ez10, 1e-16), lw=1, color="tab:green", label="z")
 axs[1].legend(fontsize=8)
@@ -219,7 +219,7 @@ with tempfile.TemporaryDirectory() as tmp:
     variant = os.path.join(tmp, "t72.toml")
     with open(variant, "w") as fh:
         fh.write(f'extends = "three-roller-t72"\n[mesh]\nn_eta = {N_ETA}\nn_xi = 104\n'
-                 f'[time]\nt_end_s = {STEPS * model.dt}\n[solver]\nlinear_solver = "reuse"\n')
+                 f'[time]\nt_end_s = {STEPS * DT}\n[solver]\nlinear_solver = "reuse"\n')
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         code = jaxbelt_cli(["reduce", variant, "--method", "dmd", "--train-steps", str(SNAPSHOTS),
@@ -251,11 +251,11 @@ print(f"speedup online ×{tm['speedup_online']:.0f}, per step ×{tm['speedup_per
 
 # %%
 names = ["three-roller-t73-train1", "three-roller-t73-train2", "three-roller-t73-test1"]
-chis = jnp.stack([jb.compile_scene(on_grid(n)).chi_static for n in names])
+chis = jnp.stack([jb.build_model(on_grid(n)).chi_static for n in names])
 
 
 def first_order_run(chi):
-    return rom.collect_first_order(model.replace(chi_static=chi), MULTI_STEPS, reuse)[1]
+    return rom.collect_first_order(model.replace(chi_static=chi), MULTI_STEPS, DT, reuse)[1]
 
 
 Zs = jax.vmap(first_order_run)(chis)  # (3, 2N, MULTI_STEPS), one compiled batch
@@ -267,7 +267,7 @@ half = MULTI_STEPS // 2
 own = rom.fit_dmd(Zs[2][:, :half]).stable()  # for scale: DMD on test run 1's own first half
 d_own = np.asarray(own.predict(Zs[2][:, half - 1], MULTI_STEPS - half, observe=obs) - (obs @ Zs[2][:, half:]).T)
 v_test = np.asarray(obs @ Zs[2])[n_tr:]
-print(f"test run 1, {MULTI_STEPS * model.dt:g} s, lateral (z) tracers: response up to {np.abs(v_test).max() * 1e3:.3g} mm")
+print(f"test run 1, {MULTI_STEPS * DT:g} s, lateral (z) tracers: response up to {np.abs(v_test).max() * 1e3:.3g} mm")
 print(f"  multi-configuration DMD ({X.shape[1]} snapshot pairs of the 2 training runs): "
       f"RMSE z {np.sqrt(np.mean(d[:, n_tr:] ** 2)) * 1e3:.3g} mm, x {np.sqrt(np.mean(d[:, :n_tr] ** 2)) * 1e3:.3g} mm")
 print(f"  DMD of the test run's own first {half} steps: RMSE z {np.sqrt(np.mean(d_own[:, n_tr:] ** 2)) * 1e3:.2g} mm, "
@@ -279,7 +279,7 @@ o = np.argsort(xt)
 ax.plot(xt[o], v_test[o, -1] * 1e3, "o-", ms=3, label="full model")
 ax.plot(xt[o], np.asarray(p)[-1, n_tr:][o] * 1e3, "s--", ms=3, label="multi-configuration DMD")
 ax.set(xlabel="tracer position along the belt [mm]", ylabel="v [µm]",
-       title=f"test run 1: lateral tracer displacement at t = {MULTI_STEPS * model.dt:g} s (Fig. 7.13)")
+       title=f"test run 1: lateral tracer displacement at t = {MULTI_STEPS * DT:g} s (Fig. 7.13)")
 ax.legend(fontsize=8)
 show(fig)
 

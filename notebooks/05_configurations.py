@@ -48,10 +48,10 @@ import numpy as np
 from IPython.display import Image, display
 
 import jaxbelt as jb
-from jaxbelt import design, plot, rom
-from jaxbelt.integrators import make_integrator
+from jaxbelt import plot, rom
 from jaxbelt.rom.indicator import error_rom, residual_indicator
 
+jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
 N_ETA = 2 if SMALL else 18  # elements across (the source: 18 × 104, N = 3762)
 TRAIN = 50 if SMALL else 200  # steps per training run (the source: 50; the lateral response settles in ~4 s)
@@ -80,16 +80,17 @@ def show(fig):
 
 # %%
 sc = jb.load_scene("three-roller")
-base = jb.compile_scene(sc.replace(mesh=sc.mesh.__class__(n_eta=N_ETA, n_xi=104)))
+base = jb.build_model(sc.replace(mesh=sc.mesh.__class__(n_eta=N_ETA, n_xi=104)))
+DT = sc.time.dt  # Δt = 0.02 s, the time step of every run here
 N = base.n_unknowns
-reuse = make_integrator("direct", base, linear_solver="reuse")
+reuse = jb.make_solver("direct", "reuse")
 
 
 def configuration(name):
     """The misalignment (chi_static) of a built-in scene, on this grid."""
     rollers = jb.load_scene(name).rollers
-    return base.with_misalignment(translation=jnp.array([r.translation for r in rollers]),
-                                  rotation=jnp.array([r.rotation for r in rollers])).chi_static
+    return jb.with_misalignment(base, translation=jnp.array([r.translation for r in rollers]),
+                                rotation=jnp.array([r.rotation for r in rollers])).chi_static
 
 
 train_names = ["three-roller"] + [f"three-roller-t74-train{i}" for i in range(1, 7)]
@@ -101,7 +102,7 @@ print(f"N = {N}; {len(train_names)} training configurations, {len(test_names)} h
 
 
 def first_order_run(chi, n):
-    return rom.collect_first_order(base.replace(chi_static=chi), n, reuse)
+    return rom.collect_first_order(base.replace(chi_static=chi), n, DT, reuse)
 
 
 # the axial design of the last section: the aligned machine and each component the test runs vary
@@ -129,7 +130,7 @@ print(f"training runs: {n_t} (Table 7.4 design) + {len(chi_axial)} (axial design
 mu_train = jax.vmap(lambda c: rom.parameters(base.replace(chi_static=c)))(chi_train)
 t0 = time.perf_counter()
 snaps = [jnp.concatenate([Zpre[j], Zpost[j]], 1)[:, ::POD_STRIDE] for j in range(len(chi_train))]
-pod = rom.fit_reduced_pod(base, jnp.concatenate(snaps, 1), n_modes=RANK)  # linearised at the nominal machine
+pod = rom.fit_reduced_pod(base, jnp.concatenate(snaps, 1), DT, n_modes=RANK)  # linearised at the nominal machine
 t_pod = time.perf_counter() - t0
 post = [Zpost[j][:, ::STRIDE] for j in range(len(chi_train))]
 X, Y, U = rom.stack_controlled(post, [rom.belt_inputs(mu, z.shape[1] - 1) for mu, z in zip(mu_train, post)])
@@ -160,7 +161,7 @@ n_tr = Cx.shape[0]
 @eqx.filter_jit
 def full_tracers(m, integ, chis):
     def one(chi):
-        _, tr = jb.simulate(m.replace(chi_static=chi), integ, n_steps=TEST, check=False)
+        _, tr = jb.simulate(m.replace(chi_static=chi), integ, n_steps=TEST, dt=DT, check=False)
         return jnp.concatenate([tr.tracer_u, tr.tracer_v], 1)  # (TEST, 2 n_tr)
 
     return jax.vmap(one)(chis)
@@ -175,7 +176,7 @@ def reduced_tracers(m0, models, obs, chis):
         st, mu = jb.initial_state(m), rom.parameters(m)
         out = pod.run(pod.project(m, st), mu, TEST)
         p_pod = jnp.concatenate([out["tracer_u"], out["tracer_v"]], 1)
-        p_dmdc = dmdc.predict(rom.state_to_z(m, st), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE, observe=obs)
+        p_dmdc = dmdc.predict(rom.state_to_z(m, st, DT), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE, observe=obs)
         p_pdmd = pdmd.predict(mu, TEST // STRIDE, observe=obs)  # k = 0 is step STRIDE
         p_pdmd_z0 = pdmd_z0.predict(mu, TEST // STRIDE + 1, observe=obs)[1:]  # k = 0 is the initial state
         return {"POD": p_pod, "DMDc": p_dmdc, "parametric DMD": p_pdmd, "parametric DMD from z_0": p_pdmd_z0}
@@ -229,7 +230,7 @@ for c, comp in enumerate(("x (along the belt)", "z (lateral)")):
     axs[c].axvline(11.5, color="0.4", lw=0.8)
     axs[c].set_yscale("log")
     axs[c].set_xticks(xi, labels, rotation=60, ha="right", fontsize=8)
-    axs[c].set_title(f"tracer RMSE, {comp}, over {TEST * base.dt:g} s")
+    axs[c].set_title(f"tracer RMSE, {comp}, over {TEST * DT:g} s")
 axs[0].set_ylabel("RMSE [mm]")
 axs[1].legend(fontsize=8)
 show(fig)
@@ -286,19 +287,19 @@ picks = [labels.index("A.1 run 4"), labels.index("A.1 run 11"), labels.index("7.
 picks = picks[::2] if SMALL else picks  # each estimate compiles one full step of its configuration
 stride = 10
 fig, axs = plt.subplots(1, len(picks), figsize=(15, 3.8), constrained_layout=True)
-tt = np.arange(1, TEST + 1) * base.dt
+tt = np.arange(1, TEST + 1) * DT
 for ax, i in zip(axs, picks):
     m = base.replace(chi_static=chi_test[i])
     st = jb.initial_state(m)
     xi0 = pod.project(m, st)
     out = pod.run(xi0, rom.parameters(m), TEST)
     coords = jnp.concatenate([xi0[None], out["xi"]])
-    est = error_rom(m, pod.basis, coords, z_true0=rom.state_to_z(m, st), stride=stride, integrator=reuse)
-    ind = residual_indicator(m, pod.fields(coords), stride=stride, integrator=reuse)
+    est = error_rom(m, DT, pod.basis, coords, z_true0=rom.state_to_z(m, st, DT), stride=stride, integrator=reuse)
+    ind = residual_indicator(m, DT, pod.fields(coords), stride=stride, integrator=reuse)
     e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out["tracer_u"])) ** 2, 1)) * 1e3
     plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est["error_mm"]), ax=ax,
                              estimate_label="error ROM estimate")
-    ax.semilogy((np.asarray(ind["step"]) + 1) * base.dt, np.asarray(ind["estimate_mm"]), "x:", ms=3, lw=1,
+    ax.semilogy((np.asarray(ind["step"]) + 1) * DT, np.asarray(ind["estimate_mm"]), "x:", ms=3, lw=1,
                 color="tab:gray", label="triangle-inequality indicator")
     ax.legend(fontsize=8)
     ax.set_title(f"POD, {labels[i]}", fontsize=9)
@@ -341,7 +342,7 @@ def dmdc_predictions(m0, model, obs, chis):
     def one(chi):
         m = m0.replace(chi_static=chi)
         mu = rom.parameters(m)
-        return model.predict(rom.state_to_z(m, jb.initial_state(m)), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE,
+        return model.predict(rom.state_to_z(m, jb.initial_state(m), DT), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE,
                              observe=obs)
 
     return jax.vmap(one)(chis)

@@ -23,7 +23,7 @@
 # tolerance figures or tables to set beside these; where it has a counterpart (its lateral model
 # without belt walk) it is said below.
 #
-# 1. one tilt, one tolerance: `jax.grad` + `optax` (the former `tilt_tolerance` notebook);
+# 1. one tilt, one tolerance: `jax.grad` + `optax`;
 # 2. the sensitivities of the lateral deviation to all 15 roller components;
 # 3. the largest tolerance box, verified by full runs;
 # 4. the yield under random misalignments: Monte Carlo, FORM, importance sampling;
@@ -46,8 +46,8 @@ from IPython.display import Image, display
 
 import jaxbelt as jb
 from jaxbelt import design, lateral_theory, plot
-from jaxbelt.integrators import make_integrator
 
+jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
 N_ETA, STEPS = (2, 9) if SMALL else (3, 40)  # section 1: a coarsened three-roller, few steps
 DESIGN_ETA = 2 if SMALL else 6  # sections 2-4: elements across the design scene (its own: 18)
@@ -86,13 +86,14 @@ def show_png(name, draw, *args):
 # %%
 scene = jb.load_scene("three-roller")
 scene = scene.replace(mesh=scene.mesh.__class__(n_eta=N_ETA, n_xi=104))
-model = jb.compile_scene(scene)
+model, DT = jb.build_model(scene), scene.time.dt  # Δt = 0.02 s
 print(model.n_unknowns, "unknowns")
 
 
 def lateral_drift_mm(alpha):
     rot = jnp.zeros((3, 3)).at[1, 0].set(alpha)
-    _, tr = jb.simulate(model.with_misalignment(rotation=rot), n_steps=STEPS, checkpoint=0)  # short: no checkpoints
+    _, tr = jb.simulate(jb.with_misalignment(model, rotation=rot), n_steps=STEPS, dt=DT,
+                        adjoint=jb.Checkpointed(steps=0))  # a short run: no checkpointed chunks
     v = tr.tracer_v[-1] * 1e3
     return jnp.sqrt(jnp.mean(v**2))  # RMS over the tracers at the end, mm
 
@@ -137,10 +138,10 @@ print(f"linear estimate from the sensitivity alone: {linear_estimate * 1e3:.3f} 
 # %%
 dscene = jb.load_scene("three-roller-tolerance")
 dscene = dscene.replace(mesh=dscene.mesh.__class__(n_eta=DESIGN_ETA, n_xi=104))
-dmodel = jb.compile_scene(dscene)
+dmodel = jb.build_model(dscene)
 t0 = time.perf_counter()
-study = design.make_study(dmodel, "lateral_max", t_eval=T_EVAL,
-                          integrator=make_integrator("direct", dmodel, linear_solver="reuse"))
+study = design.make_study(dmodel, "lateral_max", t_eval=T_EVAL, dt=dscene.time.dt,
+                          integrator=jb.make_solver("direct", "reuse"))
 report = design.sensitivity_report(study, repeat=1)
 print(f"N = {dmodel.n_unknowns}, {study.n_steps} steps; study + sensitivities in {time.perf_counter() - t0:.1f} s "
       f"(forward {report['forward_s']:.2f} s, gradient {report['gradient_s']:.2f} s, at the kink: {report['at_kink']})")
@@ -242,9 +243,9 @@ for n_xi, dt in WALK_GRIDS:
     base = jb.load_scene("three-roller")
     wscene = base.replace(mesh=base.mesh.__class__(n_eta=WALK_ETA, n_xi=n_xi), time=base.time.__class__(dt=dt, t_end=WALK_T),
                           solver=base.solver.__class__(lateral_transport=True, linear_solver="reuse"))
-    wmodel = jb.compile_scene(wscene)
+    wmodel, wopts = jb.build_model(wscene), jb.RunOptions.from_scene(wscene)  # the scene's solver, Δt, steps
     t0 = time.perf_counter()
-    _, wtr = jb.simulate(wmodel.with_misalignment(rotation=jnp.asarray(skew)))
+    _, wtr = jb.simulate(jb.with_misalignment(wmodel, rotation=jnp.asarray(skew)), **wopts)
     t = np.asarray(wtr.t)
     vbar = np.asarray(wtr.tracer_v).mean(axis=1)
     half = len(t) // 2

@@ -22,7 +22,7 @@ import griffe
 ROLE = re.compile(r":(?:func|class|meth|mod|data|attr|exc|obj):`(~?)([\w.]+)(?:\(\))?`")
 BLOCK_START = re.compile(r"^\s*(?:[-*] |\d+\. |\|)")
 SPEC = re.compile(r"(?:MODEL\.md|docs/model\.md|model specification(?: \(docs/model\.md\))?),?\s*"
-                  r"§\s*(\d+)(?![.\d])((?:\s*(?:,|and|–|-)\s*§\s*\d+(?![.\d]))*)")
+                  r"§\s*(\d+)(?!\.?\d)((?:\s*(?:,|and|–|-)\s*§\s*\d+(?!\.?\d))*)")
 
 
 def spec_links(line: str) -> str:

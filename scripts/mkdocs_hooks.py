@@ -8,6 +8,8 @@
   holds no copy of it;
 * ``<!-- cli-reference -->`` in ``cli.md`` is replaced by :func:`cli_reference.markdown`, the
   reference generated from the argparse parsers;
+* ``<!-- solver-registry -->`` in ``scene-format.md``: the names ``[solver]`` accepts, with their
+  descriptions and defaults, from ``jaxbelt/registry.py`` (:func:`registry_markdown`);
 * ``<!-- reexports -->`` in ``api/jaxbelt.md``: the table of the names ``jaxbelt`` re-exports, each
   linked to its definition;
 * ``<!-- decisions -->`` in ``decisions.md`` is replaced by the list of the model decisions, each
@@ -111,7 +113,30 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace("<!-- decisions -->", decisions_markdown())
     if "<!-- reexports -->" in markdown:
         markdown = markdown.replace("<!-- reexports -->", reexports_markdown())
+    if "<!-- solver-registry -->" in markdown:
+        markdown = markdown.replace("<!-- solver-registry -->", registry_markdown())
     return markdown
+
+
+def registry_markdown() -> str:
+    """Tables of the integrator, linear-solver and transport names of ``jaxbelt/registry.py`` (a
+    module that imports nothing, so it is read without importing jaxbelt)."""
+    import runpy
+
+    path = ROOT / "jaxbelt" / "registry.py"
+    if not path.exists():
+        log.warning("jaxbelt/registry.py not found: no table of solver names in scene-format.md")
+        return ""
+    reg = runpy.run_path(str(path))
+    out = []
+    for key, table, default in (("integrator", "INTEGRATORS", "DEFAULT_INTEGRATOR"),
+                                ("linear_solver", "LINEAR_SOLVERS", "DEFAULT_LINEAR_SOLVER"),
+                                ("transport", "TRANSPORT_RULES", "DEFAULT_TRANSPORT")):
+        names = reg.get(table, {})
+        rows = [[f"`\"{name}\"`" + (" (default)" if name == reg.get(default) else ""), desc.replace("|", "\\|")]
+                for name, desc in names.items()]
+        out += [f"**`{key}`**", ""] + _table(["value", "what it does"], rows)
+    return "\n".join(out) + "\n"
 
 
 def reexports_markdown() -> str:
@@ -253,6 +278,9 @@ BENCHMARKS = {
                "run (`jaxbelt bench --only pareto`)."),
     "pdmd_2d": ("Parametric DMD in 2D", "Parametric DMD over a box of misalignments, trained from the static state "
                 "and from after the start-up step."),
+    "recompile": ("No recompilation for a new time step or misalignment", "The first call of `simulate` "
+                  "(trace, compile, run) against later calls with another time step or another misalignment, "
+                  "which run the program already compiled, and the number of XLA compilations each made."),
     "refinement": ("Refinement iterations of the reuse solver", "Time and tracer error of the whole run for 0–3 "
                    "iterative-refinement iterations of the frozen-factor solver, against the exact solver."),
     "rom_1d": ("Reduced models on the 1D scenes", "POD, DMD, DMD with control and parametric DMD on the 1D scenes, "

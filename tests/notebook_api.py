@@ -5,10 +5,11 @@ Without running a cell, it checks what breaks a notebook when the library change
 every code cell compiles; every name a notebook imports from ``jaxbelt`` exists; every attribute
 chain rooted at an imported jaxbelt module or object (``jb.simulate``, ``plot.plot_fields``,
 ``design.sampling.X``) resolves; every call of a jaxbelt function or class passes only keywords
-its signature takes and no more positional arguments than it has; and every option (``--x``) of a
-``jaxbelt`` command-line call written as a literal list is one that command's parser knows.
-Calls on values the notebook computes (``model.with_misalignment(...)``) cannot be resolved
-without running it and are left to the execution test."""
+its signature takes, no more positional arguments than it has and — unless it unpacks ``*args``
+or ``**options`` — every argument it requires (``jb.simulate(model, n_steps=10)`` lacks ``dt``);
+and every option (``--x``) of a ``jaxbelt`` command-line call written as a literal list is one
+that command's parser knows. Calls on values the notebook computes (``study.space.labels()``,
+``fit.predict(...)``) cannot be resolved without running it and are left to the execution test."""
 
 import argparse
 import ast
@@ -45,7 +46,7 @@ def _import_bindings(tree: ast.Module) -> dict:
 
 
 def _chain(node):
-    """``["jb", "design", "make_study"]`` for ``jb.design.make_study``; None if not a name chain."""
+    """``["jb", "rom", "fit_dmd"]`` for ``jb.rom.fit_dmd``; None if not a name chain."""
     parts = []
     while isinstance(node, ast.Attribute):
         parts.append(node.attr)
@@ -78,17 +79,25 @@ def _check_call(call: ast.Call, fn, label, lineno):
         sig = inspect.signature(fn)
     except (TypeError, ValueError):
         return
-    params = sig.parameters.values()
+    params = list(sig.parameters.values())
     if not any(p.kind is p.VAR_KEYWORD for p in params):
         names = {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
         for kw in call.keywords:
             if kw.arg is not None and kw.arg not in names:
                 raise AssertionError(f"line {lineno}: {label}() takes no keyword {kw.arg!r}")
-    if not any(p.kind is p.VAR_POSITIONAL for p in params) and not any(isinstance(a, ast.Starred) for a in call.args):
+    starred = any(isinstance(a, ast.Starred) for a in call.args)
+    if not any(p.kind is p.VAR_POSITIONAL for p in params) and not starred:
         n_pos = sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params)
         if len(call.args) > n_pos:
             raise AssertionError(f"line {lineno}: {label}() takes at most {n_pos} positional arguments, "
                                  f"the notebook passes {len(call.args)}")
+    if starred or any(kw.arg is None for kw in call.keywords):
+        return  # what *args / **options hold is known only when the cell runs
+    positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    given = {p.name for p in positional[:len(call.args)]} | {kw.arg for kw in call.keywords}
+    for p in params:
+        if p.default is p.empty and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD) and p.name not in given:
+            raise AssertionError(f"line {lineno}: {label}() is missing its required argument {p.name!r}")
 
 
 def _cli_options(command: str) -> set[str]:

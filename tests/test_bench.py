@@ -30,8 +30,9 @@ def test_superlu_baseline_reproduces_jaxbelt_on_a_small_scene():
     from jaxbelt.bench import baselines
 
     sc = jb.load_scene("three-roller-t72")
-    m = jb.compile_scene(sc.replace(mesh=dataclasses.replace(sc.mesh, n_eta=3)))
-    out = baselines.per_step(m, rounds=1, steps=4, scipy_steps=3)
+    sc = sc.replace(mesh=dataclasses.replace(sc.mesh, n_eta=3))
+    m, opts = jb.build_model(sc), jb.RunOptions.from_scene(sc)
+    out = baselines.per_step(m, opts.dt, rounds=1, steps=4, scipy_steps=3)
     # the numpy + SuperLU step is an independent implementation of the same discrete step
     assert out["scipy_reference_max_tracer_diff_vs_jaxbelt_mm"] < 1e-9
     assert out["superlu_ordering"] in ("MMD_AT_PLUS_A", "COLAMD")

@@ -13,58 +13,59 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.linalg import bordered_solve, join
 from jaxbelt.linalg.bordered import factor_solve_transposed, factorise
+from helpers import load, scene_with
 from test_linalg import _random
 
 
 @pytest.fixture(scope="module")
-def model():
-    return jb.load_model("two-roller-1d-idle-translated")
+def loaded():
+    return load("two-roller-1d-idle-translated")
 
 
-def _metric(model, translation, n_steps=56):
-    m = model.with_misalignment(translation=translation)
-    _, tr = jb.simulate(m, n_steps=n_steps)
+def _metric(loaded, translation, n_steps=56):
+    model, opts = loaded
+    m = jb.with_misalignment(model, translation=translation)
+    _, tr = jb.simulate(m, opts.solver, n_steps=n_steps, dt=opts.dt)
     return jnp.mean(tr.tracer_u**2) * 1e6 + jnp.mean(tr.tracer_u[-1]) * 1e3
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("k", [0, 1])
-def test_grad_wrt_roller_translation_matches_central_differences(model, k):
+def test_grad_wrt_roller_translation_matches_central_differences(loaded, k):
     """Slow (programs of its own). Fast: case 1d-drive-idle of
     test_grad_wrt_drive_idle_tension_rollers_matches_central_differences checks the x translation
     of both rollers against central differences (and
     test_checkpointed_scan_changes_neither_outputs_nor_gradients differentiates through
     ``with_misalignment(translation=…)`` in 1D)."""
     t0 = jnp.array([0.0, 1e-3])
-    g = jax.grad(lambda t: _metric(model, t))(t0)[k]
+    g = jax.grad(lambda t: _metric(loaded, t))(t0)[k]
     h = 1e-7
     e = jnp.zeros(2).at[k].set(h)
-    fd = (_metric(model, t0 + e) - _metric(model, t0 - e)) / (2 * h)
+    fd = (_metric(loaded, t0 + e) - _metric(loaded, t0 - e)) / (2 * h)
     assert abs(float(g - fd)) / abs(float(fd)) < 1e-5
 
 
 def test_grad_through_eliminated_and_naive():
     """Reverse mode through the eliminated integrator (dense condensation, ``jnp.linalg.solve``)
-    gives the direct one's gradient. The direct gradient is case 1d-drive-idle-structured of
+    gives the direct one's gradient. The direct gradient is case 1d-drive-idle-kept-interior of
     test_grad_wrt_drive_idle_tension_rollers_matches_central_differences (the same program and
     point; checked there against central differences)."""
-    model = jb.load_model("two-roller-1d")
+    model, opts = load("two-roller-1d")
     chi0 = _fd_point(model)
-    g_direct = jax.jit(jax.grad(_tracer_metric(model, 56, "structured")))(chi0)
-    g_elim = jax.jit(jax.grad(_tracer_metric(model, 56, integrator="eliminated")))(chi0)
+    g_direct = jax.jit(jax.grad(_tracer_metric(model, opts.dt, 56, "kept-interior")))(chi0)
+    g_elim = jax.jit(jax.grad(_tracer_metric(model, opts.dt, 56, integrator="eliminated")))(chi0)
     assert float(jnp.max(jnp.abs(g_direct - g_elim))) < 1e-8 * float(jnp.max(jnp.abs(g_direct)))
 
 
 @pytest.fixture(scope="module")
 def model2d():
-    from helpers import scene_with
-
-    return jb.compile_scene(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
+    return load(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
 
 
-def _metric2d(model, chi, n_steps=9):
+def _metric2d(loaded, chi, n_steps=9):
+    model, opts = loaded
     m = model.replace(chi_static=chi)
-    _, tr = jb.simulate(m, n_steps=n_steps)
+    _, tr = jb.simulate(m, opts.solver, n_steps=n_steps, dt=opts.dt)
     return jnp.mean(tr.tracer_u[-1]) * 1e3 + jnp.sum(tr.tracer_v**2) * 1e6 + jnp.mean(tr.tracer_v) * 1e3
 
 
@@ -76,7 +77,7 @@ def test_grad_2d_wrt_each_misalignment_component(model2d, dof):
     Slow (programs of its own). Fast: case 2d-tension of
     test_grad_wrt_drive_idle_tension_rollers_matches_central_differences checks every translation
     and rotation of a drive, a tension and an idle roller in 2D against central differences."""
-    chi0 = model2d.chi_static.at[1].set(1e-3).at[9].set(3e-4).at[14].set(1e-3)
+    chi0 = model2d[0].chi_static.at[1].set(1e-3).at[9].set(3e-4).at[14].set(1e-3)
     k = 6 + dof
     g = jax.grad(lambda c: _metric2d(model2d, c))(chi0)[k]
     h = 1e-7 if dof < 3 else 1e-8
@@ -155,26 +156,24 @@ def test_reverse_mode_reuses_the_factors():
 
 
 def _coarse_2d(name):
-    from helpers import scene_with
-
-    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), name))
+    return load(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), name))
 
 
 # scene, steps, chi_static components with an effect (drive, idle, tension roller; translations
 # and rotations), components of dynamic DOFs (no static effect: zero gradient)
 _FD_CASES = {
-    "1d-drive-idle": (lambda: jb.load_model("two-roller-1d"), 56, [0, 1, 2], [3]),
-    "1d-tension": (lambda: jb.load_model("two-roller-1d-tension"), 56, [0, 1], [2, 3]),
+    "1d-drive-idle": (lambda: load("two-roller-1d"), 56, [0, 1, 2], [3]),
+    "1d-tension": (lambda: load("two-roller-1d-tension"), 56, [0, 1], [2, 3]),
     # roller 1 drive (0-4), roller 2 tension (7-10; dx dynamic), roller 3 idle (12-16); α_z: 5, 11, 17
     "2d-tension": (lambda: _coarse_2d("three-roller-tension"), 30, [0, 1, 2, 3, 4, 7, 8, 9, 10, 12, 13, 14, 15, 16],
                    [6, 11, 17]),
 }
 
 
-def _tracer_metric(model, n_steps, solver=None, integrator="direct"):
+def _tracer_metric(model, dt, n_steps, solver=None, integrator="direct"):
     def metric(chi):
         m = model.replace(chi_static=chi)
-        _, tr = jb.simulate(m, jb.make_integrator(integrator, m, solver), n_steps=n_steps)
+        _, tr = jb.simulate(m, jb.make_solver(integrator, solver), n_steps=n_steps, dt=dt)
         v = 0.0 if tr.tracer_v is None else jnp.sum(tr.tracer_v**2) * 1e6 + jnp.mean(tr.tracer_v) * 1e3
         return jnp.mean(tr.tracer_u[-1]) * 1e3 + jnp.sum(tr.tracer_u[-1] ** 2) * 1e6 + v
 
@@ -189,24 +188,24 @@ def _fd_point(model):
     return model.chi_static + jnp.asarray(np.random.default_rng(0).uniform(-1, 1, model.chi_static.size) * scale)
 
 
-_SLOW_FD = {("1d-drive-idle", "reuse"), ("1d-tension", "reuse"), ("2d-tension", "reuse")}  # fast: structured
+_SLOW_FD = {("1d-drive-idle", "reuse"), ("1d-tension", "reuse"), ("2d-tension", "reuse")}  # fast: kept-interior
 _FD_PARAMS = [pytest.param(case, solver, id=f"{case}-{solver}", marks=[pytest.mark.slow] * ((case, solver) in _SLOW_FD))
-              for solver in ("structured", "reuse") for case in _FD_CASES]
+              for solver in ("kept-interior", "reuse") for case in _FD_CASES]
 
 
 @pytest.mark.parametrize("case,solver", _FD_PARAMS)
 def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, solver):
     """Reverse mode through the whole run (custom adjoint solve, checkpointed scan) against
     central differences (h = 1e-6 m or rad) around a random misalignment, every component.
-    The factorisation-reuse solver's cases are slow; fast, the structured solver's cases here and,
+    The factorisation-reuse solver's cases are slow; fast, the kept-interior solver's cases here and,
     for reverse mode through the reuse solver in 2D, test_design.py's shared study (reuse):
     test_response_is_linear_in_small_misalignments (its forward-mode Jacobian against full runs)
     and test_jacobian_forward_matches_the_reverse_gradient (its reverse-mode gradient against that
     Jacobian)."""
     make, n_steps, active, inactive = _FD_CASES[case]
-    model = make()
+    model, opts = make()
     chi0 = _fd_point(model)
-    metric = _tracer_metric(model, n_steps, solver)
+    metric = _tracer_metric(model, opts.dt, n_steps, solver)
     g = jax.jit(jax.grad(metric))(chi0)
     f = jax.jit(metric)
     h = 1e-6
@@ -225,11 +224,12 @@ def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
     inside each record interval, the tail's padded interval too) give the same trajectory and
     gradient as no checkpointing, 6-step chunks (2 records each, the last chunk padded) the same
     trajectory."""
-    model = jb.load_model("two-roller-1d").replace(every=3)
+    model, opts = load("two-roller-1d")
     state = jb.initial_state(model)
 
     def metric(t, checkpoint):
-        _, tr = jb.simulate(model.with_misalignment(translation=t), state=state, n_steps=17, checkpoint=checkpoint)
+        _, tr = jb.simulate(jb.with_misalignment(model, translation=t), opts.solver, n_steps=17, dt=opts.dt,
+                            saveat=jb.SaveAt(every=3), adjoint=jb.Checkpointed(checkpoint), y0=state)
         return jnp.sum(tr.tracer_u**2) * 1e6 + jnp.mean(tr.roller_velocity), tr
 
     def check(tr, ref):
@@ -249,12 +249,13 @@ def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
 def test_checkpointing_bounds_reverse_mode_memory():
     """XLA's temporary memory for the gradient of a 400-step run: the checkpointed scan (20-step
     chunks) needs a fraction of what storing every step's residuals takes."""
-    model = jb.load_model("two-roller-1d")
+    model, opts = load("two-roller-1d")
 
     def temp_bytes(checkpoint):
         def metric(chi):
             m = model.replace(chi_static=chi)
-            _, tr = jb.timeloop.run(m, jb.DirectBackwardEuler(), jb.initial_state(m), 400, checkpoint)
+            _, tr = jb.timeloop.run(m, jb.DirectBackwardEuler(), jb.initial_state(m), opts.dt, 400, jb.SaveAt(),
+                                    checkpoint)
             return jnp.sum(tr.tracer_u[-1] ** 2)
 
         return jax.jit(jax.grad(metric)).lower(model.chi_static).compile().memory_analysis().temp_size_in_bytes

@@ -1,6 +1,6 @@
 """The notebooks: each ``.ipynb`` holds the same code as its jupytext ``.py`` pair, and their use
 of the jaxbelt API resolves (``notebook_api.check_notebook_api``: imports, attribute chains, call
-keywords, CLI options; no cell run) — both in the default run. Their execution is slow: in the
+keywords and required arguments, CLI options; no cell run) — both in the default run. Their execution is slow: in the
 small mode (``JAXBELT_NOTEBOOK_SMALL=1``: coarse grids and short runs, set in each notebook's
 parameter cell) 9–22 s a notebook, 75 s for the six — a third of the default suite's time, nearly
 all of it compiling programs that the library's own tests compile on their scenes too; full-size,
@@ -79,17 +79,20 @@ def test_notebook_api_resolves(path):
     ("import jaxbelt as jb\njb.no_such_function()", "no attribute 'no_such_function'"),
     ("from jaxbelt import design\ndesign.sampling.no_such_sampler", "no attribute 'no_such_sampler'"),
     ("from jaxbelt.rom.indicator import no_such_name", "has no 'no_such_name'"),
-    ("import jaxbelt as jb\njb.simulate(m, n_step=10)", "takes no keyword 'n_step'"),
+    ("import jaxbelt as jb\njb.simulate(m, n_step=10, dt=0.01)", "takes no keyword 'n_step'"),
+    ("import jaxbelt as jb\njb.simulate(m, n_steps=10)", "missing its required argument 'dt'"),
     ("import jaxbelt as jb\njb.load_scene('a', 'b', 'c', 'd', 'e', 'f')", "positional arguments"),
     ("from jaxbelt.cli import main as cli\ncli(['reduce', 'x', '--methd', 'dmd'])", "no option '--methd'"),
     ("from jaxbelt.cli import main as cli\ncli(['nosuchcommand'])", "no command"),
 ])
 def test_notebook_api_check_catches_drift(snippet, word):
     """The static check fails on a renamed function, a missing submodule name, a wrong keyword,
-    too many positional arguments and an unknown CLI option or command (and passes their fixes)."""
+    a missing required argument, too many positional arguments and an unknown CLI option or
+    command (and passes their fixes, and a call whose arguments come from ``**options``)."""
     from notebook_api import check_notebook_api
 
     with pytest.raises(AssertionError, match=word):
         check_notebook_api(snippet)
     check_notebook_api("import jaxbelt as jb\nfrom jaxbelt.cli import main as cli\n"
-                       "jb.simulate(m, n_steps=10)\ncli(['reduce', 'x', '--method', 'dmd'])")
+                       "jb.simulate(m, n_steps=10, dt=0.01)\njb.simulate(m, **opts)\n"
+                       "cli(['reduce', 'x', '--method', 'dmd'])")

@@ -8,25 +8,35 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.assembly import dae_apply, dae_matrices, roller_R
 from jaxbelt.linalg.bordered import bordered_solve, factor_solve, factorise
-from helpers import scene_with
+from helpers import load, scene_with
 
 
 @pytest.fixture(scope="module")
-def m():
-    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), "three-roller-t72"))
+def loaded():
+    return load(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), "three-roller-t72"))
 
 
 @pytest.fixture(scope="module")
-def state4(m):
+def m(loaded):
+    return loaded[0]
+
+
+@pytest.fixture(scope="module")
+def dt(loaded):
+    return loaded[1].dt
+
+
+@pytest.fixture(scope="module")
+def state4(m, dt):
     """The state after 9 steps (a whole number of checkpoint chunks: one compiled step; the run
     test_model2d.py and test_vmap.py compile for the same shapes)."""
-    return jb.simulate(m, n_steps=9)[0]
+    return jb.simulate(m, n_steps=9, dt=dt)[0]
 
 
-def test_factor_solve_equals_structured_solve(m):
+def test_factor_solve_equals_structured_solve(m, dt):
     s = jb.initial_state(m)
     K, M = dae_matrices(m, s.m_e, roller_R(m, s.u))
-    A = M + K.scale(m.dt**2)
+    A = M + K.scale(dt**2)
     rng = np.random.default_rng(1)
     rb, rr = jnp.asarray(rng.normal(size=(m.n_xi, m.block))), jnp.asarray(rng.normal(size=m.n_roller_dofs))
     # jit-compiled, as inside a run (one program each, not op by op)
@@ -47,19 +57,19 @@ def test_matrix_free_products_equal_assembled(m, state4):
         np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(want)) + 1))
 
 
-def test_reuse_mode_tracks_exact_mode(m):
-    _, exact = jb.simulate(m, jb.make_integrator("direct", m, "structured"), n_steps=100)
-    _, reuse = jb.simulate(m, jb.make_integrator("direct", m, "reuse"), n_steps=100)
+def test_reuse_mode_tracks_exact_mode(m, dt):
+    _, exact = jb.simulate(m, jb.make_solver("direct", "kept-interior"), n_steps=100, dt=dt)
+    _, reuse = jb.simulate(m, jb.make_solver("direct", "reuse"), n_steps=100, dt=dt)
     rmse_u = float(jnp.sqrt(jnp.mean((exact.tracer_u - reuse.tracer_u) ** 2)))
     rmse_v = float(jnp.sqrt(jnp.mean((exact.tracer_v - reuse.tracer_v) ** 2)))
     assert rmse_u < 1e-12 and rmse_v < 1e-12  # m, i.e. < 1e-9 mm
 
 
-def test_step_matrix_equals_M_plus_dt2_K(m, state4):
+def test_step_matrix_equals_M_plus_dt2_K(m, dt, state4):
     from jaxbelt.assembly import step_matrix
 
     s = state4
     R = roller_R(m, s.u)
     K, M = dae_matrices(m, s.m_e, R)
-    np.testing.assert_allclose(np.asarray(step_matrix(m, s.m_e, R, m.dt).to_dense()),
-                               np.asarray((M + K.scale(m.dt**2)).to_dense()), rtol=1e-14, atol=1e-18)
+    np.testing.assert_allclose(np.asarray(step_matrix(m, s.m_e, R, dt).to_dense()),
+                               np.asarray((M + K.scale(dt**2)).to_dense()), rtol=1e-14, atol=1e-18)

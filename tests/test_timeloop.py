@@ -8,6 +8,7 @@ import pytest
 import jaxbelt as jb
 from jaxbelt import timeloop
 from jaxbelt.timeloop import loop_plan
+from helpers import load
 
 
 @pytest.mark.parametrize("n,every,checkpoint", [(5000, 1, None), (57, 1, None), (17, 3, None), (17, 3, 1),
@@ -34,12 +35,22 @@ def test_default_plan_of_the_100_s_run_pads_nothing():
 
 
 @pytest.fixture(scope="module")
-def model():
-    return jb.load_model("two-roller-1d-idle-translated")
+def loaded():
+    return load("two-roller-1d-idle-translated")
+
+
+@pytest.fixture(scope="module")
+def model(loaded):
+    return loaded[0]
+
+
+@pytest.fixture(scope="module")
+def dt(loaded):
+    return loaded[1].dt
 
 
 @pytest.mark.parametrize("n,every,traces", [(56, 1, 1), (7, 1, 2), (17, 3, 2), (57, 1, 2), (40, 7, 2)])
-def test_step_is_traced_once_whatever_the_length(model, monkeypatch, n, every, traces):
+def test_step_is_traced_once_whatever_the_length(model, dt, monkeypatch, n, every, traces):
     """Tracing ``run`` calls the step once in the loop body, and once more for its record's
     shapes where the loop pads or records every few steps: no remainder chunk, tail loop or
     separate recording step adds a copy to compile."""
@@ -56,19 +67,18 @@ def test_step_is_traced_once_whatever_the_length(model, monkeypatch, n, every, t
         return counted
 
     monkeypatch.setattr(timeloop, "make_step", counting)
-    m = model.replace(every=every)
-    jax.make_jaxpr(lambda s: timeloop.run(m, jb.DirectBackwardEuler(), s, n))(jb.initial_state(m))
+    saveat = jb.SaveAt(every=every)
+    jax.make_jaxpr(lambda s: timeloop.run(model, jb.DirectBackwardEuler(), s, dt, n, saveat))(jb.initial_state(model))
     assert len(calls) == traces
 
 
-def test_records_equal_a_step_by_step_loop(model):
+def test_records_equal_a_step_by_step_loop(model, dt):
     """17 steps recorded every 3rd (a tail of 2 without a record, padded slots) with 2-step
     checkpoint chunks: the records and the final state are those of 17 single steps."""
-    m = model.replace(every=3)
     integ = jb.DirectBackwardEuler()
-    s = jb.initial_state(m)
-    final, tr = jax.jit(lambda s: timeloop.run(m, integ, s, 17, 2))(s)
-    step = jax.jit(timeloop.make_step(m, integ))
+    s = jb.initial_state(model)
+    final, tr = jax.jit(lambda s: timeloop.run(model, integ, s, dt, 17, jb.SaveAt(every=3), 2))(s)
+    step = jax.jit(timeloop.make_step(model, integ, dt))
     recs = []
     for k in range(17):
         s, rec = step(s)

@@ -8,7 +8,11 @@ import platform
 import time
 from pathlib import Path
 
+import equinox as eqx
 import jax
+import jax.numpy as jnp
+
+from ..timeloop import SaveAt, simulate
 
 
 def machine() -> dict:
@@ -61,3 +65,27 @@ def compiled_bytes(compiled) -> int | None:
                    - ma.alias_size_in_bytes)
     except Exception:  # pragma: no cover - backend without memory analysis
         return None
+
+
+@eqx.filter_jit
+def _simulated(model, solver, dt, n_steps, saveat):
+    return simulate(model, solver, n_steps=n_steps, dt=dt, saveat=saveat, check=False)
+
+
+def compile_run(model, solver, *, n_steps: int, dt, saveat: SaveAt = SaveAt()):
+    """:func:`jaxbelt.simulate`'s program, compiled ahead of time with its memory figure.
+
+    The same program as :func:`jaxbelt.timeloop.compile_simulation`, kept as XLA's compiled
+    object so that its memory analysis can be read.
+
+    **Returns:** ``(run, compile_s, nbytes)``: ``run(model, dt) -> (final_state, Trajectory)``
+    (no finiteness check), the seconds to trace and compile, :func:`compiled_bytes`."""
+    dt = jnp.asarray(dt, dtype=model.ell.dtype)
+    t0 = time.perf_counter()
+    compiled = _simulated.lower(model, solver, dt, int(n_steps), saveat).compile()
+    compile_s = time.perf_counter() - t0
+
+    def run(m, t):
+        return compiled(m, solver, jnp.asarray(t, dtype=dt.dtype), int(n_steps), saveat)
+
+    return run, compile_s, compiled_bytes(compiled)

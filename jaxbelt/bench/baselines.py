@@ -10,16 +10,16 @@ On the default 2D scene (``three-roller-t72``, N = 3762), every figure per step:
   every step and factor once — like for like with jaxbelt's exact and reuse modes;
 * **jaxbelt exact** (structured block solver, exact to round-off: the interior factors kept for
   the run, the part of the factors the step's matrix changes refactored every step —
-  :class:`~jaxbelt.integrators.DirectBackwardEuler`), the same with a **full factorisation every
-  step** (``keep_interior=False``, what the exact mode did before) and **reuse** (frozen factors,
-  the default refinement), each a jit-compiled 200-step ``lax.scan`` divided by 200.
+  ``DirectBackwardEuler(KeptInterior())``), the same with a **full factorisation every step**
+  (``DirectBackwardEuler(Structured())``) and **reuse** (frozen factors, the default refinement:
+  ``DirectBackwardEuler(Reuse())``), each a compiled 200-step run divided by 200.
 
 All candidates are timed in interleaved rounds and the best of each kept (the machine's load
 changes the SuperLU figure by ×1.5 from one minute to the next). Besides: the whole 100 s run in
 the reuse mode; the compilation (cold, and a second process with the persistent cache warm; the
 compile time against the number of steps); the per-configuration cost of ``vmap`` batches of
-1, 8, 64, 256 configurations through the sweep's own path; the accelerator figures of earlier runs
-where they exist; the source's reported speedups as a reference row.
+1, 8, 64, 256 configurations through the sweep's own path; the accelerator figures kept in the
+results folder where they exist; the source's reported speedups as a reference row.
 """
 
 from __future__ import annotations
@@ -35,6 +35,12 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from .. import design
+from ..build import build_model
+from ..integrators import DirectBackwardEuler, KeptInterior, Reuse, Structured
+from ..scene import load_scene
+from ..state import initial_state
+from ..timeloop import RunOptions, compile_simulation, tracer_values
 from ._common import clock, interleaved_best, write_json
 
 SCENE = "three-roller-t72"
@@ -52,29 +58,25 @@ def _log(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
-def per_step(model, rounds: int, steps: int = 200, scipy_steps: int = 5) -> dict:
-    """Per-step milliseconds of every candidate, interleaved rounds, best of ``rounds``."""
+def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> dict:
+    """Per-step milliseconds of every candidate with time step ``dt`` (s), interleaved rounds,
+    best of ``rounds``; the SciPy step is checked against jaxbelt's exact one over
+    ``scipy_steps`` steps."""
+    import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    import jaxbelt as jb
-    from ..integrators import ReusedFactorisationBackwardEuler, make_integrator
-    from ..timeloop import _run_jit
     from .scipy_reference import ScipyBelt
 
-    s0 = jax.block_until_ready(jb.initial_state(model))
-    from ..integrators import DirectBackwardEuler
+    s0 = jax.block_until_ready(initial_state(model))
+    integ = {"exact": DirectBackwardEuler(KeptInterior()),
+             "exact, full factorisation": DirectBackwardEuler(Structured()),
+             "reuse": DirectBackwardEuler(Reuse())}
+    runs = {k: compile_simulation(model, v, n_steps=steps, dt=dt) for k, v in integ.items()}
 
-    integ = {"exact": make_integrator("direct", model, "structured"),
-             "exact, full factorisation": DirectBackwardEuler("structured", keep_interior=False),
-             "reuse": ReusedFactorisationBackwardEuler.for_model(model)}
-    runs = {k: _run_jit.lower(model, v, s0, steps).compile() for k, v in integ.items()}
-
-    sc = ScipyBelt(model)
+    sc = ScipyBelt(model, dt)
     st = [np.asarray(x) for x in (s0.u, s0.u_dot, s0.chi, s0.chi_dot, s0.m_e)]
     A = sc.matrices(st[4], sc.R(st[0]))
     scale = 1.0 / abs(A).max(axis=1).toarray().ravel()
-    import scipy.sparse as sp
-
     As = (sp.diags(scale) @ A).tocsc()
     b = np.random.default_rng(0).standard_normal(As.shape[0])
     orderings = ("MMD_AT_PLUS_A", "COLAMD")
@@ -86,8 +88,8 @@ def per_step(model, rounds: int, steps: int = 200, scipy_steps: int = 5) -> dict
     s = st
     for _ in range(scipy_steps):
         s = list(sc.step(*s, permc_spec=order))
-    _, ref = runs["exact"](model, integ["exact"], s0, steps)
-    tu, _ = jb.timeloop.tracer_values(model, jax.numpy.asarray(s[0]))
+    _, ref = runs["exact"](model, dt)
+    tu, _ = tracer_values(model, jax.numpy.asarray(s[0]))
     ref_diff_mm = float(np.abs(np.asarray(tu) - np.asarray(ref.tracer_u[scipy_steps - 1])).max() * 1e3)
 
     def scipy_steps_fn(kept_factor):
@@ -99,10 +101,9 @@ def per_step(model, rounds: int, steps: int = 200, scipy_steps: int = 5) -> dict
         return go
 
     cands = {
-        "jaxbelt exact step": lambda: runs["exact"](model, integ["exact"], s0, steps)[0].u,
-        "jaxbelt exact step, full factorisation every step":
-            lambda: runs["exact, full factorisation"](model, integ["exact, full factorisation"], s0, steps)[0].u,
-        "jaxbelt reuse step": lambda: runs["reuse"](model, integ["reuse"], s0, steps)[0].u,
+        "jaxbelt exact step": lambda: runs["exact"](model, dt)[0].u,
+        "jaxbelt exact step, full factorisation every step": lambda: runs["exact, full factorisation"](model, dt)[0].u,
+        "jaxbelt reuse step": lambda: runs["reuse"](model, dt)[0].u,
         "SuperLU factor + solve (matrix given)": lambda: spla.splu(As, permc_spec=order).solve(b),
         "SuperLU solve, kept factor (matrix given)": lambda: kept_lu.solve(b),
         "numpy + SuperLU step, factor every step": scipy_steps_fn(None),
@@ -131,54 +132,49 @@ def per_step(model, rounds: int, steps: int = 200, scipy_steps: int = 5) -> dict
             "scipy_reference_max_tracer_diff_vs_jaxbelt_mm": ref_diff_mm, "scipy_reference_steps_checked": scipy_steps}
 
 
-def whole_run(model, repeat: int) -> dict:
-    """The whole run (``model.n_steps``) in the reuse mode, compile apart, best of ``repeat``."""
-    from ..integrators import ReusedFactorisationBackwardEuler
-    from ..state import initial_state
-    from ..timeloop import _run_jit
-
-    integ = ReusedFactorisationBackwardEuler.for_model(model)
-    s0 = initial_state(model)
+def whole_run(model, n_steps: int, dt, repeat: int) -> dict:
+    """The whole run (``n_steps`` of ``dt`` s) in the reuse mode, compile apart, best of ``repeat``."""
+    integ = DirectBackwardEuler(Reuse())
     t0 = time.perf_counter()
-    run = _run_jit.lower(model, integ, s0, model.n_steps).compile()
+    run = compile_simulation(model, integ, n_steps=n_steps, dt=dt)
     comp = time.perf_counter() - t0
-    best = min(clock(lambda: run(model, integ, s0, model.n_steps)[0].u)[0] for _ in range(repeat))
-    return {"n_steps": int(model.n_steps), "t_end_s": float(model.n_steps * model.dt), "run_s": best,
-            "compile_s": comp, "ms_per_step": 1e3 * best / model.n_steps}
+    best = min(clock(lambda: run(model, dt)[0].u)[0] for _ in range(repeat))
+    return {"n_steps": int(n_steps), "t_end_s": float(n_steps * dt), "run_s": best,
+            "compile_s": comp, "ms_per_step": 1e3 * best / n_steps}
 
 
 _COMPILE_CHILD = r"""
 import json, sys, time
 t0 = time.perf_counter()
 import jax, jaxbelt as jb
-from jaxbelt.cli import enable_compilation_cache
-from jaxbelt.timeloop import _run_jit
-from jaxbelt.integrators import ReusedFactorisationBackwardEuler
-enable_compilation_cache()
-m = jb.load_model(sys.argv[1])
-integ = ReusedFactorisationBackwardEuler.for_model(m)
-s0 = jax.block_until_ready(jb.initial_state(m))
+from jaxbelt.timeloop import compile_simulation
+jb.enable_x64()
+jax.config.update("jax_compilation_cache_dir", sys.argv[3])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+scene = jb.load_scene(sys.argv[1])
+m, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
+integ = jb.DirectBackwardEuler(jb.Reuse())
+jax.block_until_ready(jb.initial_state(m))
 t_ready = time.perf_counter()
 out = {}
 for n in map(int, sys.argv[2].split(",")):
     t1 = time.perf_counter()
-    low = _run_jit.lower(m, integ, s0, n)
-    t2 = time.perf_counter()
-    low.compile()
-    out[n] = {"trace_lower_s": t2 - t1, "compile_s": time.perf_counter() - t2}
+    compile_simulation(m, integ, n_steps=n, dt=opts.dt)
+    out[n] = {"compile_s": time.perf_counter() - t1}
 print(json.dumps({"setup_s": t_ready - t0, "by_steps": out}))
 """
 
 
 def compilation(steps=(50, 5000)) -> dict:
-    """Compile time of a whole run (reuse mode) in fresh processes: cold (empty persistent cache)
-    and warm (a second process, the cache the first one left), for each number of steps."""
+    """Compile time (trace, lower and compile) of a whole run (reuse mode) in fresh processes: cold
+    (empty persistent cache) and warm (a second process, the cache the first one left), for each
+    number of steps."""
     with tempfile.TemporaryDirectory(prefix="jaxbelt-bench-cache-") as d:
-        env = {**os.environ, "JAXBELT_CACHE_DIR": d, "JAXBELT_COMPILATION_CACHE": "1"}
         out = {}
         for label in ("cold", "warm"):
-            r = subprocess.run([sys.executable, "-c", _COMPILE_CHILD, SCENE, ",".join(map(str, steps))],
-                               env=env, capture_output=True, text=True)
+            r = subprocess.run([sys.executable, "-c", _COMPILE_CHILD, SCENE, ",".join(map(str, steps)), d],
+                               env=dict(os.environ), capture_output=True, text=True)
             if r.returncode:
                 raise RuntimeError(f"compilation child failed: {r.stderr.strip().splitlines()[-1:]}")
             out[label] = json.loads(r.stdout.strip().splitlines()[-1])
@@ -188,22 +184,17 @@ def compilation(steps=(50, 5000)) -> dict:
 def vmap_batches(batches, steps: int, repeat: int) -> dict:
     """Per-configuration cost of ``vmap`` batches through the sweep's path
     (:func:`jaxbelt.design.evaluate_configs`) on the design scene, exact and reuse solvers."""
-    import jaxbelt as jb
-    from .. import design
-    from ..integrators import make_integrator
-
+    scene = load_scene("three-roller-tolerance")
+    model, dt = build_model(scene), RunOptions.from_scene(scene).dt
     rows = {}
-    for solver in ("structured", "reuse"):
-        model = jb.load_model("three-roller-tolerance")
-        study = design.make_study(model, "lateral_max", t_eval=steps * model.dt,
-                                  integrator=make_integrator("direct", model, solver))
+    for solver, integ in (("exact", DirectBackwardEuler(KeptInterior())), ("reuse", DirectBackwardEuler(Reuse()))):
+        study = design.make_study(model, "lateral_max", t_eval=steps * dt, dt=dt, integrator=integ)
         rng = np.random.default_rng(0)
         for b in batches:
             thetas = 0.01 * rng.standard_normal((b, study.space.size))
             first, _ = clock(lambda: design.evaluate_configs(study, thetas, chunk=b))
             best = min(clock(lambda: design.evaluate_configs(study, thetas, chunk=b))[0] for _ in range(repeat))
-            rows[f"{solver}/{b}"] = {"solver": "exact" if solver == "structured" else "reuse", "batch": b,
-                                     "compile_s": max(first - best, 0.0), "run_s": best,
+            rows[f"{solver}/{b}"] = {"solver": solver, "batch": b, "compile_s": max(first - best, 0.0), "run_s": best,
                                      "ms_per_config_step": 1e3 * best / (b * steps)}
             _log(f"  vmap {solver:10s} batch {b:4d}: {rows[f'{solver}/{b}']['ms_per_config_step']:.3f} ms "
                  "per configuration-step")
@@ -216,7 +207,7 @@ def vmap_batches(batches, steps: int, repeat: int) -> dict:
 
 
 def accelerator_figures(results_dir: Path) -> dict | None:
-    """Figures of earlier accelerator runs (``benchmarks/gpu_2d.py``) kept in ``results_dir``."""
+    """Accelerator figures (``benchmarks/gpu_2d.py``, ``benchmarks/full_run_2d.py``) kept in ``results_dir``."""
     out = {}
     for name in ("gpu_2d_gpu", "full_run_2d_gpu"):
         p = Path(results_dir) / f"{name}.json"
@@ -227,20 +218,19 @@ def accelerator_figures(results_dir: Path) -> dict | None:
 
 def run(out_dir: Path, quick: bool = False, results_dir: Path | None = None) -> dict:
     """All baselines; writes ``baselines[_quick].json`` and ``.png`` into ``out_dir``."""
-    import jaxbelt as jb
-
     t_start = time.perf_counter()
-    model = jb.load_model(SCENE)
+    scene = load_scene(SCENE)
+    model, opts = build_model(scene), RunOptions.from_scene(scene)
     _log(f"baselines on {SCENE} (N = {model.n_unknowns}), {'quick' if quick else 'full'}")
     payload = {"scene": SCENE, "n_unknowns": int(model.n_unknowns), "quick": quick}
-    payload["per_step"] = per_step(model, rounds=3 if quick else 6)
+    payload["per_step"] = per_step(model, opts.dt, rounds=3 if quick else 6)
     _log("  whole run")
-    payload["whole_run_reuse"] = whole_run(model, repeat=1 if quick else 3)
+    payload["whole_run_reuse"] = whole_run(model, opts.n_steps, opts.dt, repeat=1 if quick else 3)
     _log("  compilation (two fresh processes)")
     payload["compilation"] = compilation()
     payload["vmap"] = vmap_batches((1, 8, 64) if quick else (1, 8, 64, 256), steps=10 if quick else 20,
                                    repeat=1 if quick else 2)
-    payload["accelerator_earlier_runs"] = accelerator_figures(results_dir or out_dir)
+    payload["accelerator_runs"] = accelerator_figures(results_dir or out_dir)
     payload["source_reported_speedups"] = SOURCE_SPEEDUPS
     payload["wall_s"] = time.perf_counter() - t_start
     name = "baselines" + ("_quick" if quick else "")

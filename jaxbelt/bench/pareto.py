@@ -11,7 +11,7 @@ Scene ``three-roller-t72`` (the source's §7.2 setup with the Table 7.2 misalign
 * **solver**: exact structured, reuse with 0 / 1 / 2 refinement iterations;
 * **integrator**: naive (full DAE), direct, eliminated (algebraic unknowns substituted) — the
   first and last solve a dense system per step in 2D and are timed over 10 steps, projected;
-* **precision**: float32 (``JAXBELT_X64=0``, its own process) against float64;
+* **precision**: float32 (its own process, without ``jax_enable_x64``) against float64;
 * **reduced models** at several ranks: DMD of the post-transport states (trained on the first
   400 steps, 50 in quick mode, predicting the rest) and the fully reduced POD step
   (:mod:`jaxbelt.rom.reduced`, trained on the same steps, all ranks from one projection).
@@ -36,7 +36,6 @@ its online run).
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import subprocess
 import sys
@@ -44,11 +43,18 @@ import tempfile
 import time
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._common import clock, compiled_bytes, write_json
+from ..build import build_model
+from ..integrators import DirectBackwardEuler, KeptInterior, Reuse, make_solver
+from ..rom import collect_first_order, fit_dmd, fit_reduced_pod_ranks, parameters, tracer_operator
+from ..scene import TimeSpec, load_scene
+from ..state import initial_state
+from ..timeloop import RunOptions, check_finite, simulate
+from ._common import clock, compile_run, compiled_bytes, write_json
 
 SCENE = "three-roller-t72"
 OUT_DT = 0.02  # s, the common output grid of all candidates
@@ -59,48 +65,47 @@ def _log(msg):
 
 
 def _scene(n_eta, n_xi, dt, t_end):
-    import jaxbelt as jb
-
-    base = jb.load_scene(SCENE)
-    return base.replace(mesh=dataclasses.replace(base.mesh, n_eta=n_eta, n_xi=n_xi),
-                        time=jb.scene.TimeSpec(dt=dt, t_end=t_end))
+    base = load_scene(SCENE)
+    return base.replace(mesh=dataclasses.replace(base.mesh, n_eta=n_eta, n_xi=n_xi), time=TimeSpec(dt=dt, t_end=t_end))
 
 
-def _full_run(model, integ, repeat):
+def _built(n_eta, n_xi, dt, t_end):
+    """``(model, n_steps, dt)`` of the default scene on another grid, time step and horizon."""
+    sc = _scene(n_eta, n_xi, dt, t_end)
+    opts = RunOptions.from_scene(sc)
+    return build_model(sc), opts.n_steps, opts.dt
+
+
+def _full_run(model, integ, n_steps, dt, repeat):
     """``(time_s, compile_s, bytes, tracer_u, tracer_v)`` on the common output grid."""
-    from ..state import initial_state
-    from ..timeloop import _run_jit, check_finite
-
-    s0 = jax.block_until_ready(initial_state(model))
-    t0 = time.perf_counter()
-    compiled = _run_jit.lower(model, integ, s0, model.n_steps).compile()
-    comp = time.perf_counter() - t0
+    run, comp, nbytes = compile_run(model, integ, n_steps=n_steps, dt=dt)
     best, out = np.inf, None
     for _ in range(repeat):
-        t, out = clock(lambda: compiled(model, integ, s0, model.n_steps))
+        t, out = clock(run, model, dt)
         best = min(best, t)
     tr = out[1]
-    check_finite(tr, model.dt)
-    k = int(round(OUT_DT / model.dt))
-    return best, comp, compiled_bytes(compiled), np.asarray(tr.tracer_u)[k - 1::k], np.asarray(tr.tracer_v)[k - 1::k]
+    check_finite(tr, dt)
+    k = int(round(OUT_DT / dt))
+    return best, comp, nbytes, np.asarray(tr.tracer_u)[k - 1::k], np.asarray(tr.tracer_v)[k - 1::k]
 
 
 _F32_CHILD = r"""
-import sys, time, numpy as np, jax
+import sys, numpy as np
 import jaxbelt as jb
-from jaxbelt.bench.pareto import _scene, _full_run
-from jaxbelt.integrators import ReusedFactorisationBackwardEuler
-m = jb.compile_scene(_scene(18, 104, 0.02, float(sys.argv[1])))
-t, comp, nbytes, u, v = _full_run(m, ReusedFactorisationBackwardEuler.for_model(m), int(sys.argv[2]))
+from jaxbelt.bench.pareto import _built, _full_run
+m, n, dt = _built(18, 104, 0.02, float(sys.argv[1]))
+t, comp, nbytes, u, v = _full_run(m, jb.DirectBackwardEuler(jb.Reuse()), n, dt, int(sys.argv[2]))
 np.savez(sys.argv[3], t=t, comp=comp, nbytes=-1 if nbytes is None else nbytes, u=u.astype(np.float64),
          v=v.astype(np.float64), dtype=str(u.dtype))
 """
 
 
 def _float32_run(t_end, repeat):
+    """The reuse run on the default grid in float32, in its own process (JAX's precision is
+    process-wide)."""
     with tempfile.TemporaryDirectory() as d:
         out = str(Path(d) / "f32.npz")
-        env = {**os.environ, "JAXBELT_X64": "0"}
+        env = {**os.environ, "JAX_ENABLE_X64": "0"}
         r = subprocess.run([sys.executable, "-c", _F32_CHILD, str(t_end), str(repeat), out], env=env,
                            capture_output=True, text=True)
         if r.returncode:
@@ -118,22 +123,17 @@ def _errors(u, v, truth):
             "longitudinal_max_um": float(np.abs(u - tu).max() * 1e6)}
 
 
-def _reduced_models(model, n_train, dmd_ranks, pod_ranks, repeat, truth):
+def _reduced_models(model, n_steps, dt, n_train, dmd_ranks, pod_ranks, repeat, truth):
     """DMD and fully reduced POD rows: trained on the first ``n_train`` steps, predicting the rest."""
-    from ..integrators import ReusedFactorisationBackwardEuler
-    from ..rom import collect_first_order, fit_dmd, fit_reduced_pod_ranks, parameters, tracer_operator
-    from ..rom.snapshots import _scan_recorded
-    from ..state import initial_state
-
-    reuse = ReusedFactorisationBackwardEuler.for_model(model)
-    n = int(model.n_steps)
-    k = int(round(OUT_DT / model.dt))
+    reuse = DirectBackwardEuler(Reuse())
+    n = int(n_steps)
+    k = int(round(OUT_DT / dt))
     s0 = initial_state(model)
-    snap = jax.jit(lambda: collect_first_order(model, n_train, reuse))
-    snap_bytes = compiled_bytes(jax.jit(lambda: _scan_recorded(model, reuse, s0, n_train)).lower().compile())
-    snap()
-    t_snap = min(clock(snap)[0] for _ in range(repeat))
-    _, Zp, Zq = snap()
+    snap = eqx.filter_jit(lambda m, t: collect_first_order(m, n_train, t, reuse)).lower(model, jnp.asarray(dt)).compile()
+    snap_bytes = compiled_bytes(snap)
+    snap(model, jnp.asarray(dt))
+    t_snap = min(clock(snap, model, jnp.asarray(dt))[0] for _ in range(repeat))
+    _, Zp, Zq = snap(model, jnp.asarray(dt))
     # the training window's own tracers (the full model's, as the reduced run replays them)
     C, Cz = tracer_operator(model), tracer_operator(model, "z")
     N = model.n_unknowns
@@ -141,6 +141,7 @@ def _reduced_models(model, n_train, dmd_ranks, pod_ranks, repeat, truth):
     train_v = np.asarray(Zq[:N, 1:].T @ Cz.T)
     obs = jnp.concatenate([jnp.concatenate([C, jnp.zeros_like(C)], 1), jnp.concatenate([Cz, jnp.zeros_like(C)], 1)])
     rows = {}
+
     def fit_time(fn):  # compilation apart, as everywhere here: a warm call first, then the best of `repeat`
         fn()
         return min(clock(fn)[0] for _ in range(repeat)), fn()
@@ -162,7 +163,7 @@ def _reduced_models(model, n_train, dmd_ranks, pod_ranks, repeat, truth):
                                      train_steps=n_train, **_errors(u, v, truth))
         _log(f"  DMD r={label}: {rows[f'DMD r={label}']['lateral_max_um']:.3g} µm lateral")
     Z = jnp.concatenate([Zp, Zq], axis=1)
-    t_fit, roms = fit_time(lambda: fit_reduced_pod_ranks(model, Z, pod_ranks, integrator=reuse))
+    t_fit, roms = fit_time(lambda: fit_reduced_pod_ranks(model, Z, pod_ranks, dt=dt, integrator=reuse))
     mu = parameters(model)
     for r, rom in roms.items():
         xi0 = rom.project(model, s0)
@@ -180,30 +181,24 @@ def _reduced_models(model, n_train, dmd_ranks, pod_ranks, repeat, truth):
     return rows
 
 
-def _integrators(model, direct_row, T, n_short=(("naive", 2), ("eliminated", 5))):
+def _integrators(model, dt, direct_row, T, n_short=(("naive", 2), ("eliminated", 5))):
     """The naive (full DAE) and eliminated integrators. Both solve a dense system per step in 2D
     (17 s and 1.8 s per step at N = 3762 on 2 cores), so they are run for 2 and 5 steps only (quick: 1, 2):
     their time over ``T`` is projected from the measured per-step time (``projected: true``),
     their error bounded by the direct integrator's error plus their measured deviation from it
     over those steps (the three are the same discrete equations; they differ by round-off)."""
-    from ..integrators import make_integrator
-    from ..timeloop import _run_jit
-    from ..state import initial_state
-
-    s0 = initial_state(model)
     rows = {}
     for name, n_short in n_short:
-        ref = _run_jit(model, make_integrator("direct", model), s0, n_short)[1]
-        integ = make_integrator(name, model)
-        compiled = _run_jit.lower(model, integ, s0, n_short).compile()
-        t, out = clock(lambda: compiled(model, integ, s0, n_short))
+        ref = simulate(model, make_solver("direct"), n_steps=n_short, dt=dt)[1]
+        run, _, nbytes = compile_run(model, make_solver(name), n_steps=n_short, dt=dt)
+        t, out = clock(run, model, dt)
         tr = out[1]
         dev = float(max(np.abs(np.asarray(tr.tracer_u) - np.asarray(ref.tracer_u)).max(),
                         np.abs(np.asarray(tr.tracer_v) - np.asarray(ref.tracer_v)).max()) * 1e6)
-        steps = int(round(T / model.dt))
+        steps = int(round(T / dt))
         rows[f"integrator {name}"] = dict(
-            family="integrator", n_unknowns=int(model.n_unknowns), dt=float(model.dt), time_s=t / n_short * steps,
-            projected=True, measured_steps=n_short, ms_per_step=1e3 * t / n_short, bytes=compiled_bytes(compiled),
+            family="integrator", n_unknowns=int(model.n_unknowns), dt=float(dt), time_s=t / n_short * steps,
+            projected=True, measured_steps=n_short, ms_per_step=1e3 * t / n_short, bytes=nbytes,
             deviation_from_direct_um=dev, lateral_max_um=direct_row["lateral_max_um"] + dev,
             longitudinal_final_um=direct_row["longitudinal_final_um"] + dev,
             longitudinal_max_um=direct_row["longitudinal_max_um"] + dev)
@@ -213,22 +208,20 @@ def _integrators(model, direct_row, T, n_short=(("naive", 2), ("eliminated", 5))
 
 def run(out_dir: Path, quick: bool = False) -> dict:
     """The whole trade; writes ``pareto[_quick].json``, ``.png`` and ``.md`` (the table) into ``out_dir``."""
-    import jaxbelt as jb
-    from ..integrators import ReusedFactorisationBackwardEuler, make_integrator
-
     t_start = time.perf_counter()
     T = 4.0 if quick else 20.0
     repeat = 2 if quick else 3
     _log(f"pareto on {SCENE}, T = {T:g} s ({'quick' if quick else 'full'})")
-    truth_m = jb.compile_scene(_scene(36, 208, 0.005, T))
-    t_truth, _, _, tu, tv = _full_run(truth_m, ReusedFactorisationBackwardEuler.for_model(truth_m, refine=2), 1)
+    truth_m, truth_n, truth_dt = _built(36, 208, 0.005, T)
+    t_truth, _, _, tu, tv = _full_run(truth_m, DirectBackwardEuler(Reuse(refine=2)), truth_n, truth_dt, 1)
     truth = (tu, tv)
     _log(f"  truth N = {truth_m.n_unknowns}: {t_truth:.1f} s")
     rows = {}
 
-    def add(name, family, model, integ, **extra):
-        t, comp, nbytes, u, v = _full_run(model, integ, repeat)
-        rows[name] = dict(family=family, n_unknowns=int(model.n_unknowns), dt=float(model.dt), time_s=t,
+    def add(name, family, built, integ, **extra):
+        model, n_steps, dt = built
+        t, comp, nbytes, u, v = _full_run(model, integ, n_steps, dt, repeat)
+        rows[name] = dict(family=family, n_unknowns=int(model.n_unknowns), dt=float(dt), time_s=t,
                           compile_s=comp, bytes=nbytes, **extra, **_errors(u, v, truth))
         _log(f"  {name}: {t:.2f} s, {rows[name]['lateral_max_um']:.3g} µm lateral, "
              f"{rows[name]['longitudinal_final_um']:.3g} µm longitudinal (final)")
@@ -239,29 +232,29 @@ def run(out_dir: Path, quick: bool = False) -> dict:
     if quick:
         grids = [(4, 104, 0.02), (18, 104, 0.02), (18, 208, 0.01)]
     for ne, nx, dt in grids:
-        m = jb.compile_scene(_scene(ne, nx, dt, T))
-        add(f"grid {ne}×{nx}, Δt {dt:g}", "grid (reuse)", m, ReusedFactorisationBackwardEuler.for_model(m),
+        add(f"grid {ne}×{nx}, Δt {dt:g}", "grid (reuse)", _built(ne, nx, dt, T), DirectBackwardEuler(Reuse()),
             grid=[ne, nx])
     for dt in ((0.01,) if quick else (0.01, 0.005)):
-        m = jb.compile_scene(_scene(18, 104, dt, T))
-        add(f"Δt {dt:g} (18×104)", "Δt (reuse)", m, ReusedFactorisationBackwardEuler.for_model(m), grid=[18, 104])
-    m = jb.compile_scene(_scene(18, 104, 0.02, T))
-    add("exact structured", "solver", m, make_integrator("direct", m, "structured"), grid=[18, 104])
-    for k in ((1, 2) if quick else (1, 2)):  # refine 0 is the default "grid 18×104" row
-        add(f"reuse, refine {k}", "solver", m, ReusedFactorisationBackwardEuler.for_model(m, refine=k), grid=[18, 104])
-    rows.update(_integrators(m, rows["grid 18×104, Δt 0.02"], T,
+        add(f"Δt {dt:g} (18×104)", "Δt (reuse)", _built(18, 104, dt, T), DirectBackwardEuler(Reuse()), grid=[18, 104])
+    default = _built(18, 104, 0.02, T)
+    m, n_steps, dt = default
+    add("exact (kept interior)", "solver", default, DirectBackwardEuler(KeptInterior()), grid=[18, 104])
+    for k in (1, 2):  # refine 0 is the default "grid 18×104" row
+        add(f"reuse, refine {k}", "solver", default, DirectBackwardEuler(Reuse(refine=k)), grid=[18, 104])
+    rows.update(_integrators(m, dt, rows["grid 18×104, Δt 0.02"], T,
                              (("naive", 1), ("eliminated", 2)) if quick else (("naive", 2), ("eliminated", 5))))
     t, comp, nbytes, u, v = _float32_run(T, repeat)
     rows["float32 (reuse, 18×104)"] = dict(family="precision", n_unknowns=int(m.n_unknowns), dt=0.02, time_s=t,
                                            compile_s=comp, bytes=nbytes, grid=[18, 104], **_errors(u, v, truth))
     _log(f"  float32: {t:.2f} s, {rows['float32 (reuse, 18×104)']['lateral_max_um']:.3g} µm lateral")
     n_train = 50 if quick else 400
-    rows.update(_reduced_models(m, n_train, (10, 20, 40, None), (10, 20, 40) if quick else (10, 20, 40, 80),
-                                repeat, truth))
+    rows.update(_reduced_models(m, n_steps, dt, n_train, (10, 20, 40, None),
+                                (10, 20, 40) if quick else (10, 20, 40, 80), repeat, truth))
     payload = {"scene": SCENE, "t_end_s": T, "quick": quick, "repeat": repeat,
                "truth": {"grid": [36, 208], "dt": 0.005, "n_unknowns": int(truth_m.n_unknowns), "run_s": t_truth,
                          "solver": "reuse, refine 2"},
-               "rows": rows, "table": need_table(rows), "table_both": need_table(rows, error=_both), "wall_s": time.perf_counter() - t_start}
+               "rows": rows, "table": need_table(rows), "table_both": need_table(rows, error=_both),
+               "wall_s": time.perf_counter() - t_start}
     name = "pareto" + ("_quick" if quick else "")
     path = write_json(out_dir, name, payload)
     (Path(out_dir) / f"{name}.md").write_text(table_markdown(payload))

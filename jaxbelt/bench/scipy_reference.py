@@ -1,8 +1,9 @@
 """A numpy + scipy.sparse implementation of the same 2D step (SuperLU every step, vectorised
 assembly): what a careful user would write instead of jaxbelt. Used by ``jaxbelt bench``
-(:mod:`jaxbelt.bench.baselines`) and ``benchmarks/solver_2d.py``; needs SciPy (a dev dependency).
+(:mod:`jaxbelt.bench.baselines`) and ``benchmarks/solver_2d.py``; needs SciPy (a dev dependency,
+imported only by ``jaxbelt bench``).
 
-It takes the compiled model's data (element blocks, roller kinematics, masses) from jaxbelt's
+It takes the built model's data (element blocks, roller kinematics, masses) from jaxbelt's
 public ``BeltModel`` fields and re-implements assembly, solve and transport (shift rule with the
 roller-relative correction) in numpy/scipy.
 """
@@ -11,14 +12,16 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from jaxbelt.assembly import roller_surface_displacement
+from ..assembly import roller_surface_displacement
 
 
 class ScipyBelt:
-    def __init__(self, model):
-        g = lambda a: np.asarray(a)
+    """The step of ``model`` with time step ``dt`` (s), in numpy + SciPy."""
+
+    def __init__(self, model, dt: float):
+        g = lambda a: np.asarray(a)  # noqa: E731
         self.m = model
-        self.dt = model.dt
+        self.dt = float(dt)
         self.Kd, self.Kl, self.Ku = g(model.K_diag), g(model.K_lower), g(model.K_upper)
         self.R0, self.Rdz = g(model.R), g(model.R_dz)
         self.con, self.dyn = g(model.is_constraint), g(model.dynamic)

@@ -28,10 +28,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..integrators import AbstractIntegrator, resolve_integrator
+from ..integrators import AbstractIntegrator, make_solver
+from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..timeloop import simulate
-from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 
 M_TO_UM = 1e6
 METRICS = {
@@ -48,13 +48,17 @@ class Study(eqx.Module):
     """One tolerance question on one model: the metric, its evaluation time, the varied
     components and the aligned reference run. Build with :func:`make_study`.
 
-    **Fields:** ``model`` (every step recorded, tracers only); ``integrator``; ``ref_u``,
-    ``ref_v`` (n_steps, n_tr) tracer displacements of the aligned run, m (``ref_v`` ``None`` in
-    1D); ``base`` (q,) the scene's own misalignment around which ``theta`` is measured.
+    **Fields:** ``model``; ``integrator`` the solver of every run; ``dt`` the time step, s (an
+    array: traced, so studies at other time steps share compiled programs); ``ref_u``, ``ref_v``
+    (n_steps, n_tr) tracer displacements of the aligned run, m, every step recorded (``ref_v``
+    ``None`` in 1D); ``base`` (q,) the scene's own misalignment around which ``theta`` is
+    measured; ``space`` the varied components; ``metric``; ``n_steps`` the run length (the
+    evaluation step); ``window`` the steps of ``lateral_peak``'s window.
     """
 
     model: BeltModel
     integrator: AbstractIntegrator
+    dt: jax.Array
     ref_u: jax.Array
     ref_v: jax.Array | None
     base: jax.Array
@@ -69,46 +73,65 @@ class Study(eqx.Module):
 
     @property
     def t_eval(self) -> float:
-        return self.n_steps * self.model.dt
+        """The evaluation time ``n_steps × dt``, s (concrete studies only)."""
+        return self.n_steps * float(self.dt)
 
     def configured(self, theta) -> BeltModel:
         """The model at design vector ``theta`` (P,), mm / mrad around the scene's misalignment."""
         return apply(self.model, self.space, theta, self.base)
 
 
-def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | None = None,
-               components=None, integrator: AbstractIntegrator | str | None = None,
+def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | None = None, *, dt,
+               n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
                window_fraction: float = 0.1) -> Study:
     """Set up a study: validate the metric and time, select the components, run the aligned
     reference once.
 
-    **Arguments:** ``metric`` (one of :data:`METRICS`); ``t_eval`` evaluation time in s (default
-    the scene's ``t_end``; rounded to whole steps); ``components`` as in
-    :func:`jaxbelt.misalignment.parameter_space`; ``integrator`` (default the scene's choice);
-    ``window_fraction`` of ``[0, t_eval]`` for ``lateral_peak``.
+    **Arguments:** ``metric`` (one of :data:`METRICS`); ``t_eval`` evaluation time in s, rounded
+    to whole steps of ``dt``; ``dt`` the time step, s; ``n_steps`` the evaluation step when
+    ``t_eval`` is not given (a scene's ``RunOptions.n_steps``: its ``t_end``); ``components`` as
+    in :func:`jaxbelt.misalignment.parameter_space`; ``integrator`` the solver (default
+    :func:`jaxbelt.make_solver`'s; a scene's is ``RunOptions.solver``); ``window_fraction`` of
+    ``[0, t_eval]`` for ``lateral_peak``.
+
+    ``jaxbelt.RunOptions`` holds a scene's ``dt``, ``n_steps`` and solver:
+    ``make_study(model, metric, dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)``.
     """
     if metric not in METRICS:
         raise ValueError(f"metric = {metric!r}: unknown (one of {', '.join(METRICS)})")
     if METRICS[metric][1] and model.kind != "2d":
         raise ValueError(f"metric = {metric!r}: a lateral metric needs a 2D scene (this one is {model.kind})")
-    n_steps = model.n_steps if t_eval is None else int(round(float(t_eval) / model.dt))
-    if t_eval is not None and not (np.isfinite(t_eval) and n_steps >= 2):
-        raise ValueError(f"t_eval = {t_eval}: must be at least two steps (dt = {model.dt} s)")
+    n_steps = _evaluation_step(t_eval, dt, n_steps)
     if not 0.0 < window_fraction <= 1.0:
         raise ValueError(f"window_fraction = {window_fraction}: must lie in (0, 1]")
-    model = model.replace(every=1, full_fields=False)
-    integrator = resolve_integrator(integrator, model)
+    integrator = make_solver() if integrator is None else integrator
+    dt = jnp.asarray(dt, model.ell.dtype)
     space = parameter_space(model, components)
-    _, ref = simulate(aligned(model), integrator, n_steps=n_steps)
-    return Study(model=model, integrator=integrator, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
+    _, ref = simulate(aligned(model), integrator, n_steps=n_steps, dt=dt)
+    return Study(model=model, integrator=integrator, dt=dt, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
                  base=model.chi_static, space=space, metric=metric, n_steps=n_steps,
                  window=max(1, int(round(window_fraction * n_steps))))
+
+
+def _evaluation_step(t_eval, dt, n_steps) -> int:
+    """The run length of a study: ``t_eval / dt`` rounded, else ``n_steps``; at least two steps."""
+    dt = float(dt)
+    if t_eval is None:
+        if n_steps is None:
+            raise ValueError("t_eval or n_steps: give the evaluation time (or step)")
+        if int(n_steps) < 2:
+            raise ValueError(f"n_steps = {n_steps}: must be at least two steps")
+        return int(n_steps)
+    steps = int(round(float(t_eval) / dt)) if np.isfinite(t_eval) else 0
+    if steps < 2:
+        raise ValueError(f"t_eval = {t_eval}: must be at least two steps (dt = {dt} s)")
+    return steps
 
 
 def tracer_deviation(study: Study, theta):
     """``(d_u, d_v)`` (n_steps, n_tr) in µm: tracer displacements at ``theta`` minus the aligned
     run's (``d_v`` is ``None`` in 1D)."""
-    _, tr = simulate(study.configured(theta), study.integrator, n_steps=study.n_steps)
+    _, tr = simulate(study.configured(theta), study.integrator, n_steps=study.n_steps, dt=study.dt)
     du = (tr.tracer_u - study.ref_u) * M_TO_UM
     dv = None if tr.tracer_v is None else (tr.tracer_v - study.ref_v) * M_TO_UM
     return du, dv
@@ -123,7 +146,7 @@ def response_from_deviation(study: Study, du, dv):
         return dv[k]
     if name == "lateral_peak":
         return dv[k + 1 - study.window:k + 1].reshape(-1)
-    t = (jnp.arange(study.n_steps) + 1.0) * study.model.dt  # walk_rate
+    t = (jnp.arange(study.n_steps) + 1.0) * study.dt  # walk_rate
     half = study.n_steps // 2
     t, y = t[half:], jnp.mean(dv[half:], axis=1)
     tc = t - jnp.mean(t)

@@ -32,8 +32,10 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.stats import norm
 
-from .metrics import Study, evaluate, metric_value
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
+from .metrics import Study, evaluate, metric_value
+from .sensitivity import response_jacobian
+from .sharding import batched_map
 
 DISTRIBUTIONS = ("normal", "uniform")
 
@@ -152,8 +154,6 @@ def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=No
 def _map(study, thetas, chunk, progress=None):
     """:func:`~jaxbelt.design.sharding.batched_map` with the rows padded to a whole number of
     chunks, so that every call with the same ``chunk`` reuses one compilation."""
-    from .sharding import batched_map
-
     thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
     n = thetas.shape[0]
     if chunk is not None and n % chunk:
@@ -187,11 +187,25 @@ def standard_normal_samples(n: int, P: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).standard_normal((n, P))
 
 
-def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed: int = 0,
-                chunk: int | None = None, progress=None) -> dict:
-    """Monte-Carlo yield with a Wilson 95 % interval.
+@dataclasses.dataclass(frozen=True)
+class MonteCarloResult:
+    """A Monte-Carlo yield (:func:`monte_carlo`). **Fields:** ``yield_`` the fraction of samples
+    that pass; ``ci95`` its Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the
+    configurations, mm / mrad; ``metric`` (n,) their metric; ``outputs`` everything
+    :func:`~jaxbelt.design.metrics.evaluate` returned, per sample."""
 
-    **Returns:** ``{"yield", "ci95", "samples", "passed", "theta" (n, P), "metric" (n,)}``."""
+    yield_: float
+    ci95: tuple
+    samples: int
+    passed: int
+    theta: np.ndarray
+    metric: np.ndarray
+    outputs: dict
+
+
+def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed: int = 0,
+                chunk: int | None = None, progress=None) -> MonteCarloResult:
+    """Monte-Carlo yield with a Wilson 95 % interval (:class:`MonteCarloResult`)."""
     check_distribution(dist, study)
     if n <= 0:
         raise ValueError(f"samples = {n}: must be at least 1")
@@ -199,8 +213,8 @@ def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed:
     out = evaluate_configs(study, thetas, chunk, progress)
     metric = np.asarray(out["metric"])
     passed = int(np.sum(metric <= limit_um))
-    return {"yield": passed / n, "ci95": wilson_interval(passed, n), "samples": n, "passed": passed,
-            "theta": thetas, "metric": metric, "outputs": out}
+    return MonteCarloResult(yield_=passed / n, ci95=wilson_interval(passed, n), samples=n, passed=passed,
+                            theta=thetas, metric=metric, outputs=out)
 
 
 @eqx.filter_jit
@@ -212,19 +226,35 @@ def _g_and_grad(study, dist_scale, uniform, u, limit):
     return jax.value_and_grad(g)(u)
 
 
+@dataclasses.dataclass(frozen=True)
+class FormResult:
+    """First-order reliability (:func:`form`). **Fields:** ``beta`` the reliability index
+    (negative when the nominal configuration fails); ``yield_`` ``Φ(β)``; ``u_star`` (P,) the
+    design point in the standard normal space; ``theta_star`` (P,) the same in mm / mrad;
+    ``iterations``; ``converged``; ``g_star_um`` the limit-state function there (≈ 0);
+    ``series_bounds`` (max-type metrics, else ``None``) the first-order bounds of a series
+    system ``[1 - Σ_j Φ(-β_j), 1 - max_j Φ(-β_j)]`` over the linearised failure modes."""
+
+    beta: float
+    yield_: float
+    u_star: np.ndarray
+    theta_star: np.ndarray
+    iterations: int
+    converged: bool
+    g_star_um: float
+    series_bounds: tuple | None = None
+
+
 def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: int = 30,
-         tol: float = 1e-6) -> dict:
+         tol: float = 1e-6) -> FormResult:
     """First-order reliability: the design point by HL-RF iterations (module docstring).
 
     The start point ``u0`` defaults to the design point of the linearised response's most
     critical row (see :func:`linear_design_point`).
 
-    **Returns:** ``{"beta", "yield" = Φ(β), "u_star" (P,), "theta_star" (P,) mm / mrad,
-    "iterations", "converged", "series_bounds"}``; ``series_bounds`` (max-type metrics) are the
-    first-order bounds of a series system, ``[1 - Σ_j Φ(-β_j), 1 - max_j Φ(-β_j)]`` over the
-    linearised failure modes: FORM's single design point sees only the most probable one."""
-    from .sensitivity import response_jacobian
-
+    **Returns:** a :class:`FormResult`; its ``series_bounds`` (max-type metrics) bound the yield
+    over all linearised failure modes, of which FORM's single design point sees only the most
+    probable one."""
     check_distribution(dist, study)
     scale = jnp.asarray(dist.scale)
     uniform = jnp.asarray([k == "uniform" for k in dist.kind])
@@ -247,13 +277,13 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
     g, _ = _g_and_grad(study, scale, uniform, u, limit_um)
     g0, _ = _g_and_grad(study, scale, uniform, jnp.zeros_like(u), limit_um)
     beta = float(jnp.linalg.norm(u)) * (1.0 if float(g0) >= 0 else -1.0)  # negative: the nominal fails
-    out = {"beta": beta, "yield": float(norm.cdf(beta)), "u_star": np.asarray(u),
-           "theta_star": np.asarray(dist.transform(u)), "iterations": it, "converged": converged,
-           "g_star_um": float(g)}
+    bounds = None
     if study.aggregate == "max":
         pf = norm.cdf(-_mode_betas(r0, J, dist, limit_um)[0])
-        out["series_bounds"] = (max(0.0, 1.0 - float(jnp.sum(pf))), 1.0 - float(jnp.max(pf)))
-    return out
+        bounds = (max(0.0, 1.0 - float(jnp.sum(pf))), 1.0 - float(jnp.max(pf)))
+    return FormResult(beta=beta, yield_=float(norm.cdf(beta)), u_star=np.asarray(u),
+                      theta_star=np.asarray(dist.transform(u)), iterations=it, converged=converged,
+                      g_star_um=float(g), series_bounds=bounds)
 
 
 def _mode_betas(r0, J, dist: Distribution, limit_um: float):
@@ -282,11 +312,23 @@ def linear_design_point(r0, J, dist: Distribution, limit_um: float, kind: str) -
     return limit_um * np.sqrt(JD.shape[0]) / max(sv[0], 1e-300) * vt[0]
 
 
-def importance_sampling(study: Study, dist: Distribution, limit_um: float, u_star, n: int = 1000,
-                        seed: int = 1, chunk: int | None = None) -> dict:
-    """Yield by importance sampling around the design point ``u_star``.
+@dataclasses.dataclass(frozen=True)
+class ImportanceSamplingResult:
+    """A yield by importance sampling (:func:`importance_sampling`). **Fields:** ``yield_``;
+    ``ci95`` its normal-approximation 95 % interval; ``failure_probability``; ``std_error`` of
+    that estimate; ``samples``."""
 
-    **Returns:** ``{"yield", "ci95", "failure_probability", "std_error", "samples"}``."""
+    yield_: float
+    ci95: tuple
+    failure_probability: float
+    std_error: float
+    samples: int
+
+
+def importance_sampling(study: Study, dist: Distribution, limit_um: float, u_star, n: int = 1000,
+                        seed: int = 1, chunk: int | None = None) -> ImportanceSamplingResult:
+    """Yield by importance sampling around the design point ``u_star``
+    (:class:`ImportanceSamplingResult`)."""
     check_distribution(dist, study)
     u_star = np.asarray(u_star, float)
     u = u_star + np.random.default_rng(seed).standard_normal((n, len(u_star)))
@@ -296,5 +338,5 @@ def importance_sampling(study: Study, dist: Distribution, limit_um: float, u_sta
     pf = float(np.mean(fail * w))
     se = float(np.std(fail * w, ddof=1) / math.sqrt(n)) if n > 1 else float("inf")
     z = 1.959963984540054
-    return {"yield": 1.0 - pf, "ci95": (max(0.0, 1.0 - pf - z * se), min(1.0, 1.0 - pf + z * se)),
-            "failure_probability": pf, "std_error": se, "samples": n}
+    return ImportanceSamplingResult(yield_=1.0 - pf, ci95=(max(0.0, 1.0 - pf - z * se), min(1.0, 1.0 - pf + z * se)),
+                                    failure_probability=pf, std_error=se, samples=n)

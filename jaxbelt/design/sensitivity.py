@@ -12,6 +12,7 @@ Units: metric in µm; gradient in µm/mm (translations) and µm/mrad (rotations)
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import equinox as eqx
@@ -74,16 +75,43 @@ def response_jacobian(study: Study, theta=None, mode: str = "auto"):
     return np.asarray(r), np.asarray(J)
 
 
-def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> dict:
-    """Value and gradient at ``theta`` with their wall times (compilation excluded, best of
-    ``repeat``), per roller and component: the ``jaxbelt sensitivity`` JSON.
+@dataclasses.dataclass(frozen=True)
+class SensitivityReport:
+    """A metric and its gradient w.r.t. every misalignment component (:func:`sensitivity_report`).
 
-    **Returns:** ``{"metric", "value_um", "t_eval_s", "gradient": {roller: {"translation_um_per_mm":
-    [x, y, z], "rotation_um_per_mrad": [x, y, z]}}, "structural_zero": [{"component", "reason"}],
-    "forward_s", "gradient_s", "compile_s", "at_kink"}``; components that are not parameters
-    report 0. Every metric is a norm of the response ``r``, which has a kink where ``r = 0`` —
-    the aligned machine itself. There (metric ≤ 1e-6 µm, ``at_kink``) the reverse-mode gradient
-    is round-off, so the report gives the one-sided slope of the metric along each component
+    **Fields:** ``metric``; ``value_um`` the metric, µm (µm/s for ``walk_rate``); ``t_eval_s``;
+    ``parameters`` ``[{"component", "unit", "gradient"}]`` per varied component; ``gradient``
+    ``{roller: {"translation_um_per_mm": [x, y, z], "rotation_um_per_mrad": [x, y, z]}}`` (0 for
+    components that are not parameters); ``structural_zero`` ``[{"component", "reason"}]`` the
+    components that cannot vary; ``at_kink`` whether the metric sat at its kink ``r = 0`` (then
+    the gradients are one-sided slopes); ``forward_s``, ``gradient_s`` the best wall times of a
+    forward run and of the gradient, ``compile_s`` their first calls' (compilation included).
+    """
+
+    metric: str
+    value_um: float
+    t_eval_s: float
+    parameters: list
+    gradient: dict
+    structural_zero: list
+    at_kink: bool
+    forward_s: float
+    gradient_s: float
+    compile_s: float
+
+    def to_dict(self) -> dict:
+        """The report as JSON-able data (``jaxbelt sensitivity --json``), keys as the fields."""
+        return dataclasses.asdict(self)
+
+
+def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> SensitivityReport:
+    """Value and gradient at ``theta`` with their wall times (compilation excluded, best of
+    ``repeat``), per roller and component: the ``jaxbelt sensitivity`` report
+    (:class:`SensitivityReport`).
+
+    Every metric is a norm of the response ``r``, which has a kink where ``r = 0`` — the aligned
+    machine itself. There (metric ≤ 1e-6 µm, ``at_kink``) the reverse-mode gradient is
+    round-off, so the report gives the one-sided slope of the metric along each component
     instead, from the forward-mode Jacobian: ``‖J_k‖/√n`` (RMS) or ``max_i |J_ik|`` (max-type),
     the same for + and − (timings are still those of the reverse-mode gradient).
     """
@@ -104,9 +132,9 @@ def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> dict:
                 for name, g in per.items()}
     structural = [{"component": f"{sp.roller_names[j]}:{c}", "reason": why} for (j, c), why in sp.structural
                   if not why.startswith("not modelled")]
-    return {"metric": study.metric, "value_um": float(value), "t_eval_s": study.t_eval,
-            "parameters": [{"component": lab, "unit": unit, "gradient": float(g)}
-                           for lab, unit, g in zip(sp.labels(), sp.units(), np.asarray(grad))],
-            "gradient": gradient, "structural_zero": structural, "at_kink": at_kink,
-            "forward_s": forward_s, "gradient_s": gradient_s, "compile_s": compile_s}
-
+    return SensitivityReport(
+        metric=study.metric, value_um=float(value), t_eval_s=study.t_eval,
+        parameters=[{"component": lab, "unit": unit, "gradient": float(g)}
+                    for lab, unit, g in zip(sp.labels(), sp.units(), np.asarray(grad))],
+        gradient=gradient, structural_zero=structural, at_kink=at_kink,
+        forward_s=forward_s, gradient_s=gradient_s, compile_s=compile_s)

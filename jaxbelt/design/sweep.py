@@ -15,6 +15,7 @@ Each finished chunk is appended to the Zarr store (``out``), so a rerun resumes.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import jax
@@ -24,9 +25,75 @@ import numpy as np
 from .metrics import Study
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling,
                        standard_normal_samples, wilson_interval)
+from .sensitivity import response_jacobian
 from .store import MODEL_CODES, append_chunk, load_sweep, open_sweep
+from .surrogate import Surrogate, fit_surrogate
+from .tolerance import LinearResponse, rss_stackup
 
 ROM_TRUST_FRACTION = 0.10  # the surrogate's validated error bound must stay below this × limit
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepResult:
+    """The yield study of :func:`run_sweep`.
+
+    **Fields:**
+
+    - ``metric``, ``limit_um``, ``samples``, ``seed``: the question.
+    - ``yield_``: the fraction of the ``samples`` configurations whose metric is ≤ the limit;
+      ``ci95`` its Wilson 95 % interval; ``passed`` their number.
+    - ``full_runs``: configurations run with the full model, the surrogate's training and
+      validation runs included (used or not); ``reduced_runs``: configurations the surrogate
+      decided.
+    - ``rom``: the surrogate's validation record (:attr:`Surrogate.validation`) with ``used``
+      (whether it stood in); ``{"used": False}`` without one.
+    - ``metric_values`` (samples,): the metric of every configuration, µm.
+    - ``speedup_estimate``: with a reduced model, the full model's time per configuration in the
+      validation runs (compilation included) times the configurations run, over the wall time —
+      indicative (``benchmarks/yield_rom.py`` measures it side by side); else ``None``.
+    - ``rss_3sigma_um``: the linear statistical stack-up (``σ`` of a uniform law ``h/√3``);
+      ``form_yield``, ``form_beta``, ``form_converged``, ``design_point`` (per roller, mm /
+      mrad): FORM (:func:`~jaxbelt.design.sampling.form`); all ``None`` without FORM.
+    - ``is_yield``, ``is_ci95``, ``is_samples``: importance sampling around the design point, run
+      when no or few samples failed (yield near 1), else ``None``.
+    - ``wall_s``: the sweep's wall time; ``configs_per_s``: configurations evaluated in this call
+      per second of it.
+    """
+
+    metric: str
+    limit_um: float
+    samples: int
+    seed: int
+    yield_: float
+    ci95: list
+    passed: int
+    full_runs: int
+    reduced_runs: int
+    rom: dict
+    metric_values: np.ndarray
+    wall_s: float
+    configs_per_s: float
+    speedup_estimate: float | None = None
+    rss_3sigma_um: float | None = None
+    form_yield: float | None = None
+    form_beta: float | None = None
+    form_converged: bool | None = None
+    design_point: dict | None = None
+    is_yield: float | None = None
+    is_ci95: list | None = None
+    is_samples: int | None = None
+
+    def to_dict(self, values: bool = False) -> dict:
+        """The result as JSON-able data (``jaxbelt sweep --json``): ``yield_`` as ``"yield"``, the
+        fields that are ``None`` left out, ``metric_values`` only with ``values``."""
+        out = {}
+        last = ("wall_s", "configs_per_s")  # the timings close the record
+        for name in [f.name for f in dataclasses.fields(self) if f.name not in last] + list(last):
+            v = getattr(self, name)
+            if v is None or (name == "metric_values" and not values):
+                continue
+            out["yield" if name == "yield_" else name] = v.tolist() if isinstance(v, np.ndarray) else v
+        return out
 
 
 def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "") -> dict:
@@ -35,20 +102,7 @@ def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, se
             "tracers": int(study.ref_u.shape[1])}
 
 
-def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, seed: int = 0,
-              chunk: int = 64, out=None, rom: str = "off", with_form: bool = True, progress: bool = False,
-              scene: str = "", importance_samples: int = 200, rom_method: str = "response") -> dict:
-    """Monte-Carlo yield of ``study`` under ``dist`` (module docstring); ``rom_method`` the
-    surrogate's reduced model with ``rom="auto"`` (:func:`~jaxbelt.design.surrogate.fit_surrogate`'s
-    ``method``: ``"response"`` or ``"pod"``).
-
-    **Returns:** ``{"metric", "limit_um", "samples", "yield", "ci95", "passed", "full_runs",
-    "reduced_runs", "rom", "form_yield", "form_beta", "rss_3sigma_um", "is_yield", "is_ci95", "wall_s",
-    "configs_per_s", "speedup_estimate", "metric_values" (n,)}`` (``is_*`` only when no or few
-    samples failed; ``rss_3sigma_um``: the linear statistical stack-up, ``σ`` of a uniform law
-    ``h/√3``; ``speedup_estimate`` with a reduced model: the full model's time per configuration
-    in the validation runs, compilation included, times the configurations run, over the wall
-    time — indicative, ``benchmarks/yield_rom.py`` measures it side by side)."""
+def _check(n, limit_um, rom, rom_method):
     if not (np.isfinite(limit_um) and limit_um > 0):
         raise ValueError(f"limit_um = {limit_um}: must be a positive number")
     if n < 1:
@@ -57,88 +111,113 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
         raise ValueError(f"rom = {rom!r}: one of off, auto")
     if rom_method not in ("response", "pod"):
         raise ValueError(f"rom_method = {rom_method!r}: one of response, pod")
-    check_distribution(dist, study)
-    t0 = time.perf_counter()
-    labels = study.space.labels()
-    # jit: one small program instead of compiling norm.cdf's primitives one by one (~2 s)
-    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
-    identity = sweep_identity(study, dist, n, limit_um, seed, scene)
-    done = min(open_sweep(out, identity), n) if out is not None else 0
+
+
+def _surrogate(study, dist, limit_um, seed, rom_method) -> tuple[Surrogate | None, dict]:
+    """The validated surrogate, or ``None`` where its bound is not below the trust fraction of
+    the limit; and its record."""
+    surrogate = fit_surrogate(study, dist, limit_um, seed=seed + 7919, method=rom_method)
+    info = dict(surrogate.validation, used=bool(surrogate.bound_um < ROM_TRUST_FRACTION * limit_um))
+    return (surrogate if info["used"] else None), info
+
+
+def _chunk_outputs(study, surrogate, block, limit_um, chunk):
+    """One chunk's outputs and model codes: full runs, or the surrogate with full re-runs of the
+    configurations whose prediction lies within its bound of the limit."""
+    if surrogate is None:
+        return evaluate_configs(study, block, chunk), np.full(len(block), MODEL_CODES["full"], np.int8)
+    res = {k: np.array(v) for k, v in surrogate.evaluate(block).items()}
+    near = np.abs(res["metric"] - limit_um) <= res.pop("bound")
+    codes = np.full(len(block), MODEL_CODES["reduced"], np.int8)
+    if np.any(near):
+        full = evaluate_configs(study, block[near], chunk)
+        for k in res:
+            res[k][near] = full[k]
+        codes[near] = MODEL_CODES["full"]
+    return res, codes
+
+
+def _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress):
+    """The metric and model code of every configuration from ``done`` on, chunk by chunk, each
+    chunk appended to the store ``out``; those before ``done`` are read from it."""
     metrics, codes = [], []
     if done:
         ds = load_sweep(out)
         metrics.append(np.asarray(ds["metric"].values)[:done])
         codes.append(np.asarray(ds["model"].values)[:done])
-
-    surrogate, rom_info = None, {"used": False}
-    if rom == "auto" and done < n:
-        from .surrogate import fit_surrogate
-
-        surrogate = fit_surrogate(study, dist, limit_um, seed=seed + 7919, method=rom_method)
-        rom_info = dict(surrogate.validation, used=bool(surrogate.bound_um < ROM_TRUST_FRACTION * limit_um))
-        if not rom_info["used"]:
-            surrogate = None
-
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=n, initial=done, unit="config", desc="sweep", leave=False)
-
-    def store(theta, outputs, model_codes):
-        metrics.append(np.asarray(outputs["metric"]))
+        bar = tqdm(total=len(thetas), initial=done, unit="config", desc="sweep", leave=False)
+    labels = study.space.labels()
+    for start in range(done, len(thetas), chunk):
+        block = thetas[start:start + chunk]
+        res, model_codes = _chunk_outputs(study, surrogate, block, limit_um, chunk)
+        metrics.append(np.asarray(res["metric"]))
         codes.append(model_codes)
         if out is not None:
-            append_chunk(out, identity, labels, theta, outputs, model_codes)
+            append_chunk(out, identity, labels, block, res, model_codes)
         if bar is not None:
-            bar.update(len(theta))
-
-    for start in range(done, n, chunk):
-        block = thetas[start:start + chunk]
-        if surrogate is None:
-            res = evaluate_configs(study, block, chunk)
-            store(block, res, np.full(len(block), MODEL_CODES["full"], np.int8))
-            continue
-        res = {k: np.array(v) for k, v in surrogate.evaluate(block).items()}
-        near = np.abs(res["metric"] - limit_um) <= res.pop("bound")
-        model_codes = np.full(len(block), MODEL_CODES["reduced"], np.int8)
-        if np.any(near):
-            full = evaluate_configs(study, block[near], chunk)
-            for k in res:
-                res[k][near] = full[k]
-            model_codes[near] = MODEL_CODES["full"]
-        store(block, res, model_codes)
+            bar.update(len(block))
     if bar is not None:
         bar.close()
     metric = np.concatenate(metrics) if metrics else np.zeros(0)
-    code = np.concatenate(codes) if codes else np.zeros(0, np.int8)
+    return metric, (np.concatenate(codes) if codes else np.zeros(0, np.int8))
+
+
+def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples) -> dict:
+    """The RSS stack-up, FORM and (yield near 1) importance sampling: :class:`SweepResult` fields."""
+    r0, J = response_jacobian(study)
+    sigma = [s if k == "normal" else s / np.sqrt(3.0) for k, s in zip(dist.kind, dist.scale)]
+    f = form(study, dist, limit_um)
+    out = dict(rss_3sigma_um=rss_stackup(LinearResponse(r0, J, study.aggregate), sigma).three_sigma_um,
+               form_yield=f.yield_, form_beta=f.beta, form_converged=f.converged,
+               design_point=study.space.per_roller(f.theta_star))
+    if n - passed <= max(5, int(0.001 * n)) and f.beta > 0:  # yield near 1: MC sees few failures
+        i = importance_sampling(study, dist, limit_um, f.u_star, n=importance_samples, seed=seed + 1, chunk=chunk)
+        out.update(is_yield=i.yield_, is_ci95=list(i.ci95), is_samples=i.samples)
+    return out
+
+
+def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, seed: int = 0,
+              chunk: int = 64, out=None, rom: str = "off", with_form: bool = True, progress: bool = False,
+              scene: str = "", importance_samples: int = 200, rom_method: str = "response") -> SweepResult:
+    """Monte-Carlo yield of ``study`` under ``dist`` (module docstring).
+
+    **Arguments:** ``n`` samples (the first ``n`` of ``seed``'s sequence); ``limit_um``; ``chunk``
+    configurations per batch (and per stored chunk); ``out`` the Zarr store (a rerun resumes);
+    ``rom`` ``"off"`` | ``"auto"``; ``rom_method`` the surrogate's reduced model with
+    ``rom="auto"`` (:func:`~jaxbelt.design.surrogate.fit_surrogate`'s ``method``: ``"response"``
+    or ``"pod"``); ``with_form`` also the RSS stack-up, FORM and importance sampling
+    (``importance_samples``); ``progress`` a progress bar; ``scene`` the scene's name, part of
+    the store's identity.
+
+    **Returns:** a :class:`SweepResult`."""
+    _check(n, limit_um, rom, rom_method)
+    check_distribution(dist, study)
+    t0 = time.perf_counter()
+    # jit: one small program instead of compiling norm.cdf's primitives one by one (~2 s)
+    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
+    identity = sweep_identity(study, dist, n, limit_um, seed, scene)
+    done = min(open_sweep(out, identity), n) if out is not None else 0
+    surrogate, rom_info = None, {"used": False}
+    if rom == "auto" and done < n:
+        surrogate, rom_info = _surrogate(study, dist, limit_um, seed, rom_method)
+    metric, code = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
     passed = int(np.sum(metric <= limit_um))
-    result = {
-        "metric": study.metric, "limit_um": float(limit_um), "samples": int(n), "seed": int(seed),
-        "yield": passed / n, "ci95": list(wilson_interval(passed, n)), "passed": passed,
-        # the surrogate's training and validation runs are full runs too, used or not
-        "full_runs": int(np.sum(code == MODEL_CODES["full"])) + rom_info.get("validation_runs", 0),
-        "reduced_runs": int(np.sum(code == MODEL_CODES["reduced"])), "rom": rom_info,
-        "metric_values": metric,
-    }
+    extra = {}
     if rom_info["used"] and rom_info.get("n_validation"):
         # indicative: the validation's full runs (their compilation included) per configuration
         per_full = rom_info["validation_s"] / rom_info["n_validation"]
-        result["speedup_estimate"] = (n - done) * per_full / max(time.perf_counter() - t0, 1e-9)
+        extra["speedup_estimate"] = (n - done) * per_full / max(time.perf_counter() - t0, 1e-9)
     if with_form:
-        from .sensitivity import response_jacobian
-        from .tolerance import LinearResponse, rss_stackup
-
-        r0, J = response_jacobian(study)
-        sigma = [s if k == "normal" else s / np.sqrt(3.0) for k, s in zip(dist.kind, dist.scale)]
-        result["rss_3sigma_um"] = rss_stackup(LinearResponse(r0, J, study.aggregate), sigma)["three_sigma_um"]
-        f = form(study, dist, limit_um)
-        result.update(form_yield=f["yield"], form_beta=f["beta"], form_converged=f["converged"],
-                      design_point=study.space.per_roller(f["theta_star"]))
-        if n - passed <= max(5, int(0.001 * n)) and f["beta"] > 0:  # yield near 1: MC sees few failures
-            i = importance_sampling(study, dist, limit_um, f["u_star"], n=importance_samples, seed=seed + 1,
-                                    chunk=chunk)
-            result.update(is_yield=i["yield"], is_ci95=list(i["ci95"]), is_samples=i["samples"])
-    result["wall_s"] = time.perf_counter() - t0
-    result["configs_per_s"] = (n - done) / result["wall_s"]
-    return result
+        extra.update(_reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples))
+    wall = time.perf_counter() - t0
+    return SweepResult(
+        metric=study.metric, limit_um=float(limit_um), samples=int(n), seed=int(seed),
+        yield_=passed / n, ci95=list(wilson_interval(passed, n)), passed=passed,
+        # the surrogate's training and validation runs are full runs too, used or not
+        full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_info.get("validation_runs", 0),
+        reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_info, metric_values=metric,
+        wall_s=wall, configs_per_s=(n - done) / wall, **extra)

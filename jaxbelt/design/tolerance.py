@@ -37,6 +37,7 @@ import optax
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from .metrics import Study, aggregate
+from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
 H_MAX = 5.0  # mm / mrad: widest half-width reported (linear range of the model)
@@ -201,57 +202,84 @@ def _shares(lin: LinearResponse, h, W: float) -> np.ndarray:
     return share
 
 
-def rss_stackup(lin: LinearResponse, sigma) -> dict:
-    """Statistical stack-up: per response row ``σ_r = sqrt(Σ_k J_ik² σ_k²)`` for independent
-    components with standard deviations ``sigma`` (P,), and the metric of ``|r0| + 3 σ_r``.
+@dataclasses.dataclass(frozen=True)
+class Stackup:
+    """A statistical stack-up (:func:`rss_stackup`). **Fields:** ``sigma_um`` (n_r,) the standard
+    deviation of every response row, µm; ``three_sigma_um`` the metric of ``|r0| + 3 σ_r``, µm."""
 
-    **Returns:** ``{"sigma_um": (n_r,), "three_sigma_um": float}``."""
+    sigma_um: np.ndarray
+    three_sigma_um: float
+
+
+def rss_stackup(lin: LinearResponse, sigma) -> Stackup:
+    """Statistical stack-up: per response row ``σ_r = sqrt(Σ_k J_ik² σ_k²)`` for independent
+    components with standard deviations ``sigma`` (P,), and the metric of ``|r0| + 3 σ_r``."""
     sigma = np.asarray(sigma, float)
     s_r = np.sqrt((lin.J**2) @ sigma**2)
-    return {"sigma_um": s_r, "three_sigma_um": float(aggregate(lin.kind, jnp.asarray(np.abs(lin.r0) + 3 * s_r)))}
+    return Stackup(sigma_um=s_r, three_sigma_um=float(aggregate(lin.kind, jnp.asarray(np.abs(lin.r0) + 3 * s_r))))
 
 
-def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: float = H_MAX,
-                  n_random: int = 4, n_corners: int = 4, max_iter: int = 6, seed: int = 0,
-                  evaluate_many=None) -> dict:
-    """The largest weighted tolerance box keeping ``study``'s metric ≤ ``limit_um``, verified by
-    full runs (module docstring).
+@dataclasses.dataclass(frozen=True)
+class ToleranceBox:
+    """The verified tolerance box of a study (:func:`tolerance_box`).
 
-    **Arguments:** ``weights`` (P,) cost weights (default 1); ``h_max`` cap of a half-width
-    (mm / mrad); ``n_corners`` worst corners and ``n_random`` random corners verified per
-    iteration; ``evaluate_many(thetas (m, P)) -> metrics (m,)`` runs the full model (default: a
-    ``vmap`` of :func:`jaxbelt.design.metrics.metric_value`).
-
-    **Returns:** a dict: ``half_widths`` (P,), ``box`` per roller, ``predicted_worst_um`` (linear
-    model), ``worst_case_um`` (verified, full runs), ``binding`` and ``unconstrained``
-    components, ``verification`` table, ``iterations``, ``rss_um`` (the RSS stack-up with
-    ``σ = h/3``), ``jacobian_um`` (n_r, P).
+    **Fields:** ``metric``, ``limit_um``, ``t_eval_s`` the question; ``half_widths`` (P,) in
+    ``units`` (mm / mrad) of the components ``labels``, around the scene's own misalignment;
+    ``box`` the same per roller ``{name: {"translation_mm": [x, y, z], "rotation_mrad": [x, y,
+    z]}}``; ``share`` (P,) each component's largest share of an active constraint;
+    ``predicted_worst_um`` the linear model's worst case; ``worst_case_um`` the verified one
+    (full runs); ``verified`` whether that lies in ``[0.97, 1] × limit``; ``binding`` the
+    components by share, largest first; ``unconstrained`` those capped at ``h_max`` (not felt);
+    ``verification`` one ``{"kind", "corner", "predicted_um", "full_um"}`` per verification run
+    of the last iteration; ``iterations``; ``rss_um`` the RSS stack-up with ``σ = h/3``;
+    ``jacobian_um`` (n_r, P) and ``response0_um`` (n_r,) the linear response ``r0 + J θ``.
     """
-    if not (np.isfinite(limit_um) and limit_um > 0):
-        raise ValueError(f"limit_um = {limit_um}: must be a positive number")
-    if evaluate_many is None:
-        from .sampling import evaluate_metric
 
-        def evaluate_many(thetas):
-            return evaluate_metric(study, thetas)
+    metric: str
+    limit_um: float
+    t_eval_s: float
+    half_widths: np.ndarray
+    units: list
+    labels: list
+    box: dict
+    share: np.ndarray
+    predicted_worst_um: float
+    worst_case_um: float
+    verified: bool
+    binding: list
+    unconstrained: list
+    verification: list
+    iterations: int
+    rss_um: float
+    jacobian_um: np.ndarray
+    response0_um: np.ndarray
 
-    sp = study.space
-    r0, J = response_jacobian(study)
-    lin = LinearResponse(r0, J, study.aggregate)
-    h_lin = optimise_box(lin, limit_um, weights, h_max)
-    felt = np.any(J != 0, axis=0) & (h_lin < h_max)
-    rng = np.random.default_rng(seed)
+    def to_dict(self) -> dict:
+        """The box as JSON-able data (``jaxbelt tolerance --json``): the scalar and table fields
+        and ``half_widths`` as ``[{"component", "half_width", "unit", "share"}]``."""
+        out = {k: getattr(self, k) for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um",
+                                              "predicted_worst_um", "verified", "binding", "unconstrained",
+                                              "verification", "iterations", "rss_um")}
+        out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
+                              for lab, h, u, s in zip(self.labels, self.half_widths, self.units, self.share)]
+        return out
+
+
+def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners, max_iter, space):
+    """Full runs at the worst and the random corners, the box scaled (uniform factor, secant)
+    until the verified worst case lies in ``[0.97, 1] × limit``. **Returns:** ``(h, worst,
+    table, iterations)``."""
     target, s, history, table = 0.985 * limit_um, 1.0, [], []
-    floor = float(aggregate(lin.kind, jnp.asarray(r0)))
-    rand = rng.choice([-1.0, 1.0], size=(n_random, len(h_lin)))  # the same corners in every iteration
-    for it in range(max_iter):
+    floor = float(aggregate(lin.kind, jnp.asarray(lin.r0)))
+    n_random = len(corners_random)
+    for _ in range(max_iter):
         h = np.where(felt, s * h_lin, h_lin)
         signs, pred = worst_corners(lin, h, n_corners)
-        corners = np.concatenate([signs, rand])
+        corners = np.concatenate([signs, corners_random])
         full = np.asarray(evaluate_many(corners * h))
-        pred_all = np.concatenate([pred, [lin.metric(c * h) for c in rand]])
+        pred_all = np.concatenate([pred, [lin.metric(c * h) for c in corners_random]])
         kinds = ["worst corner"] * len(signs) + ["random corner"] * n_random
-        table = [{"kind": k, "corner": sp.per_roller(c * h), "predicted_um": float(p), "full_um": float(f)}
+        table = [{"kind": k, "corner": space.per_roller(c * h), "predicted_um": float(p), "full_um": float(f)}
                  for k, c, p, f in zip(kinds, corners, pred_all, full)]
         worst = float(np.max(full))
         history.append((s, worst))
@@ -263,22 +291,49 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
             (s0, w0), (s1, w1) = history[-2], history[-1]
             s = s1 + (target - w1) * (s1 - s0) / (w1 - w0) if w1 != w0 else s1 * target / w1
         s = max(s, 1e-6)
+    return h, worst, table, len(history)
+
+
+def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: float = H_MAX,
+                  n_random: int = 4, n_corners: int = 4, max_iter: int = 6, seed: int = 0,
+                  evaluate_many=None) -> ToleranceBox:
+    """The largest weighted tolerance box keeping ``study``'s metric ≤ ``limit_um``, verified by
+    full runs (module docstring).
+
+    **Arguments:** ``weights`` (P,) cost weights (default 1); ``h_max`` cap of a half-width
+    (mm / mrad); ``n_corners`` worst corners and ``n_random`` random corners verified per
+    iteration; ``evaluate_many(thetas (m, P)) -> metrics (m,)`` runs the full model (default: a
+    ``vmap`` of :func:`jaxbelt.design.metrics.metric_value`).
+
+    **Returns:** a :class:`ToleranceBox`.
+    """
+    if not (np.isfinite(limit_um) and limit_um > 0):
+        raise ValueError(f"limit_um = {limit_um}: must be a positive number")
+    if evaluate_many is None:
+        def evaluate_many(thetas):
+            return evaluate_metric(study, thetas)
+
+    sp = study.space
+    r0, J = response_jacobian(study)
+    lin = LinearResponse(r0, J, study.aggregate)
+    h_lin = optimise_box(lin, limit_um, weights, h_max)
+    felt = np.any(J != 0, axis=0) & (h_lin < h_max)
+    rand = np.random.default_rng(seed).choice([-1.0, 1.0], size=(n_random, len(h_lin)))  # the same in every iteration
+    h, worst, table, iterations = _verify(lin, h_lin, felt, limit_um, evaluate_many, rand, n_corners, max_iter, sp)
     W = worst_case(lin, h)
     share = _shares(lin, h, W)
     labels = sp.labels()
     binding = [labels[k] for k in np.argsort(-share) if felt[k] and share[k] > 0]
-    return {
-        "metric": study.metric, "limit_um": float(limit_um), "t_eval_s": study.t_eval,
-        "half_widths": h, "units": sp.units(), "labels": labels,
-        "box": {name: {"translation_mm": g["translation"], "rotation_mrad": g["rotation"]}
-                for name, g in sp.per_roller(h).items()},
-        "share": share,
-        "predicted_worst_um": W, "worst_case_um": worst, "verified": bool(0.97 * limit_um <= worst <= limit_um),
-        "binding": binding, "unconstrained": [labels[k] for k in range(len(h)) if not felt[k]],
-        "verification": table, "iterations": len(history),
-        "rss_um": rss_stackup(lin, h / 3.0)["three_sigma_um"],
-        "jacobian_um": J, "response0_um": r0,
-    }
+    return ToleranceBox(
+        metric=study.metric, limit_um=float(limit_um), t_eval_s=study.t_eval,
+        half_widths=h, units=sp.units(), labels=labels,
+        box={name: {"translation_mm": g["translation"], "rotation_mrad": g["rotation"]}
+             for name, g in sp.per_roller(h).items()},
+        share=share, predicted_worst_um=W, worst_case_um=worst,
+        verified=bool(0.97 * limit_um <= worst <= limit_um),
+        binding=binding, unconstrained=[labels[k] for k in range(len(h)) if not felt[k]],
+        verification=table, iterations=iterations,
+        rss_um=rss_stackup(lin, h / 3.0).three_sigma_um, jacobian_um=J, response0_um=r0)
 
 
 def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:

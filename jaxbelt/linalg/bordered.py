@@ -254,8 +254,8 @@ def _border_rows(A):
 
 def _flat_roller_rows(D):
     """The roller rows' couplings ``D`` (n-1, q, b) as one (q, (n-1) b) matrix: ``D Y`` is then
-    a single matrix-vector product (an einsum over the block index took 8× longer per solve on
-    this CPU: 0.058 vs 0.007 ms on ``three-roller-t72``)."""
+    a single matrix-vector product (an einsum over the block index is several times slower on a
+    CPU)."""
     return jnp.transpose(D, (1, 0, 2)).reshape(D.shape[1], -1)
 
 
@@ -270,10 +270,9 @@ def _border_times(H, Y):
 def default_interior_method() -> str:
     """Block Thomas on CPU, cyclic reduction on accelerators.
 
-    On this project's 2-core CPU XLA runs small batched inverses at ~4 GFlop/s, so cyclic
-    reduction's extra work does not pay: factor + border application of the default scene's
-    interior take 6.2 + 4.1 ms with cyclic reduction and 3.5 + 2.1 ms with Thomas
-    (``benchmarks/solver_2d.py`` times both). On a GPU the sequential chain is the bottleneck."""
+    On a CPU, XLA runs small batched inverses slowly enough that cyclic reduction's extra work
+    does not pay (the 2D solver benchmark times both); on a GPU the sequential chain is the
+    bottleneck."""
     return "thomas" if jax.default_backend() == "cpu" else "cyclic-reduction"
 
 

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
+
 
 def _plt():
     import matplotlib.pyplot as plt  # the user's / environment's backend (see the module docstring)
@@ -26,3 +29,14 @@ def _ax(ax, figsize=(6, 4.5)):
     plt = _plt()
     fig, ax = plt.subplots(figsize=figsize, constrained_layout=True)
     return fig, ax
+
+
+def _record(result) -> Mapping:
+    """A result's entries by name: a mapping as it is; a dataclass (the results of
+    :mod:`jaxbelt.design`) as its fields, ``yield_`` under ``"yield"``."""
+    if isinstance(result, Mapping):
+        return result
+    if dataclasses.is_dataclass(result):
+        return {("yield" if f.name == "yield_" else f.name): getattr(result, f.name)
+                for f in dataclasses.fields(result)}
+    raise TypeError(f"expected a result of jaxbelt.design or a mapping, got {type(result).__name__}")

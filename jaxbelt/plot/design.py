@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import _finish, _plt
+from ._common import _finish, _plt, _record
 
 
-def plot_sensitivity(report: dict, path=None):
+def plot_sensitivity(report, path=None):
     """Bars of the gradient per roller and component (``jaxbelt sensitivity``): translations in
-    µm/mm, rotations in µm/mrad, structurally zero components hatched."""
+    µm/mm, rotations in µm/mrad, structurally zero components hatched. ``report``: a
+    :class:`~jaxbelt.design.sensitivity.SensitivityReport` (or its ``to_dict()``)."""
+    report = _record(report)
     plt = _plt()
     rollers = list(report["gradient"])
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
@@ -35,9 +37,11 @@ def plot_sensitivity(report: dict, path=None):
     return _finish(fig, path)
 
 
-def plot_tolerance_box(result: dict, path=None):
+def plot_tolerance_box(result, path=None):
     """Half-widths of the tolerance box per component (log scale), binding components marked,
-    capped (unconstrained) ones grey; beside it the verification runs against the limit."""
+    capped (unconstrained) ones grey; beside it the verification runs against the limit.
+    ``result``: a :class:`~jaxbelt.design.tolerance.ToleranceBox`."""
+    result = _record(result)
     plt = _plt()
     labels, h, units = result["labels"], np.asarray(result["half_widths"]), result["units"]
     binding = set(result["binding"][:3])
@@ -65,8 +69,11 @@ def plot_tolerance_box(result: dict, path=None):
     return _finish(fig, path)
 
 
-def plot_yield(metric_values, limit_um: float, result: dict, path=None):
-    """Histogram of the metric over the Monte-Carlo samples with the limit and the yield."""
+def plot_yield(metric_values, limit_um: float, result, path=None):
+    """Histogram of the metric over the Monte-Carlo samples with the limit and the yield.
+    ``result``: a :class:`~jaxbelt.design.sweep.SweepResult` (or a mapping with ``yield``,
+    ``ci95``, ``samples`` and ``metric``)."""
+    result = _record(result)
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     ax.hist(np.asarray(metric_values), bins=40, color="tab:blue", alpha=0.8)
@@ -80,4 +87,3 @@ def plot_yield(metric_values, limit_um: float, result: dict, path=None):
     return _finish(fig, path)
 
 
-# ----------------------------------------------------------------------------- belt segments and tracer labels

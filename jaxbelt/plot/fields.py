@@ -165,9 +165,9 @@ def field_values(model, u, component):
 def _full_fields(traj):
     u = getattr(traj, "u", None)
     if u is None:
-        raise ValueError("the trajectory holds no full fields (Trajectory.u is None): simulate a model with "
-                         "full_fields=True (model.replace(full_fields=True), or [output] fields = \"full\" "
-                         "in the scene)")
+        raise ValueError("the trajectory holds no full fields (Trajectory.u is None): simulate with "
+                         "saveat=jaxbelt.SaveAt(fields=True) (a scene's [output] fields = \"full\" sets it in "
+                         "jaxbelt.RunOptions.from_scene)")
     return np.asarray(traj.t, float), np.asarray(u, float)
 
 
@@ -184,11 +184,12 @@ def plot_fields(model, traj, times=None, components=None, ax=None, cmap="RdBu_r"
     **Arguments:**
 
     - ``model``: the :class:`~jaxbelt.BeltModel` that was simulated.
-    - ``traj``: its :class:`~jaxbelt.Trajectory` with full fields (``traj.u``, from a model with
-      ``full_fields=True``), or anything with ``t`` (k,) and ``u`` (k, n_xi, b).
+    - ``traj``: its :class:`~jaxbelt.Trajectory` with full fields (``traj.u``, from
+      ``jaxbelt.simulate(..., saveat=SaveAt(fields=True))``), or anything with ``t`` (k,) and
+      ``u`` (k, n_xi, b).
     - ``times``: times (s); each is drawn at the nearest recorded time (the panel title gives it).
-      Default: three evenly spaced recorded times, the last one included. A time outside the run
-      raises :class:`ValueError`.
+      Default: three evenly spaced recorded times, the last one included. A time more than half a
+      recording interval (the spacing of ``traj.t``) outside the run raises :class:`ValueError`.
     - ``components``: ``"u"``, ``"v"`` or both (default: ``("u", "v")`` in 2D, ``("u",)`` in 1D;
       ``"v"`` of a 1D model raises :class:`ValueError`).
     - ``ax``: axes to draw into, ``len(times) × len(components)`` of them (any array shape, read
@@ -200,7 +201,7 @@ def plot_fields(model, traj, times=None, components=None, ax=None, cmap="RdBu_r"
     """
     comps = _field_components(model, components)
     t, u = _full_fields(traj)
-    idx = select_times(t, times, spacing=model.dt * model.every if times is not None else None)
+    idx = select_times(t, times)
     n_r, n_c = len(idx), len(comps)
     z = np.asarray(model.z0) * 1e3
     one_row = z.size == 1

@@ -81,72 +81,83 @@ model fitted on everything *before* the newest chunk predicts that chunk within
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from ..integrators import resolve_integrator
+from ..integrators import AbstractIntegrator, make_solver
 from ..state import initial_state
-from ..timeloop import make_step
+from ..timeloop import SaveAt, make_step
+from ..transport import transport_step
 from .metrics import rmse
 from .snapshots import collect_first_order, state_to_z, tracer_operator, z_to_state
 
 SAFETY_MARGIN = 1.5
 
 
-def full_step_map(model, integrator=None, order: str = "post"):
-    """``z -> F(z)``: one full-order step on scaled first-order states. ``order="post"``: states
-    after transport (solve, then transport); ``"pre"``: states before transport (transport, then
-    solve), as for DMD on pre-transport snapshots."""
-    step = make_step(model, resolve_integrator(integrator, model), record_solved=True)
-
-    def post(z):
-        return state_to_z(model, step(z_to_state(model, z))[0])
-
-    def pre(z):
-        from ..transport import transport_step
-
-        st = z_to_state(model, z)
-        u, ud, chi, m_e = transport_step(model, st.u, st.u_dot, st.chi, st.m_e)
-        moved = st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=m_e, step=st.step)
-        _, rec = step(moved)
-        return jnp.concatenate([rec["x_solved"], model.dt * rec["v_solved"]])
-
+def full_step_map(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post"):
+    """``z -> F(z)``: one full-order step of size ``dt`` (``integrator``, default
+    :func:`jaxbelt.make_solver`'s, and its transport rule) on scaled first-order states.
+    ``order="post"``: states after transport (solve, then transport); ``"pre"``: states before
+    transport (transport, then solve), as for DMD on pre-transport snapshots."""
     if order not in ("post", "pre"):
         raise ValueError("order must be 'post' or 'pre'")
+    integrator = make_solver() if integrator is None else integrator
+    step = make_step(model, integrator, dt, integrator.init(model, initial_state(model), dt), SaveAt(solved=True))
+
+    def post(z):
+        return state_to_z(model, step(z_to_state(model, z, dt))[0], dt)
+
+    def pre(z):
+        st = z_to_state(model, z, dt)
+        u, ud, chi, m_e = transport_step(model, st.u, st.u_dot, st.chi, st.m_e, rule=integrator.transport)
+        moved = st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=m_e, step=st.step)
+        _, rec = step(moved)
+        return jnp.concatenate([rec["x_solved"], dt * rec["v_solved"]])
+
     return post if order == "post" else pre
 
 
-def residual_indicator(model, states, stride: int = 10, integrator=None, order: str = "post"):
+@dataclasses.dataclass(frozen=True)
+class ResidualIndicator:
+    """:func:`residual_indicator`'s result: ``step`` (k,) the sampled steps; ``residual_mm`` (k,)
+    the rms over tracers of ``C δ_k`` there, mm; ``estimate_mm`` (k,) the accumulated estimate
+    of the tracer error ``Σ stride·|C δ|`` up to each sampled step, mm."""
+
+    step: np.ndarray
+    residual_mm: jax.Array
+    estimate_mm: jax.Array
+
+
+def residual_indicator(model, states, dt, stride: int = 10, integrator: AbstractIntegrator | None = None,
+                       order: str = "post") -> ResidualIndicator:
     """Residual-based error indicator of a reduced trajectory.
 
     **Arguments:** ``states`` (n+1, 2N): lifted scaled first-order states ``z_0 … z_n`` of the
-    reduced model (``ReducedStep.fields``, ``DMDModel.predict``, …); ``stride``: evaluate every
-    ``stride``-th step; ``order``: see :func:`full_step_map`.
-
-    **Returns:** ``dict(step (k,), residual_mm (k,), estimate_mm (k,))``: the rms over tracers of
-    ``C δ_k`` in mm at the sampled steps, and the accumulated estimate of the tracer error
-    ``Σ stride·|C δ|`` up to each sampled step (mm).
+    reduced model (``ReducedStep.fields``, ``DMDModel.predict``, …) with time step ``dt``;
+    ``stride``: evaluate every ``stride``-th step; ``order``: see :func:`full_step_map`.
     """
     states = jnp.asarray(states)
-    F = jax.jit(jax.vmap(full_step_map(model, integrator, order)))
+    F = jax.jit(jax.vmap(full_step_map(model, dt, integrator, order)))
     idx = np.arange(0, states.shape[0] - 1, stride)
     C = tracer_operator(model)
     N = model.n_unknowns
     delta = F(states[idx]) - states[idx + 1]
     res = jnp.sqrt(jnp.mean((delta[:, :N] @ C.T) ** 2, axis=1)) * 1e3
-    return dict(step=idx, residual_mm=res, estimate_mm=jnp.cumsum(res) * stride)
+    return ResidualIndicator(step=idx, residual_mm=res, estimate_mm=jnp.cumsum(res) * stride)
 
 
 # --------------------------------------------------------------------------- the error ROM
 
 
-def _step_map(model, integrator, order: str, steps: int):
+def _step_map(model, dt, integrator, order: str, steps: int):
     """``z -> F^steps(z)``: ``steps`` full-order steps (a reduced model whose one step spans
     several full ones, e.g. DMDc fitted on every 4th snapshot)."""
-    F = full_step_map(model, integrator, order)
+    F = full_step_map(model, dt, integrator, order)
 
     def Fs(z):
         for _ in range(steps):
@@ -157,15 +168,15 @@ def _step_map(model, integrator, order: str, steps: int):
 
 
 @eqx.filter_jit
-def _apply_steps(model, integrator, order, steps, Z):
+def _apply_steps(model, dt, integrator, order, steps, Z):
     """``F`` on each row of ``Z`` (b, 2N), one compiled program per batch shape."""
-    return jax.vmap(_step_map(model, integrator, order, steps))(Z)
+    return jax.vmap(_step_map(model, dt, integrator, order, steps))(Z)
 
 
 @eqx.filter_jit
-def _jvp_columns(model, integrator, order, steps, z_ref, V):
+def _jvp_columns(model, dt, integrator, order, steps, z_ref, V):
     """``J V``: the step's Jacobian at ``z_ref`` on each column of ``V`` (2N, b)."""
-    F = _step_map(model, integrator, order, steps)
+    F = _step_map(model, dt, integrator, order, steps)
     return jax.vmap(lambda v: jax.jvp(F, (z_ref,), (v,))[1], in_axes=1, out_axes=1)(V)
 
 
@@ -226,9 +237,9 @@ def _stabilised(A):
 
 
 @eqx.filter_jit
-def _jvp_one(model, integrator, order, steps, z_ref, v):
+def _jvp_one(model, dt, integrator, order, steps, z_ref, v):
     """``J v`` for one vector (the quasi-static solve's iterations, one after the other)."""
-    return jax.jvp(_step_map(model, integrator, order, steps), (z_ref,), (v,))[1]
+    return jax.jvp(_step_map(model, dt, integrator, order, steps), (z_ref,), (v,))[1]
 
 
 def _quasi_static_response(J, r, rtol: float, max_iter: int):
@@ -283,107 +294,192 @@ def _propagate(A, drive, window, out, e0):
     return lax.scan(body, e0, window)[1]
 
 
-def error_rom(model, basis, coords, z_true0=None, stride: int = 10, dense: int = 10, order: str = "post",
-              steps: int = 1, integrator=None, observe=None, enrich_rtol: float = 1e-3, max_enrich: int = 20,
-              krylov: int = 1, sampling: str = "window", refine_rtol: float | None = 0.5,
-              refine_floor: float = 1e-2, quasi_static: bool = True, qs_rtol: float = 1e-2,
-              qs_max_iter: int = 40, chunk: int = 16):
+@dataclasses.dataclass(frozen=True)
+class ErrorRomOptions:
+    """Tuning of :func:`error_rom` (the module docstring explains each piece; the defaults are the
+    measured ones).
+
+    **Fields:** ``dense``: the first ``dense`` steps are windows of their own (the start-up);
+    ``sampling``: ``"window"`` (the window mean residual) or ``"point"`` (the residual at each
+    window's first step — aliased, for comparison only); ``refine_rtol``/``refine_floor``: windows
+    whose mean residual changes by more than ``refine_rtol`` from a neighbour's are evaluated step
+    by step (``refine_rtol=None``: never); ``enrich_rtol``/``max_enrich``/``krylov``: the
+    enrichment of the subspace; ``quasi_static``/``qs_rtol``/``qs_max_iter``: the quasi-static
+    response of a settled residual in it; ``chunk``: full steps and Jacobian-vector products per
+    compiled batch.
+    """
+
+    dense: int = 10
+    sampling: str = "window"
+    refine_rtol: float | None = 0.5
+    refine_floor: float = 1e-2
+    enrich_rtol: float = 1e-3
+    max_enrich: int = 20
+    krylov: int = 1
+    quasi_static: bool = True
+    qs_rtol: float = 1e-2
+    qs_max_iter: int = 40
+    chunk: int = 16
+
+    def __post_init__(self):
+        if self.sampling not in ("window", "point"):
+            raise ValueError("sampling must be 'window' or 'point'")
+
+    def replace(self, **changes) -> "ErrorRomOptions":
+        return dataclasses.replace(self, **changes)
+
+
+@dataclasses.dataclass(frozen=True)
+class EstimateCost:
+    """What an :func:`error_rom` estimate spent: ``full_steps`` (window residuals), ``jvps``
+    (Jacobian-vector products: subspace columns and quasi-static iterations), ``windows``,
+    ``quasi_static_iterations``, ``full_step_equivalents`` (``full_steps + jvps``, each product
+    about one full step)."""
+
+    full_steps: int
+    jvps: int
+    windows: int
+    quasi_static_iterations: int
+    full_step_equivalents: int
+
+
+@dataclasses.dataclass(frozen=True)
+class ErrorEstimate:
+    """:func:`error_rom`'s estimate of a reduced trajectory's observation error.
+
+    **Fields:** ``error`` (n, o) the estimated signed observation error after each step 1 … n, m;
+    ``error_mm`` (n,) its rms over the observed tracers, mm; ``rmse_mm`` its rms over the steps
+    too; ``max_mm`` its maximum over the steps; ``cost`` (:class:`EstimateCost`); ``dim`` the
+    subspace size; ``rho`` the largest |λ| of the projected Jacobian before stabilisation;
+    ``settled`` whether the late residual had settled (the quasi-static response was used).
+    """
+
+    error: jax.Array
+    error_mm: jax.Array
+    rmse_mm: float
+    max_mm: float
+    cost: EstimateCost
+    dim: int
+    rho: float
+    settled: bool
+
+
+def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order: str = "post", steps: int = 1,
+              integrator: AbstractIntegrator | None = None, observe=None,
+              options: ErrorRomOptions = ErrorRomOptions()) -> ErrorEstimate:
     """Error ROM: estimate of the tracer error of a reduced trajectory from its full-order residuals
     propagated through the full step's Jacobian in a residual-enriched subspace.
 
     **Arguments:** the reduced trajectory as full states ``z_k = basis @ coords[k]``, ``k = 0 … n``
-    (``basis`` (2N, b) orthonormal, ``coords`` (n+1, b)); ``z_true0`` the full model's state at
-    step 0 (its difference from ``z_0`` is the initial error; ``None``: zero); ``model`` the
-    configuration predicted; ``order``/``steps``: the reduced model's step is ``steps`` full steps
-    in ``order`` (:func:`full_step_map`); ``observe`` (o, N) what the error is measured on
-    (default the longitudinal tracers, :func:`~jaxbelt.rom.snapshots.tracer_operator`).
-    ``stride``/``dense``: residual windows (below; ``sampling="point"`` takes the residual at each
-    window's first step instead of the window mean — aliased, for comparison only);
-    ``refine_rtol``/``refine_floor``: windows whose mean residual changes are evaluated step by
-    step (``refine_rtol=None``: never); ``enrich_rtol``/``max_enrich``/``krylov``: the enrichment
-    of the subspace; ``quasi_static``/``qs_rtol``/``qs_max_iter``: the quasi-static response of a
-    settled residual in it.
-
-    **Returns:** ``dict(error (n, o) m`` — the estimated signed observation error after each step
-    1 … n — ``error_mm (n,)`` its rms over the observed tracers, ``rmse_mm``, ``max_mm``, ``cost``
-    (full steps and Jacobian-vector products spent, windows, quasi-static iterations), ``dim``
-    (subspace size), ``rho`` (largest |λ| of the projected Jacobian before stabilisation),
-    ``settled`` (whether the late residual had settled))``.
+    (``basis`` (2N, b) orthonormal, ``coords`` (n+1, b)); ``dt`` the time step of the full steps
+    (s); ``z_true0`` the full model's state at step 0 (its difference from ``z_0`` is the initial
+    error; ``None``: zero); ``model`` the configuration predicted; ``order``/``steps``: the
+    reduced model's step is ``steps`` full steps in ``order`` (:func:`full_step_map`) of
+    ``integrator`` (default :func:`jaxbelt.make_solver`'s); ``observe`` (o, N) what the error is
+    measured on (default the longitudinal tracers,
+    :func:`~jaxbelt.rom.snapshots.tracer_operator`); ``stride``: residual windows of ``stride``
+    steps; ``options``: the remaining tuning (:class:`ErrorRomOptions`).
 
     See the module docstring for the method and its accuracy.
     """
     if order not in ("post", "pre"):
         raise ValueError("order must be 'post' or 'pre'")
-    if sampling not in ("window", "point"):
-        raise ValueError("sampling must be 'window' or 'point'")
     # the algebra around the full steps runs in NumPy: these arrays change shape with every call,
     # and op by op each JAX primitive of a new shape is a compile (the full steps are compiled)
     basis, coords = np.asarray(basis), np.asarray(coords)
     n = int(coords.shape[0]) - 1
     if n < 1:
         raise ValueError("error_rom: need at least one reduced step")
-    stride, dense, steps = max(int(stride), 1), max(int(dense), 0), max(int(steps), 1)
-    integrator = resolve_integrator(integrator, model)
-    N = model.n_unknowns
+    stride, steps = max(int(stride), 1), max(int(steps), 1)
+    integrator = make_solver() if integrator is None else integrator
+    dt = jnp.asarray(dt, basis.dtype)
     obs = np.asarray(tracer_operator(model) if observe is None else observe)
     obs = np.concatenate([obs, np.zeros_like(obs)], axis=1)
 
-    # residual windows: every step of the first `dense` (the start-up transient), then `stride`
-    # steps each; per window the mean state and the mean successor
+    def F(Z):
+        return _chunked(lambda X: _apply_steps(model, dt, integrator, order, steps, X), Z, options.chunk, 0)
+
+    starts, D, evaluated = _window_residuals(F, basis, coords, stride, options)
+    edges = np.concatenate([starts, [n]])
+    z0 = basis @ coords[0]
+    e0 = np.zeros_like(z0) if z_true0 is None else np.asarray(z_true0) - z0
+    z0_j = jnp.asarray(z0)
+
+    def J(V):
+        return _chunked(lambda X: _jvp_columns(model, dt, integrator, order, steps, z0_j, X), V, options.chunk, 1)
+
+    def Jv(v):
+        return _jvp_one(model, dt, integrator, order, steps, z0_j, v)
+
+    W, JW, qs_iter, settled = _error_subspace(J, Jv, basis, D, e0, edges, options)
+    A, rho = _stabilised(W.T @ JW)
+    window = np.repeat(np.arange(len(starts)), np.diff(edges))
+    err = np.asarray(_propagate(A, D @ W, window, obs @ W, W.T @ e0))
+    err_mm = np.sqrt(np.mean(err**2, axis=1)) * 1e3
+    full_steps, jvps = int((evaluated + 1) * steps), int((W.shape[1] + qs_iter) * steps)
+    cost = EstimateCost(full_steps=full_steps, jvps=jvps, windows=int(len(starts)),
+                        quasi_static_iterations=int(qs_iter), full_step_equivalents=full_steps + jvps)
+    return ErrorEstimate(error=jnp.asarray(err), error_mm=jnp.asarray(err_mm),
+                         rmse_mm=float(np.sqrt(np.mean(err_mm**2))), max_mm=float(np.max(err_mm)), cost=cost,
+                         dim=int(W.shape[1]), rho=rho, settled=settled)
+
+
+def _window_residuals(F, basis, coords, stride: int, options: ErrorRomOptions):
+    """``(starts, D, evaluated)``: the residual windows' first steps, their mean residuals
+    ``F(mean z_k) - mean z_{k+1}`` (windows, 2N) and the number of windows evaluated.
+
+    Every step of the first ``dense`` is a window (the start-up transient), then ``stride`` steps
+    each; where the mean residual still changes from one window to the next (a transient), the
+    window mean misrepresents it and those windows are evaluated step by step."""
+    n = int(coords.shape[0]) - 1
     cum = np.concatenate([np.zeros((1, coords.shape[1])), np.cumsum(coords, axis=0)])
 
-    def window_residuals(starts, ends):
+    def residuals(starts, ends):
         width = (ends - starts)[:, None]
         mean_now = (cum[ends] - cum[starts]) / width
         mean_next = (cum[ends + 1] - cum[starts + 1]) / width
-        if sampling == "point":
+        if options.sampling == "point":
             mean_now, mean_next = coords[starts], coords[starts + 1]
-        Fz = _chunked(lambda Z: _apply_steps(model, integrator, order, steps, Z), mean_now @ basis.T, chunk, 0)
-        return Fz - mean_next @ basis.T  # (windows, 2N) window-mean residuals
+        return F(mean_now @ basis.T) - mean_next @ basis.T  # (windows, 2N) window-mean residuals
 
     def ends_of(starts):
         return np.concatenate([starts[1:], [n]])
 
+    dense = max(int(options.dense), 0)
     starts = np.unique(np.concatenate([np.arange(min(dense, n)), np.arange(0, n, stride)]))
-    D = window_residuals(starts, ends_of(starts))
+    D = residuals(starts, ends_of(starts))
     evaluated = len(starts)
-    if refine_rtol is not None and sampling == "window" and stride > 1:
-        # where the residual still changes from one window to the next (a transient), its window
-        # mean misrepresents it: those windows are evaluated step by step
-        floor = refine_floor * float(np.max(np.linalg.norm(D, axis=1)))
-        fine = _split_changing_windows(starts, n, D, refine_rtol, floor)
+    if options.refine_rtol is not None and options.sampling == "window" and stride > 1:
+        floor = options.refine_floor * float(np.max(np.linalg.norm(D, axis=1)))
+        fine = _split_changing_windows(starts, n, D, options.refine_rtol, floor)
         if len(fine) > len(starts):
             # a window of `fine` kept whole has its start and its end among the old ones
             at = np.minimum(np.searchsorted(starts, fine), len(starts) - 1)
             kept = (starts[at] == fine) & (ends_of(starts)[at] == ends_of(fine))
             D_fine = np.empty((len(fine), D.shape[1]))
             D_fine[kept] = D[at[kept]]
-            D_fine[~kept] = window_residuals(fine[~kept], ends_of(fine)[~kept])
+            D_fine[~kept] = residuals(fine[~kept], ends_of(fine)[~kept])
             starts, D = fine, D_fine
             evaluated += int(np.sum(~kept))
-    edges = np.concatenate([starts, [n]])
-    width = np.diff(edges)[:, None]
+    return starts, D, evaluated
 
-    z0 = basis @ coords[0]
-    e0 = np.zeros_like(z0) if z_true0 is None else np.asarray(z_true0) - z0
-    z0_j = jnp.asarray(z0)
 
-    def J(V):
-        return _chunked(lambda X: _jvp_columns(model, integrator, order, steps, z0_j, X), V, chunk, 1)
-
-    # the subspace: the model's basis, the residual (and initial error) directions outside it,
-    # and `krylov` images of those under the step's Jacobian
+def _error_subspace(J, Jv, basis, D, e0, edges, options: ErrorRomOptions):
+    """``(W, J W, quasi-static iterations, settled)``: the subspace of the error ROM — the model's
+    basis, the residual (and initial error) directions outside it, ``krylov`` images of those
+    under the step's Jacobian ``J`` and, where the late residual has settled, its quasi-static
+    response."""
     W = np.linalg.qr(basis)[0]
     JW = [J(W)]
-    blk = _new_directions(W, np.concatenate([D.T, e0[:, None]], axis=1), enrich_rtol, max_enrich)
+    blk = _new_directions(W, np.concatenate([D.T, e0[:, None]], axis=1), options.enrich_rtol, options.max_enrich)
     Wcols = [W]
-    for level in range(krylov + 1):
+    for level in range(options.krylov + 1):
         if blk.shape[1] == 0:
             break
         Wcols.append(blk)
         Jb = J(blk)
         JW.append(Jb)
-        if level == krylov:
+        if level == options.krylov:
             break
         blk = _new_directions(np.concatenate(Wcols, axis=1), Jb, 1e-8, blk.shape[1])
     W, JW = np.concatenate(Wcols, axis=1), np.concatenate(JW, axis=1)
@@ -392,27 +488,20 @@ def error_rom(model, basis, coords, z_true0=None, stride: int = 10, dense: int =
     # residual stays constant, (I - J)⁻¹ r, which a short Krylov space of J approximates poorly
     # (|λ| ~ 0.95 in 2D); only where the residual over the last quarter has settled (its spread
     # about its mean is at most half the mean: an oscillating residual has no such level)
+    n = int(edges[-1])
+    width = np.diff(edges)[:, None]
     late = np.flatnonzero(edges[:-1] >= n - max(n // 4, 1))
     w_late = width[late] / np.sum(width[late])
     r_late = np.sum(D[late] * w_late, axis=0)
     spread = float(np.sqrt(np.sum(w_late[:, 0] * np.sum((D[late] - r_late) ** 2, axis=1))))
     settled = bool(late.size) and spread <= 0.5 * float(np.linalg.norm(r_late))
-    if quasi_static and settled:
-        x, qs_iter = _quasi_static_response(lambda v: _jvp_one(model, integrator, order, steps, z0_j, v),
-                                            r_late, qs_rtol, qs_max_iter)
+    if options.quasi_static and settled:
+        x, qs_iter = _quasi_static_response(Jv, r_late, options.qs_rtol, options.qs_max_iter)
         extra = _new_directions(W, x[:, None], 1e-8, 1) if np.any(x) else np.zeros((W.shape[0], 0))
         if extra.shape[1]:
             W = np.concatenate([W, extra], axis=1)
             JW = np.concatenate([JW, J(extra)], axis=1)
-    A, rho = _stabilised(W.T @ JW)
-    window = np.repeat(np.arange(len(starts)), np.diff(edges))
-    err = np.asarray(_propagate(A, D @ W, window, obs @ W, W.T @ e0))
-    err_mm = np.sqrt(np.mean(err**2, axis=1)) * 1e3
-    cost = dict(full_steps=int((evaluated + 1) * steps), jvps=int((W.shape[1] + qs_iter) * steps),
-                windows=int(len(starts)), quasi_static_iterations=int(qs_iter))
-    cost["full_step_equivalents"] = cost["full_steps"] + cost["jvps"]
-    return dict(error=jnp.asarray(err), error_mm=jnp.asarray(err_mm), rmse_mm=float(np.sqrt(np.mean(err_mm**2))),
-                max_mm=float(np.max(err_mm)), cost=cost, dim=int(W.shape[1]), rho=rho, settled=settled)
+    return W, JW, qs_iter, settled
 
 
 def dmd_coordinates(Z, fit, x_start, k: int) -> dict:

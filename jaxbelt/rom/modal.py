@@ -20,15 +20,16 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ..integrators import algebraic_partition
-from ..integrators.eliminated import eliminated_system
+from ..integrators import eliminated_system
+from ..state import initial_state
 from .pod import PODGalerkin
 
 
-def modal_basis(model, state):
-    """``(omega (N_f,), Phi (N_f, N_f), F_hat (N_f,))`` at ``state``, by ascending frequency."""
-    dyn, alg = algebraic_partition(model)
-    M_hat, K_hat, F_hat, _, _, p = eliminated_system(model, state, dyn, alg)
+def modal_basis(model, state, dt):
+    """``(omega (N_f,), Phi (N_f, N_f), F_hat (N_f,))`` at ``state`` and time step ``dt`` (the
+    forcing's), by ascending frequency."""
+    dyn, alg = model.partition
+    M_hat, K_hat, F_hat, _, _, p = eliminated_system(model, state, dt, dyn, alg)
     M = 0.5 * (M_hat + M_hat.T)
     K = 0.5 * (K_hat + K_hat.T)
     L = jnp.linalg.cholesky(M)
@@ -55,18 +56,16 @@ def modal_order(omega, Phi, force, order: str):
     raise ValueError(f"order = {order!r}: one of 'frequency', 'forcing'")
 
 
-def fit_modal(model, n_modes: int, order: str = "forcing", state=None) -> PODGalerkin:
+def fit_modal(model, n_modes: int, dt, order: str = "forcing", state=None, transport: str = "shift") -> PODGalerkin:
     """Modal reduced integrator: the first ``n_modes`` modes of :func:`modal_basis` at ``state``
-    (default: the initial state) in ``order`` (``"forcing"``: the RHS-aware ordering of §6.2;
-    ``"frequency"``), as a Galerkin-projection integrator (module docstring)."""
-    from ..state import initial_state
-
+    (default: the initial state) and time step ``dt`` in ``order`` (``"forcing"``: the RHS-aware
+    ordering of §6.2; ``"frequency"``), as a Galerkin-projection integrator (module docstring)
+    followed by the ``transport`` rule."""
     state = initial_state(model) if state is None else state
-    omega, Phi, force = modal_basis(model, state)
+    omega, Phi, force = modal_basis(model, state, dt)
     n = int(Phi.shape[1])
     if not 1 <= int(n_modes) <= n:
         raise ValueError(f"n_modes = {n_modes}: between 1 and the {n} dynamic unknowns")
     sel = modal_order(omega, Phi, force, order)[: int(n_modes)]
     V, _ = jnp.linalg.qr(Phi[:, sel])
-    dyn, alg = algebraic_partition(model)
-    return PODGalerkin(V, dyn, alg)
+    return PODGalerkin(V, transport=transport)

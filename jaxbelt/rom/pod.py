@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import functools
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..integrators import AbstractIntegrator, algebraic_partition
+from ..integrators import AbstractIntegrator
 from ..integrators.eliminated import eliminated_system, recover_state
 from ..linalg import join
 
@@ -94,27 +93,31 @@ def choose_modes(s, n_modes=None, energy_tol=None, rule=None) -> int:
 
 
 class PODGalerkin(AbstractIntegrator):
-    """Backward Euler on the Galerkin projection of the eliminated ODE onto ``basis``."""
+    """Backward Euler on the Galerkin projection of the eliminated ODE onto ``basis``.
 
-    basis: jnp.ndarray  # (N_dynamic, r)
-    dyn_idx: tuple = eqx.field(static=True)
-    alg_idx: tuple = eqx.field(static=True)
+    **Fields:** ``basis`` (N_dynamic, r) orthonormal, on the dynamic unknowns of the model's
+    partition (``model.partition``) in their order; ``transport`` the transport rule that follows
+    each step (as every integrator's)."""
 
-    def solve_step(self, model, state):
-        dt, V = model.dt, self.basis
-        M_hat, K_hat, F_hat, P, g, _ = eliminated_system(model, state, self.dyn_idx, self.alg_idx)
-        f = jnp.asarray(self.dyn_idx)
+    basis: jax.Array  # (N_dynamic, r)
+
+    def step(self, model, state, dt, run_data=None):
+        V = self.basis
+        dyn_idx, alg_idx = model.partition
+        M_hat, K_hat, F_hat, P, g, _ = eliminated_system(model, state, dt, dyn_idx, alg_idx)
+        f = jnp.asarray(dyn_idx)
         # the state is kept in the span of the basis: x_f = V ξ, ẋ_f = V ξ̇
         xi, xi_dot = V.T @ join(state.u, state.chi)[f], V.T @ join(state.u_dot, state.chi_dot)[f]
         A_r = V.T @ (M_hat + dt**2 * K_hat) @ V
         xi_ddot = jnp.linalg.solve(A_r, V.T @ (F_hat - K_hat @ (V @ (xi + dt * xi_dot))))
         xi_dot = xi_dot + dt * xi_ddot
-        return recover_state(state, dt, V @ (xi + dt * xi_dot), V @ xi_dot, P, g, self.dyn_idx, self.alg_idx)
+        return recover_state(state, dt, V @ (xi + dt * xi_dot), V @ xi_dot, P, g, dyn_idx, alg_idx)
 
 
-def fit_pod(model, snapshots, **choice) -> PODGalerkin:
+def fit_pod(model, snapshots, transport: str = "shift", **choice) -> PODGalerkin:
     """POD-Galerkin integrator from full snapshots ``snapshots`` (N, m) of ``model`` (or of
-    several configurations stacked side by side); ``choice`` as :func:`pod_basis`."""
-    dyn, alg = algebraic_partition(model)
+    several configurations stacked side by side); ``choice`` as :func:`pod_basis`; ``transport``
+    the rule of the runs it is used in."""
+    dyn, _ = model.partition
     V, _ = pod_basis(jnp.asarray(snapshots)[jnp.asarray(dyn)], **choice)
-    return PODGalerkin(V, dyn, alg)
+    return PODGalerkin(V, transport=transport)

@@ -40,7 +40,7 @@ import numpy as np
 from jax import lax
 
 from ..assembly import roller_R
-from ..integrators import resolve_integrator
+from ..integrators import AbstractIntegrator, make_solver
 from ..state import initial_state
 from ..transport import transport_step_with_weights
 from .pod import pod_basis
@@ -59,24 +59,30 @@ def with_parameters(model, mu):
     return eqx.tree_at(lambda m: (m.chi_static, m.omega), model, (mu[:q], mu[q:]))
 
 
-def solve_map(model, integrator):
-    """``(z, μ) -> z̃``: one full-order solve (before transport) on scaled first-order states."""
+def solve_map(model, dt, integrator: AbstractIntegrator | None = None, run_data=None):
+    """``(z, μ) -> z̃``: one full-order solve of step ``dt`` (before transport) on scaled
+    first-order states. ``run_data``: the integrator's (``integrator.init``), by default from
+    ``model``'s initial state."""
+    integrator = make_solver() if integrator is None else integrator
+    if run_data is None:
+        run_data = integrator.init(model, initial_state(model), dt)
 
     def f(z, mu):
         m = with_parameters(model, mu)
-        return state_to_z(m, integrator.solve_step(m, z_to_state(m, z)))
+        return state_to_z(m, integrator.step(m, z_to_state(m, z, dt), dt, run_data), dt)
 
     return f
 
 
-def transport_map(model, R):
-    """``(z̃, μ, s) -> z⁺``: the transport step with imposed shift ``s`` and frozen ``R``."""
+def transport_map(model, R, dt):
+    """``(z̃, μ, s) -> z⁺``: the shift transport step with imposed shift ``s`` and frozen ``R``
+    on scaled first-order states of step ``dt``."""
 
     def f(z, mu, s):
         m = with_parameters(model, mu)
-        st = z_to_state(m, z)
+        st = z_to_state(m, z, dt)
         u, ud, chi, _, _ = transport_step_with_weights(m, st.u, st.u_dot, st.chi, st.m_e, s=s, R=R)
-        return state_to_z(m, st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=st.m_e, step=st.step))
+        return state_to_z(m, st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=st.m_e, step=st.step), dt)
 
     return f
 
@@ -93,7 +99,10 @@ def shift_functional(model):
 
 class ReducedStep(eqx.Module):
     """Fully reduced POD model (offline operators; see the module docstring). ``basis`` (2N, r) is
-    kept only to lift and to reconstruct fields; the online loop touches r-sized arrays only."""
+    kept only to lift and to reconstruct fields; the online loop touches r-sized arrays only.
+    ``dt``: the time step it was projected at, s (its step is one full step of that size; it
+    scales the velocity half of the states, :func:`~jaxbelt.rom.snapshots.state_to_z`);
+    ``singular_values``: of the training snapshots, where it was fitted to them (else ``None``)."""
 
     basis: jax.Array
     A: jax.Array
@@ -106,7 +115,8 @@ class ReducedStep(eqx.Module):
     h: jax.Array
     C_tracer: jax.Array  # (n_tr, r): longitudinal tracer displacement from ξ
     C_lateral: jax.Array  # (n_tr, r): lateral tracer displacement (zero in 1D)
-    singular_values: jax.Array
+    dt: jax.Array
+    singular_values: jax.Array | None = None
 
     @property
     def n_modes(self) -> int:
@@ -114,7 +124,7 @@ class ReducedStep(eqx.Module):
 
     def project(self, model, state):
         """Reduced coordinates ``ξ = Vᵀ z`` of a full state."""
-        return self.basis.T @ state_to_z(model, state)
+        return self.basis.T @ state_to_z(model, state, self.dt)
 
     def step(self, xi, mu):
         """One reduced step: ``(ξ̃ before transport, ξ⁺ after)``."""
@@ -149,38 +159,43 @@ class ReducedStep(eqx.Module):
         sq = lambda M: M[:r, :r]
         return ReducedStep(basis=self.basis[:, :r], A=sq(self.A), B=self.B[:r], d=self.d[:r], c=self.c[:r],
                            Z=sq(self.Z), G=sq(self.G), H=self.H[:r], h=self.h[:r],
-                           C_tracer=self.C_tracer[:, :r], C_lateral=self.C_lateral[:, :r],
+                           C_tracer=self.C_tracer[:, :r], C_lateral=self.C_lateral[:, :r], dt=self.dt,
                            singular_values=self.singular_values)
 
 
-def reduced_operators(model, V, integrator=None, ref_state=None, mu_ref=None):
-    """Project the full step onto ``V`` (2N, r): the operators of :class:`ReducedStep`.
+def reduced_operators(model, V, dt, integrator: AbstractIntegrator | None = None, ref_state=None, mu_ref=None,
+                      singular_values=None) -> ReducedStep:
+    """Project the full step of size ``dt`` (``integrator``'s solve, default
+    :func:`jaxbelt.make_solver`'s, then the shift transport) onto ``V`` (2N, r): the
+    :class:`ReducedStep` of basis ``V`` (``singular_values`` stored with it).
 
     Linearisation point: ``ref_state`` (default: the initial state of ``model``) and
     ``mu_ref`` (default :func:`parameters` of ``model``). Costs r + q + 2 Jacobian-vector products.
     """
-    if model.transport != "shift":
+    integrator = make_solver() if integrator is None else integrator
+    if integrator.transport != "shift":
         raise ValueError("the fully reduced step needs the 'shift' transport rule (masses constant)")
-    integrator = resolve_integrator(integrator, model)
     ref_state = initial_state(model) if ref_state is None else ref_state
     mu_ref = parameters(model) if mu_ref is None else jnp.asarray(mu_ref)
     V = jnp.asarray(V)
+    dt = jnp.asarray(dt, V.dtype)
     c = shift_functional(model)
-    ops = _operators(model, integrator, ref_state, mu_ref, V, c)
+    ops = _operators(model, integrator, ref_state, mu_ref, V, c, dt)
 
     def lift(C):
         return jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V
 
     C_lat = lift(tracer_operator(model, "z")) if model.kind == "2d" else jnp.zeros((model.n_tracers, V.shape[1]))
-    return dict(ops, c=c @ V, C_tracer=lift(tracer_operator(model)), C_lateral=C_lat)
+    return ReducedStep(basis=V, c=c @ V, C_tracer=lift(tracer_operator(model)), C_lateral=C_lat, dt=dt,
+                       singular_values=singular_values, **ops)
 
 
 @eqx.filter_jit
-def _operators(model, integrator, ref_state, mu_ref, V, c):
-    z_ref = state_to_z(model, ref_state)
-    solve = solve_map(model, integrator)
+def _operators(model, integrator, ref_state, mu_ref, V, c, dt):
+    z_ref = state_to_z(model, ref_state, dt)
+    solve = solve_map(model, dt, integrator, integrator.init(model, ref_state, dt))
     R = roller_R(model, ref_state.u)
-    transport = transport_map(model, R)
+    transport = transport_map(model, R, dt)
 
     z_sol, lin = jax.linearize(solve, z_ref, mu_ref)
     SV = jax.vmap(lambda v: lin(v, jnp.zeros_like(mu_ref)), in_axes=1, out_axes=1)(V)
@@ -205,20 +220,23 @@ def _operators(model, integrator, ref_state, mu_ref, V, c):
     return dict(A=V.T @ SV, B=V.T @ T, d=V.T @ c_full, Z=V.T @ ZV, G=V.T @ GV, H=V.T @ Hmu, h=V.T @ h0)
 
 
-def fit_reduced_pod(model, snapshots, integrator=None, ref_state=None, mu_ref=None, **choice) -> ReducedStep:
+def fit_reduced_pod(model, snapshots, dt, integrator: AbstractIntegrator | None = None, ref_state=None,
+                    mu_ref=None, **choice) -> ReducedStep:
     """Fully reduced POD model from scaled first-order snapshots (2N, m) — e.g. ``Z_pre`` and
     ``Z_post`` of :func:`~jaxbelt.rom.snapshots.collect_first_order`, of one configuration or
-    several side by side. ``choice``: ``n_modes=`` / ``energy_tol=`` / ``rule="source"`` as
-    :func:`~jaxbelt.rom.pod.pod_basis`. ``model``: the configuration to linearise at (use the
-    nominal one for multi-configuration training)."""
+    several side by side, taken with time step ``dt`` (and ``integrator``). ``choice``:
+    ``n_modes=`` / ``energy_tol=`` / ``rule="source"`` as :func:`~jaxbelt.rom.pod.pod_basis`.
+    ``model``: the configuration to linearise at (use the nominal one for multi-configuration
+    training)."""
     V, s = pod_basis(jnp.asarray(snapshots), **choice)
-    return ReducedStep(basis=V, singular_values=s, **reduced_operators(model, V, integrator, ref_state, mu_ref))
+    return reduced_operators(model, V, dt, integrator, ref_state, mu_ref, singular_values=s)
 
 
-def fit_reduced_pod_ranks(model, snapshots, ranks, integrator=None, ref_state=None, mu_ref=None) -> dict:
+def fit_reduced_pod_ranks(model, snapshots, ranks, dt, integrator: AbstractIntegrator | None = None, ref_state=None,
+                          mu_ref=None) -> dict:
     """``{r: ReducedStep}`` for every ``r`` in ``ranks`` from one SVD and one projection at the
     largest rank (:meth:`ReducedStep.truncate`): the offline cost of a rank study is that of its
     largest model, compiled once."""
     ranks = sorted({int(r) for r in ranks})
-    top = fit_reduced_pod(model, snapshots, integrator, ref_state, mu_ref, n_modes=ranks[-1])
+    top = fit_reduced_pod(model, snapshots, dt, integrator, ref_state, mu_ref, n_modes=ranks[-1])
     return {r: top.truncate(r) for r in ranks}
