@@ -267,12 +267,8 @@ BENCHMARKS = {
                            "walk against the reference's Timoshenko span shapes."),
     "linearity_range": ("Where linearity ends", "The error of the linear prediction of the tracer response against "
                         "the size of each misalignment component."),
-    "loop_compile": ("Compile time of the time loop", "Compile time and per-step cost of the time loop's layout "
-                     "against awkward run lengths and record intervals."),
     "modal_vs_pod": ("Modal reduction against POD", "The modal reduced integrator beside POD-Galerkin: tracer error "
                      "against the number of modes."),
-    "openblas_threads": ("OpenBLAS threads", "LAPACK calls behind `jnp.linalg` with one OpenBLAS thread and with "
-                         "several, on a busy machine."),
     "pareto": ("Speed against accuracy", "Tracer error against wall time and memory for grids, time steps, "
                "solvers, float32 and reduced models over the first 20 s of `three-roller-t72`, against a converged "
                "run (`jaxbelt bench --only pareto`)."),
@@ -292,9 +288,6 @@ BENCHMARKS = {
                    "misaligned at once."),
     "rom_indicator": ("Error estimate of the reduced models", "The a-posteriori error estimate against the true "
                       "error on held-out configurations (effectivity = estimate / true error)."),
-    "rom_indicator_box": ("Error estimate over the box", "What sets the error estimate's effectivity for DMD with "
-                          "control over the misalignment box: exact Jacobian, residual windows, quasi-static "
-                          "response."),
     "scaling_2d": ("Cost against grid size", "Per-step cost of the exact and reuse solvers against the number of "
                    "unknowns, with the fitted log-log slope."),
     "solver_2d": ("The 2D solvers against SciPy", "Per-step cost of the exact solver (block Thomas, cyclic "
@@ -303,10 +296,6 @@ BENCHMARKS = {
                      "compiled on its own, for the reuse and exact solvers."),
     "step_vs_superlu": ("Per step against SuperLU, quick", "The two per-step comparisons of the baselines benchmark "
                         "alone, for tracking the machine's state between full runs."),
-    "suite_compile_time": ("Where the test suite's time goes", "Tracing, lowering and XLA compilation per test "
-                           "module."),
-    "sweep_streaming": ("Streaming the Thomas sweeps", "Time of a block sweep against the amount of factor data it "
-                        "streams from memory."),
     "sweep_throughput": ("Sweep throughput", "Configuration-steps per second of the sweep against the batch size, "
                          "exact and reuse solvers."),
     "tension_stiffening_a1": ("What tension stiffening changes", "Tracer differences with and without the "
@@ -317,8 +306,6 @@ BENCHMARKS = {
     "validation": ("Validation set at fine resolution", "The checks of `tests/test_validation.py` (wave speed, "
                    "statics, lateral translation, convergence, Backward Euler's damping) at resolutions the tests "
                    "cannot afford ([validation](validation.md))."),
-    "whole_run_ab": ("Whole run, two versions side by side", "The whole 100 s reuse run timed for two versions of "
-                     "the code in alternating fresh processes."),
     "yield_rom": ("Yield with a reduced model standing in", "A Monte-Carlo yield study with full runs only and with "
                   "the surrogate standing in (`--rom auto`), with the surrogate's error bounds and the pass/fail "
                   "agreement on every sample."),

@@ -86,13 +86,13 @@ def test_benchmark_tables_render_values_generically(tmp_path):
     data = {"machine": {"device": "cpu:0", "cpu_count": 2, "jax": "0.0"}, "scene": "three-roller", "n": 3762,
             "ms": 0.123456, "ok": True, "ranks": [5, 10, 20], "huge": list(range(500)),
             "rows": {"exact": {"ms": 1.5, "err": 1e-13}, "reuse": {"ms": 0.5, "err": 2e-14}},
-            "cases": [{"w_mm": 50, "rate": 0.62}, {"w_mm": 5, "rate": 0.96}], "nested": {"a": {"b": 7}}}
+            "cases": [{"w_mm": 50, "rate": 0.62}, {"w_mm": 5, "rate": 0.96}], "nested": {"a": {"b": 7}, "c": 1}}
     (tmp_path / "toy_bench.json").write_text(json.dumps(data))
     (tmp_path / "toy_bench.png").write_bytes(b"")
     md = hooks.benchmark_markdown(tmp_path)
     assert "## toy bench {#toy_bench}" in md and "Measured on: device cpu:0, CPUs 2, jax 0.0." in md
     for row in ("| `scene` | three-roller |", "| `n` | 3762 |", "| `ms` | 0.1235 |", "| `ok` | yes |",
-                "| `ranks` | 5, 10, 20 |", "| `nested.a.b` | 7 |", "| exact | 1.5 | 1.000e-13 |", "| 50 | 0.62 |"):
+                "| `ranks` | 5, 10, 20 |", "| `nested.a.b` | 7 |", "| `nested.c` | 1 |", "| exact | 1.5 | 1.000e-13 |", "| 50 | 0.62 |"):
         assert row in md, row
     assert "`huge` (500 entries)" in md and "0, 1, 2, 3" not in md
     assert "![toy bench](../benchmarks/results/toy_bench.png)" in md
