@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import scene_with
+from helpers import load, scene_with
 
 import jaxbelt as jb
 from jaxbelt import design
@@ -23,20 +23,28 @@ from jaxbelt.design.store import load_sweep
 
 
 def coarse(name, n_eta=3):
-    return jb.compile_scene(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=n_eta), name))
+    """``(model, options)`` of a built-in scene on a coarser grid."""
+    return load(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=n_eta), name))
 
 
 @pytest.fixture(scope="module")
-def model2d():
+def loaded2d():
     # misaligned base: the metric is smooth at theta = 0; two grid lines across (the belt edges,
     # N = 434): the studies below run ~2000 configurations
     return coarse("three-roller-t72", n_eta=2)
 
 
 @pytest.fixture(scope="module")
-def study(model2d):
-    return design.make_study(model2d, "lateral_rms", t_eval=0.24, components="roller 2:rotation,roller 3:dx,roller 3:dz",
-                             integrator=jb.make_integrator("direct", model2d, "reuse"))
+def model2d(loaded2d):
+    return loaded2d[0]
+
+
+@pytest.fixture(scope="module")
+def study(loaded2d):
+    model2d, opts = loaded2d
+    return design.make_study(model2d, "lateral_rms", t_eval=0.24, dt=opts.dt,
+                             components="roller 2:rotation,roller 3:dx,roller 3:dz",
+                             integrator=jb.make_solver("direct", "reuse"))
 
 
 CHUNK = 8  # every batched evaluation of the study: one compiled vmap of 8 configurations
@@ -64,19 +72,21 @@ def test_parameter_space_excludes_structural_zeros(model2d):
     assert all(lab.endswith(":dx") for lab in sp1.labels())
     assert any("force/torque-loaded" in why for _, why in sp1.structural)
     # 2D: the tension roller's x is set by its load, not a parameter; its other components are
-    sp2 = design.parameter_space(coarse("three-roller-tension"), "roller 1,roller 2,roller 3:dz,roller 3:ax")
+    sp2 = design.parameter_space(coarse("three-roller-tension")[0], "roller 1,roller 2,roller 3:dz,roller 3:ax")
     assert "roller 2:dx" not in sp2.labels() and {"roller 2:dy", "roller 2:ax"} <= set(sp2.labels())
     assert sp2.size == 5 + 4 + 2
     assert any(jc == (1, "dx") and "force/torque-loaded" in why for jc, why in sp2.structural)
 
 
-def test_study_rejects_bad_metric_and_time(model2d):
+def test_study_rejects_bad_metric_and_time(loaded2d):
+    model2d, opts = loaded2d
     with pytest.raises(ValueError, match="unknown"):
-        design.make_study(model2d, "lateral_avg")
+        design.make_study(model2d, "lateral_avg", dt=opts.dt, n_steps=opts.n_steps)
     with pytest.raises(ValueError, match="t_eval"):
-        design.make_study(model2d, "lateral_rms", t_eval=0.0)
+        design.make_study(model2d, "lateral_rms", t_eval=0.0, dt=opts.dt)
+    model1, opts1 = load("two-roller-1d")
     with pytest.raises(ValueError, match="2D scene"):
-        design.make_study(jb.load_model("two-roller-1d"), "lateral_max", t_eval=0.05)
+        design.make_study(model1, "lateral_max", t_eval=0.05, dt=opts1.dt)
 
 
 def test_metrics_are_zero_for_the_aligned_machine_and_match_their_definitions(study):
@@ -84,10 +94,11 @@ def test_metrics_are_zero_for_the_aligned_machine_and_match_their_definitions(st
     k = study.n_steps - 1
     assert np.isclose(float(design.metric_value(study, jnp.zeros(4))), float(jnp.sqrt(jnp.mean(dv[k] ** 2))), rtol=1e-12)
     aligned = design.make_study(study.model.replace(chi_static=jnp.zeros_like(study.base)), "lateral_max",
-                                t_eval=study.t_eval, components="roller 2:rotation", integrator=study.integrator)
+                                t_eval=study.t_eval, dt=study.dt, components="roller 2:rotation",
+                                integrator=study.integrator)
     assert float(design.metric_value(aligned, jnp.zeros(2))) == 0.0
-    peak = design.make_study(study.model, "lateral_peak", t_eval=study.t_eval, components="roller 2:rotation",
-                             integrator=study.integrator)
+    peak = design.make_study(study.model, "lateral_peak", t_eval=study.t_eval, dt=study.dt,
+                             components="roller 2:rotation", integrator=study.integrator)
     dv2 = design.tracer_deviation(peak, jnp.zeros(2))[1]
     assert np.isclose(float(design.metric_value(peak, jnp.zeros(2))), float(jnp.max(jnp.abs(dv2[-peak.window:]))))
     assert float(design.metric_value(peak, jnp.zeros(2), smooth=True)) >= float(design.metric_value(peak, jnp.zeros(2)))
@@ -115,17 +126,18 @@ def test_gradient_2d_drive_idle_tension_translations_and_rotations():
     (test_jacobian_forward_matches_the_reverse_gradient); the 2D gradient through drive, tension
     and idle rollers against central differences (test_grad, case 2d-tension); the tension
     roller's x out of the parameters (test_parameter_space_excludes_structural_zeros)."""
-    model = coarse("three-roller-tension")
+    model, opts = coarse("three-roller-tension")
     model = model.replace(chi_static=model.chi_static.at[jnp.array([1, 9, 14])].set(jnp.array([1e-3, 2e-4, 5e-4])))
-    st = design.make_study(model, "lateral_rms", t_eval=0.16,
-                           components="roller 1,roller 2,roller 3:dz,roller 3:ax")
+    st = design.make_study(model, "lateral_rms", t_eval=0.16, dt=opts.dt,
+                           components="roller 1,roller 2,roller 3:dz,roller 3:ax", integrator=opts.solver)
     assert "roller 2:dx" not in st.space.labels()  # the load sets it
     grad = _fd_check(st, jnp.zeros(st.space.size), 1e-3)
     assert float(jnp.min(jnp.abs(grad))) > 0
 
 
 def test_gradient_1d_translations():
-    st = design.make_study(jb.load_model("two-roller-1d-idle-translated"), "longitudinal_rms", t_eval=0.1)
+    model, opts = load("two-roller-1d-idle-translated")
+    st = design.make_study(model, "longitudinal_rms", t_eval=0.1, dt=opts.dt, integrator=opts.solver)
     _fd_check(st, jnp.zeros(st.space.size), 1e-4)
 
 
@@ -134,13 +146,13 @@ def test_jacobian_forward_matches_the_reverse_gradient(study):
     through the chain rule: ∇ = Jᵀ r / (n · RMS)."""
     r0, J = design.response_jacobian(study, mode="forward")
     report = design.sensitivity_report(study, repeat=1)
-    grad = np.array([p["gradient"] for p in report["parameters"]])
+    grad = np.array([p["gradient"] for p in report.parameters])
     rms = np.sqrt(np.mean(r0**2))
     ref = J.T @ r0 / (len(r0) * rms)
     np.testing.assert_allclose(grad, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
-    assert np.isclose(report["value_um"], rms, rtol=1e-12)
-    assert report["gradient"]["roller 1"]["rotation_um_per_mrad"] == [0.0, 0.0, 0.0]
-    assert {z["component"] for z in report["structural_zero"]} == {"roller 1:az", "roller 2:az", "roller 3:az"}
+    assert np.isclose(report.value_um, rms, rtol=1e-12)
+    assert report.gradient["roller 1"]["rotation_um_per_mrad"] == [0.0, 0.0, 0.0]
+    assert {z["component"] for z in report.structural_zero} == {"roller 1:az", "roller 2:az", "roller 3:az"}
 
 
 # ----------------------------------------------------------------------------- tolerance box
@@ -178,22 +190,23 @@ def test_box_with_several_rows_and_rms_matches_scipy():
 
 def test_rss_stackup_of_one_row():
     lin = tolerance.LinearResponse(np.zeros(1), np.array([[3.0, 4.0]]), "max")
-    assert np.isclose(tolerance.rss_stackup(lin, [1.0, 1.0])["three_sigma_um"], 15.0)
+    assert np.isclose(tolerance.rss_stackup(lin, [1.0, 1.0]).three_sigma_um, 15.0)
 
 
 @pytest.mark.slow
 def test_box_on_the_default_scene_is_verified_by_full_runs():
     """The full-size scene (slow). Fast: the same box and verification on the coarse scene,
     through the CLI (test_cli_design.py::test_tolerance_json)."""
-    model = jb.load_model("three-roller")  # the aligned nominal machine, N = 3762
-    st = design.make_study(model, "lateral_max", t_eval=0.1, components="roller 2:rotation,roller 3:dz")
+    model, opts = load("three-roller")  # the aligned nominal machine, N = 3762
+    st = design.make_study(model, "lateral_max", t_eval=0.1, dt=opts.dt, components="roller 2:rotation,roller 3:dz",
+                           integrator=opts.solver)
     res = design.tolerance_box(st, 20.0, n_random=2, n_corners=2)
-    assert res["verified"] and 0.97 * 20 <= res["worst_case_um"] <= 20.0
-    full = [row["full_um"] for row in res["verification"]]
-    assert max(full) == res["worst_case_um"]
-    assert res["binding"] and set(res["binding"]) <= set(st.space.labels())
+    assert res.verified and 0.97 * 20 <= res.worst_case_um <= 20.0
+    full = [row["full_um"] for row in res.verification]
+    assert max(full) == res.worst_case_um
+    assert res.binding and set(res.binding) <= set(st.space.labels())
     # the box is around the scene's own misalignment, half-widths non-negative and finite
-    assert np.all(res["half_widths"] >= 0) and np.all(np.isfinite(res["half_widths"]))
+    assert np.all(res.half_widths >= 0) and np.all(np.isfinite(res.half_widths))
 
 
 # ----------------------------------------------------------------------------- yield
@@ -209,10 +222,10 @@ def test_monte_carlo_equals_a_brute_force_loop(study, metric_fn):
     mc = design.monte_carlo(study, dist, 12, limit, seed=5, chunk=CHUNK)  # two chunks, the last padded
     u = sampling.standard_normal_samples(12, 4, 5)
     loop = np.array([float(metric_fn(dist.transform(jnp.asarray(ui)))) for ui in u])
-    np.testing.assert_allclose(mc["metric"], loop, rtol=1e-10)  # batched vs one at a time: round-off
-    assert mc["passed"] == int(np.sum(loop <= limit))
-    lo, hi = mc["ci95"]
-    assert lo <= mc["yield"] <= hi
+    np.testing.assert_allclose(mc.metric, loop, rtol=1e-10)  # batched vs one at a time: round-off
+    assert mc.passed == int(np.sum(loop <= limit))
+    lo, hi = mc.ci95
+    assert lo <= mc.yield_ <= hi
 
 
 def test_wilson_interval_matches_scipy():
@@ -254,10 +267,10 @@ def test_form_and_importance_sampling_agree_with_monte_carlo(study, limit_13):
     dist = _dist(study)
     limit, mc = limit_13
     f = design.form(study, dist, limit)
-    assert f["converged"] and f["beta"] > 0
-    assert np.isclose(float(design.metric_value(study, jnp.asarray(f["theta_star"]))), limit, rtol=1e-6)
-    is_ = design.importance_sampling(study, dist, limit, f["u_star"], n=400, chunk=CHUNK)
-    assert is_["ci95"][0] - 0.03 <= mc["yield"] <= is_["ci95"][1] + 0.03
+    assert f.converged and f.beta > 0
+    assert np.isclose(float(design.metric_value(study, jnp.asarray(f.theta_star))), limit, rtol=1e-6)
+    is_ = design.importance_sampling(study, dist, limit, f.u_star, n=400, chunk=CHUNK)
+    assert is_.ci95[0] - 0.03 <= mc.yield_ <= is_.ci95[1] + 0.03
 
 
 def test_sweep_store_resumes_and_extends(study, tmp_path):
@@ -267,8 +280,8 @@ def test_sweep_store_resumes_and_extends(study, tmp_path):
     first = design.run_sweep(study, dist, 8, limit, chunk=CHUNK, out=out, with_form=False)
     again = design.run_sweep(study, dist, 16, limit, chunk=CHUNK, out=out, with_form=False)
     fresh = design.run_sweep(study, dist, 16, limit, chunk=CHUNK, with_form=False)
-    np.testing.assert_allclose(again["metric_values"], fresh["metric_values"], rtol=1e-12)
-    np.testing.assert_allclose(again["metric_values"][:8], first["metric_values"], rtol=1e-12)
+    np.testing.assert_allclose(again.metric_values, fresh.metric_values, rtol=1e-12)
+    np.testing.assert_allclose(again.metric_values[:8], first.metric_values, rtol=1e-12)
     ds = load_sweep(out)
     assert ds.sizes["config"] == 16 and ds.sizes["tracer"] == study.ref_u.shape[1]
     with pytest.raises(ValueError, match="another sweep"):
@@ -292,15 +305,15 @@ def test_monte_carlo_and_form_match_openturns(study, metric_fn, limit_13):
     ref = ot.FORM(solver, event, [0.0] * 4)
     ref.run()
     ours = design.form(study, dist, limit)
-    assert np.isclose(ours["beta"], ref.getResult().getHasoferReliabilityIndex(), rtol=1e-5)
-    assert np.isclose(1 - ours["yield"], ref.getResult().getEventProbability(), rtol=1e-4)
+    assert np.isclose(ours.beta, ref.getResult().getHasoferReliabilityIndex(), rtol=1e-5)
+    assert np.isclose(1 - ours.yield_, ref.getResult().getEventProbability(), rtol=1e-4)
     ot.RandomGenerator.SetSeed(7)
     mc_ref = ot.ProbabilitySimulationAlgorithm(event, ot.MonteCarloExperiment())
     mc_ref.setMaximumOuterSampling(400)
     mc_ref.setMaximumCoefficientOfVariation(0.0)
     mc_ref.run()
     p_ref = mc_ref.getResult().getProbabilityEstimate()
-    p = 1 - mc["yield"]
+    p = 1 - mc.yield_
     sd = np.sqrt(p * (1 - p) / 400 + p_ref * (1 - p_ref) / 400)
     assert abs(p - p_ref) <= 3.5 * sd + 1e-12
 

@@ -8,7 +8,7 @@ import json
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import scene_with
+from helpers import load, scene_with
 
 import jaxbelt as jb
 from jaxbelt import design
@@ -22,9 +22,9 @@ LIMIT = 20.0  # µm
 def study():
     """Coarse, 30 steps (whole checkpoint chunks), the factorisation-reuse solver (cheaper to
     compile and to run; checked against the exact one in test_reuse.py)."""
-    model = jb.compile_scene(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
-    return design.make_study(model, "lateral_max", t_eval=0.6, components="roller 2:rotation",
-                             integrator=jb.make_integrator("direct", model, "reuse"))
+    model, opts = load(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
+    return design.make_study(model, "lateral_max", t_eval=0.6, dt=opts.dt, components="roller 2:rotation",
+                             integrator=jb.make_solver("direct", "reuse"))
 
 
 @pytest.fixture(scope="module")
@@ -114,18 +114,18 @@ def test_sweep_with_rom_auto_matches_the_full_model_yield(study, dist):
     n = 64
     off = design.run_sweep(study, dist, n, LIMIT, seed=0, with_form=False)
     auto = design.run_sweep(study, dist, n, LIMIT, seed=0, rom="auto", with_form=False)
-    assert off["reduced_runs"] == 0 and 0.1 < off["yield"] < 0.95
-    assert auto["rom"]["used"] and auto["reduced_runs"] > 0
-    assert auto["full_runs"] + auto["reduced_runs"] == n + auto["rom"]["validation_runs"]
-    lo, hi = off["ci95"]
-    assert lo <= auto["yield"] <= hi
-    assert np.max(np.abs(auto["metric_values"] - off["metric_values"])) < 0.1 * LIMIT
+    assert off.reduced_runs == 0 and 0.1 < off.yield_ < 0.95
+    assert auto.rom["used"] and auto.reduced_runs > 0
+    assert auto.full_runs + auto.reduced_runs == n + auto.rom["validation_runs"]
+    lo, hi = off.ci95
+    assert lo <= auto.yield_ <= hi
+    assert np.max(np.abs(auto.metric_values - off.metric_values)) < 0.1 * LIMIT
     # the errors (< 1e-4 µm) are far smaller than any sample's distance to the limit: same calls
-    np.testing.assert_array_equal(auto["metric_values"] <= LIMIT, off["metric_values"] <= LIMIT)
+    np.testing.assert_array_equal(auto.metric_values <= LIMIT, off.metric_values <= LIMIT)
 
 
 def test_sweep_falls_back_to_full_runs_when_the_bound_is_too_large(study, dist, surrogate):
     limit = 2 * surrogate.bound_um  # the bound is half of this limit: not trusted
     res = design.run_sweep(study, dist, 12, limit, seed=0, rom="auto", with_form=False)
-    assert not res["rom"]["used"] and res["reduced_runs"] == 0
-    assert res["full_runs"] == 12 + res["rom"]["validation_runs"]  # training and validation count too
+    assert not res.rom["used"] and res.reduced_runs == 0
+    assert res.full_runs == 12 + res.rom["validation_runs"]  # training and validation count too

@@ -39,8 +39,9 @@ def run2d(tmp_path_factory):
     path.write_text(SMALL_2D)
     scene = jb.load_scene(path)
     mesh = jb.build_mesh(scene)
-    model = jb.compile_scene(scene, mesh).replace(full_fields=True)  # what --plot-fields switches on
-    state, traj = jb.simulate(model)
+    model, opts = jb.build_model(scene, mesh), jb.RunOptions.from_scene(scene)
+    fields = jb.SaveAt(opts.saveat.every, fields=True)  # what --plot-fields switches on
+    state, traj = jb.simulate(model, **opts.replace(saveat=fields))
     return path, mesh, model, state, traj
 
 
@@ -48,8 +49,8 @@ def run2d(tmp_path_factory):
 def run1d():
     scene = jb.load_scene("two-roller-1d")
     mesh = jb.build_mesh(scene)
-    model = jb.compile_scene(scene, mesh).replace(full_fields=True)
-    state, traj = jb.simulate(model, n_steps=6)
+    model, opts = jb.build_model(scene, mesh), jb.RunOptions.from_scene(scene)
+    state, traj = jb.simulate(model, **opts.replace(n_steps=6, saveat=jb.SaveAt(opts.saveat.every, fields=True)))
     return mesh, model, state, traj
 
 

@@ -10,7 +10,7 @@ from helpers import builtin_dict, scene_with
 
 def _reject(mutate, *fragments, name="two-roller-1d"):
     with pytest.raises(jb.SceneError) as e:
-        jb.compile_scene(scene_with(mutate, name))
+        jb.build_model(scene_with(mutate, name))
     msg = str(e.value)
     for f in fragments:
         assert f in msg, msg
@@ -127,7 +127,7 @@ def test_external_roller_in_concave_bend_is_fine():
         d["roller"].append(r3)
         d["mesh"] = {"element_length_mm": 1.5}
         d["time"]["dt_s"] = 0.002
-    model = jb.compile_scene(scene_with(m))
+    model = jb.build_model(scene_with(m))
     assert model.n_rollers == 3
 
 

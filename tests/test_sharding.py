@@ -24,9 +24,12 @@ METRIC = textwrap.dedent("""
     import jax, jax.numpy as jnp, numpy as np
     import jaxbelt as jb
     from jaxbelt.design import sharding
-    model = jb.load_model("two-roller-1d-idle-translated")
+    jb.enable_x64()
+    scene = jb.load_scene("two-roller-1d-idle-translated")
+    model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
     def fn(th):
-        return jb.simulate(model.with_misalignment(translation=th), n_steps=20)[1].tracer_u[-1]
+        return jb.simulate(jb.with_misalignment(model, translation=th), opts.solver, n_steps=20,
+                           dt=opts.dt)[1].tracer_u[-1]
     def configs(n):
         k = np.arange(n, dtype=float)
         return np.stack([1e-3 * np.sin(k), 5e-4 * np.cos(k)], axis=1)

@@ -15,7 +15,13 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
+from pathlib import Path
 
+import jax
+
+from .. import enable_x64
+from ..scene import MisalignmentWarning, SceneError
 from . import bench, demo, info, plot_scene, reduce, scenes, sensitivity, simulate, sweep, tolerance
 from ._common import SimulationError, UsageError
 from .reduce import _print_reduce
@@ -54,11 +60,6 @@ def enable_compilation_cache():
     executable holds its own), and the next compile crashes. The test suite now frees compiled
     programs between modules (``tests/conftest.py``); a CLI command compiles a few dozen. The test
     suite itself runs with the cache off, so tests never depend on what an earlier run left."""
-    import os
-    from pathlib import Path
-
-    import jax
-
     if os.environ.get("JAXBELT_COMPILATION_CACHE", "1") == "0":
         return None
     path = os.environ.get("JAXBELT_CACHE_DIR") or str(
@@ -75,17 +76,11 @@ def configure_process():
     reduced models' SVD, QR, eig) spin extra OpenBLAS threads against XLA's own pool, which on a
     small, busy machine is several times slower (the OpenBLAS-threads benchmark); the variable is
     read when OpenBLAS loads, at the first LAPACK call."""
-    from .. import enable_x64
-
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     enable_x64()
 
 
 def main(argv=None) -> int:
-    import warnings
-
-    from ..scene import MisalignmentWarning, SceneError
-
     default_show = warnings.showwarning
 
     def one_line(message, category, *a, **k):  # the scene's range warnings as one line, others as usual

@@ -6,8 +6,15 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 
+import jax
 import numpy as np
+
+from ..build import build_model
+from ..mesh import build_mesh
+from ..scene import load_scene
+from ..timeloop import RunOptions
 
 SCENE_HELP = "TOML path or built-in scene name"
 
@@ -20,9 +27,9 @@ class SimulationError(Exception):
     """A run that went wrong (diverged): ``jaxbelt: error: …`` on stderr, exit code 3."""
 
 
-def _load(scene_arg, t_end=None, dt=None, integrator=None, transport=None, linear_solver=None):
-    from ..scene import load_scene
-
+def scene_from_args(scene_arg, t_end=None, dt=None, integrator=None, transport=None, linear_solver=None):
+    """The scene of ``scene_arg`` with the command-line overrides of its ``[time]`` and ``[solver]``
+    (``None``: the scene's own)."""
     scene = load_scene(scene_arg)
     if t_end is not None or dt is not None:
         t = scene.time
@@ -43,28 +50,33 @@ def _load(scene_arg, t_end=None, dt=None, integrator=None, transport=None, linea
     return scene
 
 
-def _positive(name, v, low=1):
+def load_run(scene_arg, t_end=None, dt=None, integrator=None, transport=None, linear_solver=None):
+    """``(scene, mesh, model, options)`` of a scene with the command-line overrides
+    (:func:`scene_from_args`): its grid, its model (:func:`jaxbelt.build_model`) and its run
+    settings (:class:`jaxbelt.RunOptions`)."""
+    scene = scene_from_args(scene_arg, t_end, dt, integrator, transport, linear_solver)
+    mesh = build_mesh(scene)
+    return scene, mesh, build_model(scene, mesh), RunOptions.from_scene(scene)
+
+
+def check_at_least(name, v, low=1):
     if v is not None and v < low:
         raise UsageError(f"{name} = {v}: must be at least {low}")
 
 
-def _finite(v):
+def finite_or_none(v):
     v = float(v)
     return v if np.isfinite(v) else None
 
 
-def _fmt(v, unit=""):
+def fmt(v, unit=""):
     return "nan" if v is None else f"{v:.4g}{unit}"
 
 
-def _timed(f, *args, repeat: int = 5, budget_s: float = 0.5):
+def timed(f, *args, repeat: int = 5, budget_s: float = 0.5):
     """``(result, seconds)`` of ``f(*args)`` with its outputs ready, after one untimed warm-up
     call (compilation): the fastest of up to ``repeat`` calls, fewer once ``budget_s`` is spent
     (so a long run is timed once; short ones are not at the mercy of one scheduler hiccup)."""
-    import time
-
-    import jax
-
     jax.block_until_ready(f(*args))
     times = []
     while len(times) < repeat and sum(times) < budget_s:
@@ -74,13 +86,17 @@ def _timed(f, *args, repeat: int = 5, budget_s: float = 0.5):
     return out, min(times)
 
 
-def _print_json(data):
+def print_json(data):
     print(json.dumps(data, indent=2))
 
 
-def _emit(args, data, print_text):
+def emit(args, data, print_text):
     """``data`` as JSON with ``--json``, else ``print_text(data)``."""
     if args.json:
-        _print_json(data)
+        print_json(data)
     else:
         print_text(data)
+
+
+# the names jaxbelt.cli.reduce imports
+_emit, _finite, _fmt, _load, _positive, _timed = emit, finite_or_none, fmt, scene_from_args, check_at_least, timed

@@ -5,10 +5,14 @@ bad input into one line and exit code 2 before anything is computed or written."
 from __future__ import annotations
 
 import math
+import sys
 import tomllib
 from pathlib import Path
 
-from ._common import SCENE_HELP, UsageError
+from .. import plot
+from ..design import METRICS, make_study
+from ..registry import LINEAR_SOLVERS
+from ._common import SCENE_HELP, UsageError, emit, load_run
 
 DESIGN_SCENE = "three-roller-tolerance"
 
@@ -20,7 +24,9 @@ def add_design_arguments(p, metric_default: str, limit: bool = False):
                    help="lateral_rms | lateral_max | longitudinal_rms | lateral_peak | walk_rate "
                         f"(default {metric_default})")
     p.add_argument("--at", type=float, default=None, metavar="T", help="evaluation time in s (default: the scene's end)")
-    p.add_argument("--solver", default=None, help="structured (exact) | reuse (factorisation reuse); default the scene's")
+    p.add_argument("--solver", choices=tuple(LINEAR_SOLVERS), default=None,
+                   help="linear solver of the runs (default: the scene's, kept-interior unless it names one; "
+                        "reuse: the first step's factors kept, refined every step)")
     if limit:
         p.add_argument("--limit-um", type=float, default=20.0, help="limit on the metric, µm (default 20)")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -48,47 +54,37 @@ def read_toml(path, option):
 
 
 def load_design_model(args):
-    """The compiled model of ``args.scene`` (scene errors → exit 2)."""
-    from ..model import compile_scene
-    from ._common import _load
-
+    """``(model, options)`` of ``args.scene`` with ``--solver`` (scene errors → exit 2): its model
+    and its run settings (:class:`jaxbelt.RunOptions`)."""
     if args.at is not None and not (math.isfinite(args.at) and args.at > 0):
         raise UsageError(f"--at = {args.at}: must be a positive time in s")
-    if args.solver not in (None, "structured", "reuse"):
-        raise UsageError(f"--solver = {args.solver!r}: one of structured, reuse")
-    return compile_scene(_load(args.scene, linear_solver=args.solver))
+    _, _, model, options = load_run(args.scene, linear_solver=args.solver)
+    return model, options
 
 
-def make_design_study(args, model, components=None):
-    """:func:`jaxbelt.design.make_study` with its ``ValueError``s as usage errors."""
-    from ..design import METRICS, make_study
-
+def make_design_study(args, model, options, components=None):
+    """:func:`jaxbelt.design.make_study` at ``--at`` (default the scene's end) with the scene's
+    time step and solver, its ``ValueError``s as usage errors."""
     if args.metric not in METRICS:
         raise UsageError(f"--metric = {args.metric!r}: unknown (one of {', '.join(METRICS)})")
-    if args.at is not None and args.at > model.n_steps * model.dt + 1e-12:
-        raise UsageError(f"--at = {args.at}: after the scene's end ({model.n_steps * model.dt:g} s); "
-                         "lengthen [time] t_end_s")
+    if args.at is not None and args.at > options.t_end + 1e-12:
+        raise UsageError(f"--at = {args.at}: after the scene's end ({options.t_end:g} s); lengthen [time] t_end_s")
     try:
-        return make_study(model, args.metric, t_eval=args.at, components=components)
+        return make_study(model, args.metric, t_eval=args.at, dt=options.dt, n_steps=options.n_steps,
+                          components=components, integrator=options.solver)
     except ValueError as e:
         raise UsageError(str(e)) from None
 
 
 def stage(args, text):
     if args.progress:
-        import sys
-
         print(f"jaxbelt: {text}", file=sys.stderr, flush=True)
 
 
 def finish(args, out, print_text, plot_name, *plot_args):
     """Print ``out`` (JSON with ``--json``) and, with ``--plot``, draw ``jaxbelt.plot.<plot_name>(*plot_args,
     args.plot)``."""
-    from ._common import _emit
-
-    _emit(args, out, print_text)
+    emit(args, out, print_text)
     if args.plot:
-        from .. import plot
-
         getattr(plot, plot_name)(*plot_args, args.plot)
     return 0

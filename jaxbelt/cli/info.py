@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import SCENE_HELP, _emit, _load
+from ..assembly import dae_matrices
+from ..timeloop import RunOptions
+from ._common import SCENE_HELP, emit, load_run
 
 
 def add_parser(subparsers):
@@ -16,12 +18,8 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from ..mesh import build_mesh
-    from ..model import compile_scene
-
-    scene = _load(args.scene)
-    mesh = build_mesh(scene)
-    _emit(args, model_info(scene, mesh, compile_scene(scene, mesh)), _print_info)
+    scene, mesh, model, options = load_run(args.scene)
+    emit(args, model_info(scene, mesh, model, options), _print_info)
     return 0
 
 
@@ -37,10 +35,11 @@ def bandwidth(K) -> int:
     return bw
 
 
-def model_info(scene, mesh, model) -> dict:
-    """What the compiled model contains (``jaxbelt info``)."""
-    from ..assembly import dae_matrices
-
+def model_info(scene, mesh, model, options: RunOptions | None = None) -> dict:
+    """What the model of a scene contains and how the scene runs it (``jaxbelt info``): the run
+    settings come from ``options`` (default :meth:`jaxbelt.RunOptions.from_scene`), the solver's
+    names from the scene's ``[solver]``."""
+    options = RunOptions.from_scene(scene) if options is None else options
     K, _ = dae_matrices(model, model.m_e0)
     dyn = np.asarray(model.dynamic).reshape(model.n_rollers, len(model.dofs))
     chi = np.asarray(model.chi_static).reshape(dyn.shape)
@@ -66,10 +65,11 @@ def model_info(scene, mesh, model) -> dict:
         n_belt_dofs=model.n_xi * model.block, n_roller_dofs=model.n_roller_dofs,
         n_xi=model.n_xi, n_eta=mesh.n_eta, block_size=model.block, bandwidth=bandwidth(K),
         path_length_mm=mesh.length * 1e3, element_length_mm=[float(mesh.ell.min() * 1e3), float(mesh.ell.max() * 1e3)],
-        dt_s=model.dt, t_end_s=scene.time.t_end, n_steps=model.n_steps,
-        cfl=float(max((r.speed for r in scene.rollers if r.role == "drive"), default=0) * model.dt / mesh.ell.min()),
-        integrator=model.integrator, linear_solver=model.linear_solver, transport=model.transport,
-        n_tracers=model.n_tracers, output_every=model.every, full_fields=model.full_fields,
+        dt_s=options.dt, t_end_s=scene.time.t_end, n_steps=options.n_steps,
+        cfl=float(max((r.speed for r in scene.rollers if r.role == "drive"), default=0) * options.dt / mesh.ell.min()),
+        integrator=scene.solver.integrator, linear_solver=scene.solver.linear_solver,
+        transport=options.solver.transport,
+        n_tracers=model.n_tracers, output_every=options.saveat.every, full_fields=options.saveat.fields,
         pretension_strain=float(mesh.length / (scene.belt.length or mesh.length) - 1.0),
         dynamic_roller_rows=int(np.sum(dyn)), rollers=rollers, segments=segments,
     )

@@ -1,6 +1,8 @@
 """``jaxbelt plot-scene``: draw rollers, belt path, contact and tracer points."""
 
-from ._common import SCENE_HELP, _load
+from ..mesh import build_mesh
+from ..plot import plot_scene
+from ._common import SCENE_HELP, scene_from_args
 
 
 def add_parser(subparsers):
@@ -12,10 +14,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from ..mesh import build_mesh
-    from ..plot import plot_scene
-
-    scene = _load(args.scene)
+    scene = scene_from_args(args.scene)
     out = args.out or f"{scene.name}-scene.png"
     plot_scene(scene, build_mesh(scene), out)
     print(f"wrote {out}")

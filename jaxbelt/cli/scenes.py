@@ -1,5 +1,7 @@
 """``jaxbelt scenes``: list the built-in scenes."""
 
+from ..scene import builtin_scene_names, load_scene
+
 
 def add_parser(subparsers):
     p = subparsers.add_parser("scenes", help="list the built-in scenes")
@@ -8,8 +10,6 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from ..scene import builtin_scene_names, load_scene
-
     for name in builtin_scene_names():
         sc = load_scene(name)
         print(f"{name:32s} {sc.kind}  {sc.description}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..design import sensitivity_report
 from ._design import add_design_arguments, check_plot, finish, load_design_model, make_design_study, stage
 
 
@@ -14,15 +15,13 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from ..design import sensitivity_report
-
     check_plot(args.plot)
-    model = load_design_model(args)
+    model, options = load_design_model(args)
     stage(args, f"aligned reference run ({model.n_unknowns} unknowns)")
-    study = make_design_study(args, model)
+    study = make_design_study(args, model, options)
     stage(args, "compiling and timing the forward run and the gradient")
     report = sensitivity_report(study)
-    return finish(args, report, _print, "plot_sensitivity", report)
+    return finish(args, report.to_dict(), _print, "plot_sensitivity", report)
 
 
 def _print(r):

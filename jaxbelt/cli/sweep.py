@@ -5,6 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..design import distribution_from_dict, run_sweep
+from ..design.store import open_sweep
+from ..design.sweep import sweep_identity
 from ._common import UsageError
 from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
                       read_toml, stage)
@@ -28,9 +31,6 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from ..design import distribution_from_dict, run_sweep
-    from ..design.store import open_sweep
-
     check_limit(args.limit_um)
     check_plot(args.plot)
     if args.samples < 1:
@@ -40,7 +40,7 @@ def run(args):
     if args.rom not in ("off", "auto"):
         raise UsageError(f"--rom = {args.rom!r}: one of off, auto")
     data = read_toml(args.dist, "--dist")
-    model = load_design_model(args)
+    model, options = load_design_model(args)
     try:
         dist = distribution_from_dict(data, model)
     except ValueError as e:
@@ -48,18 +48,15 @@ def run(args):
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise UsageError(f"--out = {args.out!r}: exists and is not a directory")
     stage(args, f"aligned reference run ({model.n_unknowns} unknowns)")
-    study = make_design_study(args, model, list(dist.labels))
+    study = make_design_study(args, model, options, list(dist.labels))
     if args.out is not None:
-        from ..design.sweep import sweep_identity
-
         try:  # a store of another study is refused before anything runs
             open_sweep(args.out, sweep_identity(study, dist, args.samples, args.limit_um, args.seed, args.scene))
         except ValueError as e:
             raise UsageError(str(e)) from None
     res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
                     rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
-    values = res.pop("metric_values")
-    return finish(args, res, _print, "plot_yield", values, args.limit_um, res)
+    return finish(args, res.to_dict(), _print, "plot_yield", res.metric_values, args.limit_um, res)
 
 
 def _print(r):

@@ -3,7 +3,8 @@ verified by full runs."""
 
 from __future__ import annotations
 
-
+from ..design import parameter_space, tolerance_box
+from ..design.tolerance import weights_from_dict
 from ._common import UsageError
 from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
                       read_toml, stage)
@@ -23,32 +24,23 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from ..design import tolerance_box
-    from ..design.tolerance import weights_from_dict
-
     check_limit(args.limit_um)
     check_plot(args.plot)
     weights_data = read_toml(args.weights, "--weights") if args.weights else None
-    model = load_design_model(args)
+    model, options = load_design_model(args)
     try:
-        from ..design import parameter_space
-
         space = parameter_space(model, args.components)
         weights = None if weights_data is None else weights_from_dict(weights_data, space)
     except ValueError as e:
         raise UsageError(f"--components/--weights: {e}") from None
     stage(args, f"aligned reference run ({model.n_unknowns} unknowns)")
-    study = make_design_study(args, model, args.components)
+    study = make_design_study(args, model, options, args.components)
     stage(args, "Jacobian, box optimisation and verification runs")
     try:
         res = tolerance_box(study, args.limit_um, weights)
     except ValueError as e:  # the scene's own misalignment already breaks the limit
         raise UsageError(str(e)) from None
-    out = {k: res[k] for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um", "predicted_worst_um",
-                               "verified", "binding", "unconstrained", "verification", "iterations", "rss_um")}
-    out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
-                          for lab, h, u, s in zip(res["labels"], res["half_widths"], res["units"], res["share"])]
-    return finish(args, out, _print, "plot_tolerance_box", res)
+    return finish(args, res.to_dict(), _print, "plot_tolerance_box", res)
 
 
 def _print(r):

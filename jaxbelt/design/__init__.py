@@ -6,15 +6,26 @@ Sits above :mod:`jaxbelt.timeloop` and :mod:`jaxbelt.rom` and is never imported 
 import jaxbelt as jb
 from jaxbelt import design
 
-study = design.make_study(jb.load_model("three-roller-t72"), "lateral_max", t_eval=2.0)
+jb.enable_x64()
+scene = jb.load_scene("three-roller-t72")
+opts = jb.RunOptions.from_scene(scene)
+study = design.make_study(jb.build_model(scene), "lateral_max", t_eval=2.0, dt=opts.dt, integrator=opts.solver)
 design.sensitivity_report(study)                      # value + gradient per roller component
 box = design.tolerance_box(study, limit_um=20.0)      # largest verified tolerance box
 dist = design.Distribution(tuple(study.space.labels()), ("normal",) * study.space.size,
-                           tuple(box["half_widths"] / 3))
+                           tuple(box.half_widths / 3))
 design.run_sweep(study, dist, n=1000, limit_um=20.0)   # Monte-Carlo yield, FORM, IS
 ```
+
+Every result is a frozen dataclass with documented fields (:class:`SweepResult`,
+:class:`ToleranceBox`, :class:`SensitivityReport`, :class:`MonteCarloResult`,
+:class:`FormResult`, :class:`ImportanceSamplingResult`); the command line's JSON is their
+``to_dict()``.
 """
 
+from ..misalignment import COMPONENTS as COMPONENTS
+from ..misalignment import ParameterSpace as ParameterSpace
+from ..misalignment import parameter_space as parameter_space
 from .metrics import METRICS as METRICS
 from .metrics import Study as Study
 from .metrics import evaluate as evaluate
@@ -22,10 +33,10 @@ from .metrics import make_study as make_study
 from .metrics import metric_value as metric_value
 from .metrics import response as response
 from .metrics import tracer_deviation as tracer_deviation
-from ..misalignment import COMPONENTS as COMPONENTS
-from ..misalignment import ParameterSpace as ParameterSpace
-from ..misalignment import parameter_space as parameter_space
 from .sampling import Distribution as Distribution
+from .sampling import FormResult as FormResult
+from .sampling import ImportanceSamplingResult as ImportanceSamplingResult
+from .sampling import MonteCarloResult as MonteCarloResult
 from .sampling import distribution_from_dict as distribution_from_dict
 from .sampling import evaluate_configs as evaluate_configs
 from .sampling import evaluate_metric as evaluate_metric
@@ -33,14 +44,18 @@ from .sampling import form as form
 from .sampling import importance_sampling as importance_sampling
 from .sampling import monte_carlo as monte_carlo
 from .sampling import wilson_interval as wilson_interval
+from .sensitivity import SensitivityReport as SensitivityReport
 from .sensitivity import response_jacobian as response_jacobian
 from .sensitivity import sensitivity_report as sensitivity_report
 from .sensitivity import value_and_gradient as value_and_gradient
 from .sharding import batched_map as batched_map
 from .sharding import config_mesh as config_mesh
 from .sharding import distributed_map as distributed_map
+from .sweep import SweepResult as SweepResult
 from .sweep import run_sweep as run_sweep
 from .tolerance import LinearResponse as LinearResponse
+from .tolerance import Stackup as Stackup
+from .tolerance import ToleranceBox as ToleranceBox
 from .tolerance import optimise_box as optimise_box
 from .tolerance import rss_stackup as rss_stackup
 from .tolerance import tolerance_box as tolerance_box

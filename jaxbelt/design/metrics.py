@@ -4,7 +4,7 @@ Every metric compares a misaligned run with the *aligned* run of the same scene 
 misalignment zero, :func:`jaxbelt.misalignment.aligned`), tracer by tracer and step by step,
 so the static stretching of the belt by its pre-tension and drive does not count. With
 ``d_u``, ``d_v`` (steps, tracers) the longitudinal and lateral tracer deviations in µm and
-``k`` the evaluation step (``t_eval``, default the scene's last step):
+``k`` the evaluation step (``t_eval``):
 
 | metric | definition | response ``r`` | aggregate |
 |---|---|---|---|

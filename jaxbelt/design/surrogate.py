@@ -165,7 +165,7 @@ def full_deviations(study: Study, theta):
     :func:`~jaxbelt.simulate` — the program the study compiled for its aligned reference run
     (the same shapes), so no new compilation; a non-finite run comes back non-finite."""
     model = _configured(study, jnp.asarray(theta, study.base.dtype))
-    _, tr = simulate(model, study.integrator, n_steps=study.n_steps, check=False)
+    _, tr = simulate(model, study.integrator, n_steps=study.n_steps, dt=study.dt, check=False)
     du = (np.asarray(tr.tracer_u) - np.asarray(study.ref_u)) * M_TO_UM
     return du, None if tr.tracer_v is None else (np.asarray(tr.tracer_v) - np.asarray(study.ref_v)) * M_TO_UM
 
@@ -301,7 +301,8 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     """Fully reduced POD step from the training runs' snapshots, and its nominal anchor."""
     snaps = []
     for theta in train:
-        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)), study.n_steps, study.integrator)
+        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)), study.n_steps, study.dt,
+                                               study.integrator)
         snaps += [z_pre, z_post]
     Z = jnp.concatenate(snaps, axis=1)
     x_nominal = snaps[1][:study.model.n_unknowns, 1:]  # the nominal run after each transport
@@ -314,11 +315,39 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     s = np.asarray(s)
     r = max(1, min(int(np.sum(s > sv_tol * s[0])), V.shape[1]))
     nominal = study.configured(jnp.zeros(study.space.size))
-    rom = ReducedStep(basis=V[:, :r], singular_values=jnp.asarray(s),
-                      **reduced_operators(nominal, V[:, :r], study.integrator))
+    rom = reduced_operators(nominal, V[:, :r], study.dt, study.integrator, singular_values=jnp.asarray(s))
     info = {"snapshots": int(len(train) * (2 * study.n_steps + 1)), "n_modes": int(r), "sv_tol": float(sv_tol),
             "singular_value_ratio": float(s[r - 1] / s[0])}
     return rom, _anchor(study, rom, full_u, full_v), info, t_train
+
+
+def _calibrate(surrogate: Surrogate, dist: Distribution, seed: int, n_validation: int, safety: float) -> dict:
+    """Run ``n_validation`` fresh samples of ``dist`` both ways and set the surrogate's bound from
+    the largest metric error (``error_um``, ``rho_max``, ``bound_um``). **Returns:** the
+    validation figures of :attr:`Surrogate.validation`."""
+    study = surrogate.study
+    u = standard_normal_samples(n_validation, study.space.size, seed)
+    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(u)))  # one small program, not op by op
+    full = np.array([float(_metric_jit(study, *full_deviations(study, th))) for th in thetas])
+    err = np.abs(surrogate.predict(thetas)["metric"] - full)
+    err = np.where(np.isfinite(err), err, np.inf)
+    surrogate.error_um = float(safety * np.max(err))
+    surrogate.rho_max = float(np.max(surrogate.distance(thetas)))
+    bound = surrogate.bound(thetas)
+    surrogate.bound_um = float(np.max(bound))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eff = np.where(err > 0, bound / err, np.inf)
+        loo = [safety * np.max(np.delete(err, i)) / err[i] if err[i] > 0 else np.inf for i in range(n_validation)]
+    finite = eff[np.isfinite(eff)]
+    return {
+        "max_true_error_um": float(np.max(err)),
+        "median_true_error_um": float(np.median(err)),
+        "max_bound_um": surrogate.bound_um,
+        "effectivity_min": float(finite.min()) if finite.size else float("inf"),
+        "effectivity_median": float(np.median(finite)) if finite.size else float("inf"),
+        "loo_effectivity_min": float(np.min(loo)),
+        "metric_range_um": [float(np.min(full)), float(np.max(full))],
+    }
 
 
 def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int = 0, n_validation: int = 12,
@@ -358,22 +387,9 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
         rom, anchor, info, t_train = _fit_pod(study, train, sv_tol, max_modes)
         t_fitted = time.perf_counter()
     surrogate = Surrogate(study, rom, anchor, widths, limit_um, batch)
-
     t2 = time.perf_counter()
-    u = standard_normal_samples(n_validation, study.space.size, seed)
-    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(u)))  # one small program, not op by op
-    full = np.array([float(_metric_jit(study, *full_deviations(study, th))) for th in thetas])
+    checks = _calibrate(surrogate, dist, seed, n_validation, safety)
     t_full = time.perf_counter() - t2
-    err = np.abs(surrogate.predict(thetas)["metric"] - full)
-    err = np.where(np.isfinite(err), err, np.inf)
-    surrogate.error_um = float(safety * np.max(err))
-    surrogate.rho_max = float(np.max(surrogate.distance(thetas)))
-    bound = surrogate.bound(thetas)
-    surrogate.bound_um = float(np.max(bound))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        eff = np.where(err > 0, bound / err, np.inf)
-        loo = [safety * np.max(np.delete(err, i)) / err[i] if err[i] > 0 else np.inf for i in range(n_validation)]
-    finite = eff[np.isfinite(eff)]
     described = {
         "response": "response surface of the tracer deviations (nominal run + per-component slope and curvature "
                     "from the +-w runs)",
@@ -391,13 +407,7 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
         **info,
         "safety": float(safety),
         "rho_max": surrogate.rho_max,
-        "max_true_error_um": float(np.max(err)),
-        "median_true_error_um": float(np.median(err)),
-        "max_bound_um": surrogate.bound_um,
-        "effectivity_min": float(finite.min()) if finite.size else float("inf"),
-        "effectivity_median": float(np.median(finite)) if finite.size else float("inf"),
-        "loo_effectivity_min": float(np.min(loo)),
-        "metric_range_um": [float(np.min(full)), float(np.max(full))],
+        **checks,
         "training_s": t_train - t0,
         "fit_s": t_fitted - t_train,
         "validation_s": t_full,

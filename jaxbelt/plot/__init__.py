@@ -1,4 +1,4 @@
-"""Figures (matplotlib, imported lazily: nothing else in jaxbelt imports this module).
+"""Figures (matplotlib, imported at the first figure; of jaxbelt only the command line imports this module).
 
 Displacements are drawn in mm and times in s, as in the source's figures.
 
@@ -13,7 +13,6 @@ The functions live in submodules by what they draw (:mod:`~jaxbelt.plot.fields`,
 :mod:`~jaxbelt.plot.reduction`, :mod:`~jaxbelt.plot.design`, :mod:`~jaxbelt.plot.belt3d`); all are imported here.
 """
 
-from ._common import _finish, _plt
 from .fields import tracer_styles, belt_segments, tracer_positions, tracer_labels, select_times, field_values, plot_fields
 from .runs import plot_run, plot_scene
 from .reduction import plot_singular_values, plot_dmd_eigenvalues, plot_rmse_over_time, plot_reduction

@@ -6,32 +6,33 @@ import dataclasses
 from collections.abc import Mapping
 
 
-def _plt():
+def pyplot():
+    """``matplotlib.pyplot``, imported at the first figure."""
     import matplotlib.pyplot as plt  # the user's / environment's backend (see the module docstring)
 
     return plt
 
 
-def _finish(fig, path, dpi=120):
+def finish_figure(fig, path, dpi=120):
     """Write ``fig`` to ``path`` and close it (returns ``path``), or return the open figure when
     ``path`` is ``None``."""
     if path is None:
         return fig
     fig.savefig(path, dpi=dpi)
-    _plt().close(fig)
+    pyplot().close(fig)
     return path
 
 
-def _ax(ax, figsize=(6, 4.5)):
+def axes_or_new(ax, figsize=(6, 4.5)):
     """``ax`` or a new single-panel figure; returns ``(fig or None, ax)``."""
     if ax is not None:
         return None, ax
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=figsize, constrained_layout=True)
     return fig, ax
 
 
-def _record(result) -> Mapping:
+def result_record(result) -> Mapping:
     """A result's entries by name: a mapping as it is; a dataclass (the results of
     :mod:`jaxbelt.design`) as its fields, ``yield_`` under ``"yield"``."""
     if isinstance(result, Mapping):

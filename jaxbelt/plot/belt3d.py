@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import _plt
-from .fields import belt_segments, field_values
+from ._common import pyplot
+from .fields import field_values
 
 
 def _reconstruct_centres(model):
@@ -149,7 +149,7 @@ def plot_belt_3d(model, u, chi=None, mesh=None, color_by="magnitude", exaggerate
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
     if ax is None:
-        plt = _plt()
+        plt = pyplot()
         fig = plt.figure(figsize=(9, 7), constrained_layout=True)
         ax = fig.add_subplot(projection="3d")
     fig = ax.figure

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import _finish, _plt, _record
+from ._common import finish_figure, pyplot, result_record
 
 
 def plot_sensitivity(report, path=None):
     """Bars of the gradient per roller and component (``jaxbelt sensitivity``): translations in
     µm/mm, rotations in µm/mrad, structurally zero components hatched. ``report``: a
     :class:`~jaxbelt.design.sensitivity.SensitivityReport` (or its ``to_dict()``)."""
-    report = _record(report)
-    plt = _plt()
+    report = result_record(report)
+    plt = pyplot()
     rollers = list(report["gradient"])
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     zero = {z["component"] for z in report.get("structural_zero", [])}
@@ -34,15 +34,15 @@ def plot_sensitivity(report, path=None):
         ax.legend(title="axis")
         ax.grid(alpha=0.3, axis="y")
     fig.suptitle(f"{report['metric']} = {report['value_um']:.4g} µm at t = {report['t_eval_s']:.3g} s")
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def plot_tolerance_box(result, path=None):
     """Half-widths of the tolerance box per component (log scale), binding components marked,
     capped (unconstrained) ones grey; beside it the verification runs against the limit.
     ``result``: a :class:`~jaxbelt.design.tolerance.ToleranceBox`."""
-    result = _record(result)
-    plt = _plt()
+    result = result_record(result)
+    plt = pyplot()
     labels, h, units = result["labels"], np.asarray(result["half_widths"]), result["units"]
     binding = set(result["binding"][:3])
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True,
@@ -66,15 +66,15 @@ def plot_tolerance_box(result, path=None):
     ax2.set_ylabel("full run [µm]")
     ax2.set_title("verification (red: worst corners)")
     fig.suptitle(f"{result['metric']} ≤ {lim:g} µm: verified worst case {result['worst_case_um']:.3f} µm")
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def plot_yield(metric_values, limit_um: float, result, path=None):
     """Histogram of the metric over the Monte-Carlo samples with the limit and the yield.
     ``result``: a :class:`~jaxbelt.design.sweep.SweepResult` (or a mapping with ``yield``,
     ``ci95``, ``samples`` and ``metric``)."""
-    result = _record(result)
-    plt = _plt()
+    result = result_record(result)
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     ax.hist(np.asarray(metric_values), bins=40, color="tab:blue", alpha=0.8)
     ax.axvline(limit_um, color="tab:red", lw=1.5, label=f"limit {limit_um:g} µm")
@@ -84,6 +84,6 @@ def plot_yield(metric_values, limit_um: float, result, path=None):
     ax.set_ylabel("configurations")
     ax.legend()
     ax.grid(alpha=0.3)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import _plt
+from ._common import pyplot
 
 
 def tracer_styles(model):
@@ -23,7 +23,7 @@ def tracer_styles(model):
     return out
 
 
-def _tracer_legend(ax, labels):
+def tracer_legend(ax, labels):
     ax.legend(fontsize=6, ncol=max(1, int(np.ceil(len(labels) / 18))), loc="upper left",
               bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, title="tracers", title_fontsize=7)
 
@@ -206,7 +206,7 @@ def plot_fields(model, traj, times=None, components=None, ax=None, cmap="RdBu_r"
     z = np.asarray(model.z0) * 1e3
     one_row = z.size == 1
     if ax is None:
-        plt = _plt()
+        plt = pyplot()
         fig, axes = plt.subplots(n_r, n_c, figsize=(6.5 * n_c, 1.6 + (1.1 if one_row else 1.9) * n_r),
                                  constrained_layout=True, squeeze=False)
     else:

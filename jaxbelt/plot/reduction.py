@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import _ax, _finish, _plt
+from ._common import axes_or_new, finish_figure, pyplot
 
 
 def plot_singular_values(s, n_modes=None, ax=None):
     """Normalised singular values ``σ_i / σ_0`` of a snapshot matrix (semilog), the source's
     Figures 6.2 / 7.3, with the chosen number of modes ``n_modes`` marked. Returns the axes."""
-    _, ax = _ax(ax)
+    _, ax = axes_or_new(ax)
     s = np.abs(np.asarray(s, float))
     rel = s / s[0] if s.size and s[0] > 0 else s
     i = np.arange(1, rel.size + 1)
@@ -31,8 +31,8 @@ def plot_dmd_eigenvalues(eigs, weights=None, ax=None):
     coloured by ``weights`` — e.g. the scaled mode norms ``‖φ_i b_i‖``
     (:meth:`~jaxbelt.rom.DMDModel.scaled_mode_norms`), on a log scale when they span more than two
     decades — with a colorbar. Returns the axes."""
-    plt = _plt()
-    fig, ax = _ax(ax, figsize=(5.5, 5))
+    plt = pyplot()
+    fig, ax = axes_or_new(ax, figsize=(5.5, 5))
     lam = np.asarray(eigs).reshape(-1)
     th = np.linspace(0, 2 * np.pi, 400)
     ax.plot(np.cos(th), np.sin(th), color="0.5", lw=0.8, ls="--", label="unit circle")
@@ -65,7 +65,7 @@ def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, esti
     (:func:`jaxbelt.rom.indicator.error_rom`'s ``error_mm``, or the older
     :func:`~jaxbelt.rom.indicator.residual_indicator`'s ``estimate_mm``) at times ``estimate_t``
     (default ``t``), labelled ``estimate_label``. Returns the axes."""
-    _, ax = _ax(ax)
+    _, ax = axes_or_new(ax)
     t = np.asarray(t, float)
     e = np.asarray(rmse_mm, float)
     ax.semilogy(t, np.where(e > 0, e, np.nan), lw=1, color="tab:blue", label="RMSE vs full model")
@@ -91,7 +91,7 @@ def plot_reduction(report, t, rmse_mm, path=None, singular_values=None, eigs=Non
     and the RMSE over time ``t`` (s) with the indicator estimate — a 1 × 3 figure, or 1 × 2
     without eigenvalues. ``report``: the dict the command prints (scene, method, modes, rmse_mm).
     Returns ``path``, or the figure when ``path`` is ``None``."""
-    plt = _plt()
+    plt = pyplot()
     panels = (singular_values is not None) + (eigs is not None) + 1
     fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.5), constrained_layout=True)
     axes = np.atleast_1d(axes)
@@ -106,7 +106,7 @@ def plot_reduction(report, t, rmse_mm, path=None, singular_values=None, eigs=Non
     rm = report.get("rmse_mm")
     fig.suptitle(f"{report.get('scene', '')}: {report.get('method', '')}, {report.get('modes')} modes"
                  + (f", RMSE {rm:.3g} mm" if isinstance(rm, (int, float)) else ""))
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 # ----------------------------------------------------------------------------- tolerance design

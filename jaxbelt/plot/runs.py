@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import _finish, _plt
-from .fields import _tracer_legend, belt_segments, select_times, tracer_labels, tracer_styles
+from ._common import finish_figure, pyplot
+from .fields import tracer_legend, belt_segments, select_times, tracer_labels, tracer_styles
 
 
 def plot_run(traj, mesh, path=None, times=None, title: str = ""):
@@ -17,7 +17,7 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     otherwise the tracers. Every tracer is labelled with its segment and position
     (:func:`tracer_labels`, e.g. ``"span 2, 40 % / z = +20 mm"``).
     """
-    plt = _plt()
+    plt = pyplot()
     t = np.asarray(traj.t)
     tu = np.asarray(traj.tracer_u) * 1e3
     lateral = traj.tracer_v is not None
@@ -30,7 +30,7 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     ax1.set_ylabel("tracer displacement u (x) [mm]")
     ax1.set_title(title or "tracer trajectories")
     ax1.grid(alpha=0.3)
-    _tracer_legend(ax1, labels)
+    tracer_legend(ax1, labels)
     if lateral:
         tv = np.asarray(traj.tracer_v) * 1e3
         for k in range(tv.shape[1]):
@@ -64,13 +64,13 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     ax2.set_ylabel("u [mm]")
     ax2.legend(fontsize=8)
     ax2.grid(alpha=0.3)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def plot_scene(scene, mesh, path=None):
     """Rollers, belt path, contact points and tracer points in the (x³ᴰ, y³ᴰ) plane (mm), as the
     source's Figures 2.2 / 7.1."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 6), constrained_layout=True)
     for j, r in enumerate(scene.rollers):
         c = np.array(r.center) * 1e3
@@ -107,7 +107,7 @@ def plot_scene(scene, mesh, path=None):
     ax.set_title(f"{scene.name}: belt path {mesh.length * 1e3:.1f} mm")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 # -- model order reduction (``jaxbelt reduce``) ------------------------------------------------
