@@ -15,6 +15,7 @@ from pymor.operators.numpy import NumpyMatrixOperator  # noqa: E402
 from pymor.vectorarrays.numpy import NumpyVectorSpace  # noqa: E402
 
 import jaxbelt as jb  # noqa: E402
+from helpers import load  # noqa: E402
 from jaxbelt.rom import collect_first_order, fit_reduced_pod, parameters, pod_basis, state_to_z  # noqa: E402
 from jaxbelt.rom.reduced import solve_map  # noqa: E402
 
@@ -23,10 +24,10 @@ R = 12
 
 @pytest.fixture(scope="module")
 def setup():
-    m = jb.load_model("two-roller-1d-train1")
-    _, Zp, Zq = collect_first_order(m, 150)  # the training run of test_rom_dmdc / test_rom_indicator
+    m, opts = load("two-roller-1d-train1")
+    _, Zp, Zq = collect_first_order(m, 150, opts.dt)  # the training run of test_rom_dmdc / test_rom_indicator
     Z = np.asarray(jnp.concatenate([Zp, Zq], axis=1))
-    return m, Z
+    return m, opts.dt, Z
 
 
 def _align(V, W):
@@ -35,7 +36,7 @@ def _align(V, W):
 
 
 def test_singular_values_and_basis_equal_pymor_pod(setup):
-    m, Z = setup
+    m, _, Z = setup
     V, s = pod_basis(jnp.asarray(Z), n_modes=R)
     space = NumpyVectorSpace(Z.shape[0])
     modes, svals = pod(space.from_numpy(Z), modes=R, rtol=0, atol=0, l2_err=0, method="qr_svd")
@@ -45,12 +46,11 @@ def test_singular_values_and_basis_equal_pymor_pod(setup):
 
 
 def test_reduced_operators_equal_pymor_galerkin_projection(setup):
-    m, Z = setup
-    rom = fit_reduced_pod(m, jnp.asarray(Z), n_modes=R)
+    m, dt, Z = setup
+    rom = fit_reduced_pod(m, jnp.asarray(Z), dt, n_modes=R)
     V = np.asarray(rom.basis)
-    integ = jb.make_integrator("direct", m)
-    solve = solve_map(m, integ)
-    z_ref, mu = state_to_z(m, jb.initial_state(m)), parameters(m)
+    solve = solve_map(m, dt, jb.make_solver("direct"))
+    z_ref, mu = state_to_z(m, jb.initial_state(m), dt), parameters(m)
     # jit-compiled: one program each instead of a few hundred op-by-op compilations
     S = np.asarray(jax.jit(jax.jacfwd(lambda z: solve(z, mu)))(z_ref))  # dense (2N, 2N) Jacobian of the solve
     T = np.asarray(jax.jit(jax.jacfwd(lambda p: solve(z_ref, p)))(mu))  # (2N, 2q): the configuration inputs

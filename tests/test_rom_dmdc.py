@@ -73,20 +73,23 @@ def test_gradient_through_dmdc_fit_and_prediction():
     assert abs(float(g - fd)) < 1e-5 * abs(float(fd))
 
 
+DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene
+
+
 @pytest.fixture(scope="module")
 def belt():
     n_train, n_test = 150, 400
     runs = {}
     for name in ("two-roller-1d", "two-roller-1d-train1", "two-roller-1d-train2"):
         m = jb.load_model(name)
-        runs[name] = (m, collect_first_order(m, n_train)[2])
+        runs[name] = (m, collect_first_order(m, n_train, DT)[2])
     m0 = runs["two-roller-1d"][0]
     C = tracer_operator(m0)
     return runs, jnp.concatenate([C, jnp.zeros_like(C)], axis=1), n_test
 
 
 def _truth(test, n):
-    return jb.simulate(test, n_steps=n)[1].tracer_u
+    return jb.simulate(test, n_steps=n, dt=DT)[1].tracer_u
 
 
 def test_dmdc_predicts_a_held_out_misalignment(belt):
@@ -95,8 +98,8 @@ def test_dmdc_predicts_a_held_out_misalignment(belt):
     use = [runs["two-roller-1d"], runs["two-roller-1d-train1"]]
     X, Y, U = stack_controlled([z for _, z in use], [belt_inputs(parameters(m), z.shape[1] - 1) for m, z in use])
     d = fit_dmdc(X, Y, U, rank=30)
-    test = use[0][0].with_misalignment(translation=jnp.array([-6e-3, 0.0]))
-    z0 = collect_first_order(test, 1)[2][:, 0]
+    test = jb.with_misalignment(use[0][0], translation=jnp.array([-6e-3, 0.0]))
+    z0 = collect_first_order(test, 1, DT)[2][:, 0]
     pred = d.predict(z0, belt_inputs(parameters(test), 1)[:, 0], n, observe=Cz)
     assert float(rmse(_truth(test, n), pred)) * 1e3 < 0.02
     # the source's multi-configuration DMD (no inputs) cannot tell the configurations apart
@@ -113,7 +116,7 @@ def test_parametric_dmd_predicts_a_held_out_misalignment_and_speed(belt):
     P = jnp.stack([parameters(m) for m, _ in runs.values()])
     p = fit_parametric_dmd(trajs, P, rank=30)
     m0 = runs["two-roller-1d"][0]
-    test = m0.with_misalignment(translation=jnp.array([-6e-3, 0.0])).replace(omega=0.9 * m0.omega)
+    test = jb.with_misalignment(m0, translation=jnp.array([-6e-3, 0.0])).replace(omega=0.9 * m0.omega)
     pred = p.predict(parameters(test), n + 1, observe=Cz)[1:]
     assert float(rmse(_truth(test, n), pred)) * 1e3 < 0.02
 

@@ -18,6 +18,7 @@ from jaxbelt.rom.indicator import (_quasi_static_response, _split_changing_windo
                                    residual_indicator, safety_factor, snapshot_count)
 
 N_TRAIN, N_TEST = 100, 200
+DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene
 
 
 def _rmse_mm(a, b):
@@ -28,12 +29,12 @@ def _rmse_mm(a, b):
 def setup():
     names = ["two-roller-1d", "two-roller-1d-train1"]
     ms = [jb.load_model(n) for n in names]
-    runs = [collect_first_order(m, N_TRAIN) for m in ms]
-    same = ms[0].with_misalignment(translation=jnp.array([-6e-3, 0.0]))
+    runs = [collect_first_order(m, N_TRAIN, DT) for m in ms]
+    same = jb.with_misalignment(ms[0], translation=jnp.array([-6e-3, 0.0]))
     new = same.replace(omega=0.9 * ms[0].omega)
     truth = {}
     for key, m in (("same", same), ("new", new)):
-        Z = collect_first_order(m, N_TEST)[2]
+        Z = collect_first_order(m, N_TEST, DT)[2]
         truth[key] = (m, Z)
     C = tracer_operator(ms[0])
     return dict(ms=ms, runs=runs, truth=truth, C=C, Cz=jnp.concatenate([C, jnp.zeros_like(C)], axis=1))
@@ -45,10 +46,10 @@ def pod(setup):
     halves of the training runs, and the held-out predictions."""
     ms, runs, C = setup["ms"], setup["runs"], setup["C"]
     ranks = (10, 20)
-    roms = fit_reduced_pod_ranks(ms[0], jnp.concatenate([z for r in runs for z in r[1:]], axis=1), ranks)
+    roms = fit_reduced_pod_ranks(ms[0], jnp.concatenate([z for r in runs for z in r[1:]], axis=1), ranks, DT)
     half = N_TRAIN // 2
     cal_roms = fit_reduced_pod_ranks(ms[0], jnp.concatenate([z for r in runs for z in (r[1][:, :half], r[2][:, :half + 1])],
-                                                            axis=1), ranks)
+                                                            axis=1), ranks, DT)
     m, Z = setup["truth"]["new"]
     out = {}
     for r in ranks:
@@ -58,11 +59,11 @@ def pod(setup):
             o = cal_roms[r].run(x0, parameters(mc), N_TRAIN)
             cases.append((mc, (C @ run[2][: mc.n_unknowns, 1:]).T, o["tracer_u"],
                           dict(basis=cal_roms[r].basis, coords=jnp.concatenate([x0[None], o["xi"]]), z_true0=run[2][:, 0])))
-        cal = calibrate(cases)
+        cal = calibrate(cases, DT)
         xi0 = roms[r].project(m, jb.initial_state(m))
         o = roms[r].run(xi0, parameters(m), N_TEST)
         coords = jnp.concatenate([xi0[None], o["xi"]])
-        est = error_rom(m, roms[r].basis, coords, z_true0=Z[:, 0])
+        est = error_rom(m, roms[r].basis, coords, DT, z_true0=Z[:, 0])
         true = jnp.sqrt(jnp.mean((o["tracer_u"] - (C @ Z[: m.n_unknowns, 1:]).T) ** 2, axis=1)) * 1e3
         out[r] = dict(cal=cal, est=est, true_mm=float(jnp.sqrt(jnp.mean(true**2))), true_max_mm=float(jnp.max(true)),
                       states=coords @ roms[r].basis.T)
@@ -73,32 +74,32 @@ def test_error_rom_vanishes_on_a_full_order_trajectory(setup):
     m, Z = setup["truth"]["same"]
     Z = Z[:, :41]
     U = jnp.linalg.svd(Z, full_matrices=False)[0]  # the trajectory's own span
-    est = error_rom(m, U, (U.T @ Z).T, z_true0=Z[:, 0], stride=1)
-    assert est["max_mm"] < 1e-9
-    assert est["error"].shape == (40, m.n_tracers) and est["cost"]["full_steps"] == 41
+    est = error_rom(m, U, (U.T @ Z).T, DT, z_true0=Z[:, 0], stride=1)
+    assert est.max_mm < 1e-9
+    assert est.error.shape == (40, m.n_tracers) and est.cost.full_steps == 41
 
 
 @pytest.mark.parametrize("r", [10, 20])
 def test_pod_effectivity_on_a_held_out_configuration(pod, r):
     p = pod[r]
     # the estimator itself is sharp: the raw estimate is within 25 % of the true RMSE and max
-    assert 0.8 < p["est"]["rmse_mm"] / p["true_mm"] < 1.25
-    assert 0.8 < p["est"]["max_mm"] / p["true_max_mm"] < 1.25
+    assert 0.8 < p["est"].rmse_mm / p["true_mm"] < 1.25
+    assert 0.8 < p["est"].max_mm / p["true_max_mm"] < 1.25
     # calibrated on the training runs only, it errs on the safe side by less than 3x
-    kappa = p["cal"]["safety_factor"]
-    assert kappa >= 1.5 and len(p["cal"]["cases"]) == 2
-    assert 1.0 <= kappa * p["est"]["rmse_mm"] / p["true_mm"] <= 3.0
-    assert 1.0 <= kappa * p["est"]["max_mm"] / p["true_max_mm"] <= 3.0
+    kappa = p["cal"].safety_factor
+    assert kappa >= 1.5 and len(p["cal"].cases) == 2
+    assert 1.0 <= kappa * p["est"].rmse_mm / p["true_mm"] <= 3.0
+    assert 1.0 <= kappa * p["est"].max_mm / p["true_max_mm"] <= 3.0
     # cheap: windows of 10 steps (every step for the first 10, and where the residual still
     # changes), one JVP per subspace direction and per quasi-static iteration
-    cost = p["est"]["cost"]
-    assert 10 + (N_TEST - 10) // 10 <= cost["windows"] < cost["full_steps"] <= N_TEST // 2
-    assert cost["jvps"] == p["est"]["dim"] + cost["quasi_static_iterations"] and p["est"]["dim"] < 60
-    assert cost["quasi_static_iterations"] <= 40
+    cost = p["est"].cost
+    assert 10 + (N_TEST - 10) // 10 <= cost.windows < cost.full_steps <= N_TEST // 2
+    assert cost.jvps == p["est"].dim + cost.quasi_static_iterations and p["est"].dim < 60
+    assert cost.quasi_static_iterations <= 40
 
 
 def test_estimate_ranks_models_and_flags_the_one_above_tolerance(pod):
-    est = {r: pod[r]["cal"]["safety_factor"] * pod[r]["est"]["rmse_mm"] for r in pod}
+    est = {r: pod[r]["cal"].safety_factor * pod[r]["est"].rmse_mm for r in pod}
     assert pod[10]["true_mm"] > 0.02 > pod[20]["true_mm"]
     assert est[10] > 0.02 > est[20]
 
@@ -121,12 +122,12 @@ def test_dmdc_effectivity_on_a_held_out_configuration(setup):
     for m, p, z in zip(ms, params, post):
         u = belt_inputs(p, 1)[:, 0]
         cases.append((m, (Cz @ z[:, 1:]).T, cf.predict(z[:, 0], u, N_TRAIN, observe=Cz), inputs(cf, z[:, 0], u, N_TRAIN)))
-    kappa = calibrate(cases)["safety_factor"]
+    kappa = calibrate(cases, DT).safety_factor
     f = fit(post)
     m, Z = setup["truth"]["same"]
     u = belt_inputs(parameters(m), 1)[:, 0]
     true = _rmse_mm((Cz @ Z[:, 1:]).T, f.predict(Z[:, 0], u, N_TEST, observe=Cz))
-    est = error_rom(m, **inputs(f, Z[:, 0], u, N_TEST))["rmse_mm"]
+    est = error_rom(m, dt=DT, **inputs(f, Z[:, 0], u, N_TEST)).rmse_mm
     assert 0.8 < est / true < 1.25
     assert 1.0 <= kappa * est / true <= 3.0
 
@@ -171,8 +172,8 @@ def test_the_triangle_inequality_indicator_errs_high_by_far_more(setup, pod):
     """The sum of one-step residuals (kept for comparison): zero on a full-order trajectory, but
     tens of times the true error of a reduced one, where the error ROM is within 25 %."""
     m, Z = setup["truth"]["new"]
-    assert float(jnp.max(residual_indicator(m, Z.T, stride=20)["residual_mm"])) < 1e-10
-    old = float(residual_indicator(m, pod[20]["states"], stride=10)["estimate_mm"][-1])
+    assert float(jnp.max(residual_indicator(m, Z.T, DT, stride=20).residual_mm)) < 1e-10
+    old = float(residual_indicator(m, pod[20]["states"], DT, stride=10).estimate_mm[-1])
     assert old > 10 * pod[20]["true_max_mm"]
 
 
@@ -184,13 +185,13 @@ def test_snapshot_rule_stops_when_new_data_are_predicted():
     def fit_predict(Z, n):
         return fit_dmd(Z).predict(Z[:, -1], n, observe=Cz)
 
-    res = snapshot_count(m, fit_predict, chunk=50, max_steps=600)
-    assert res["converged"]
-    assert res["history"][-1][1] < 0.1 * 0.02
-    assert all(e >= 0.002 for _, e in res["history"][:-1])  # stopped at the first chunk that passed
+    res = snapshot_count(m, fit_predict, DT, chunk=50, max_steps=600)
+    assert res.converged
+    assert res.history[-1][1] < 0.1 * 0.02
+    assert all(e >= 0.002 for _, e in res.history[:-1])  # stopped at the first chunk that passed
     # a model trained on that many snapshots predicts the next 200 steps within tolerance
-    Z = res["Z"]
-    state = jb.simulate(m, n_steps=res["n_steps"])[0]
-    _, tr = jb.simulate(m, state=state, n_steps=200)
+    Z = res.Z
+    state = jb.simulate(m, n_steps=res.n_steps, dt=DT)[0]
+    _, tr = jb.simulate(m, y0=state, n_steps=200, dt=DT)
     pred = fit_dmd(Z).predict(Z[:, -1], 200, observe=Cz)
     assert float(rmse(tr.tracer_u, pred)) * 1e3 < 0.02

@@ -4,16 +4,17 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from jaxbelt.integrators.eliminated import algebraic_partition, eliminated_system
+from helpers import load
+from jaxbelt.integrators import eliminated_system
 from jaxbelt.rom.modal import forcing_order, modal_basis
 
 
 def test_modes_solve_the_generalised_eigenproblem_and_half_are_unforced():
-    m = jb.load_model("two-roller-1d-train1")
-    s, _ = jb.simulate(m, n_steps=200)
-    omega, Phi, force = modal_basis(m, s)
-    dyn, alg = algebraic_partition(m)
-    M, K, *_ = eliminated_system(m, s, dyn, alg)
+    m, opts = load("two-roller-1d-train1")
+    s, _ = jb.simulate(m, n_steps=200, dt=opts.dt)
+    omega, Phi, force = modal_basis(m, s, opts.dt)
+    dyn, alg = m.partition
+    M, K, *_ = eliminated_system(m, s, opts.dt, dyn, alg)
     assert Phi.shape == (139, 139)
     np.testing.assert_allclose(np.asarray(Phi.T @ M @ Phi), np.eye(139), atol=1e-8)
     res = K @ Phi - (M @ Phi) * omega[None, :] ** 2
@@ -32,13 +33,14 @@ def test_modes_solve_the_generalised_eigenproblem_and_half_are_unforced():
 def test_modal_integrator_with_all_modes_is_the_full_model_and_converges_with_modes():
     from jaxbelt.rom import fit_modal, rmse
 
-    m = jb.load_model("two-roller-1d-train1")
-    _, ref = jb.simulate(m, "eliminated", n_steps=100)
-    dyn, _ = algebraic_partition(m)
-    full = fit_modal(m, len(dyn), order="frequency")
-    _, tr = jb.simulate(m, full, n_steps=100)
+    m, opts = load("two-roller-1d-train1")
+    dt = opts.dt
+    _, ref = jb.simulate(m, jb.make_solver("eliminated"), n_steps=100, dt=dt)
+    dyn, _ = m.partition
+    full = fit_modal(m, len(dyn), dt, order="frequency")
+    _, tr = jb.simulate(m, full, n_steps=100, dt=dt)
     assert float(jnp.max(jnp.abs(tr.tracer_u - ref.tracer_u))) < 1e-10  # the whole span: exact
-    errs = {o: [float(rmse(ref.tracer_u, jb.simulate(m, fit_modal(m, r, order=o), n_steps=100)[1].tracer_u))
+    errs = {o: [float(rmse(ref.tracer_u, jb.simulate(m, fit_modal(m, r, dt, order=o), n_steps=100, dt=dt)[1].tracer_u))
                 for r in (10, 100)] for o in ("forcing", "frequency")}
     for o, e in errs.items():
         assert e[1] < e[0], (o, e)
@@ -49,8 +51,8 @@ def test_fit_modal_rejects_bad_input():
 
     from jaxbelt.rom import fit_modal
 
-    m = jb.load_model("two-roller-1d-train1")
+    m, opts = load("two-roller-1d-train1")
     with pytest.raises(ValueError, match="n_modes"):
-        fit_modal(m, 0)
+        fit_modal(m, 0, opts.dt)
     with pytest.raises(ValueError, match="order"):
-        fit_modal(m, 5, order="energy")
+        fit_modal(m, 5, opts.dt, order="energy")

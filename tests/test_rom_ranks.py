@@ -5,22 +5,23 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
+from helpers import load
 from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ranks, parameters
 
 
 @pytest.fixture(scope="module")
 def training():
-    m = jb.load_model("two-roller-1d-train1")
-    _, Zp, Zq = collect_first_order(m, 150)  # the training run of test_rom_dmdc / test_rom_indicator
+    m, opts = load("two-roller-1d-train1")
+    _, Zp, Zq = collect_first_order(m, 150, opts.dt)  # the training run of test_rom_dmdc / test_rom_indicator
     Z = jnp.concatenate([Zp, Zq], axis=1)
-    return m, Z, fit_reduced_pod_ranks(m, Z, (4, 12, 8))
+    return m, opts.dt, Z, fit_reduced_pod_ranks(m, Z, (4, 12, 8), opts.dt)
 
 
 def test_truncated_operators_equal_a_fit_at_that_rank(training):
-    m, Z, many = training
+    m, dt, Z, many = training
     assert sorted(many) == [4, 8, 12]
     for r in (4, 8):
-        direct = fit_reduced_pod(m, Z, n_modes=r)
+        direct = fit_reduced_pod(m, Z, dt, n_modes=r)
         for name in ("A", "B", "d", "c", "Z", "G", "H", "h", "C_tracer", "basis"):
             a, b = np.asarray(getattr(many[r], name)), np.asarray(getattr(direct, name))
             assert a.shape == b.shape, name
@@ -32,7 +33,7 @@ def test_truncated_operators_equal_a_fit_at_that_rank(training):
 
 
 def test_truncate_rejects_ranks_out_of_range(training):
-    rom = training[2][4]
+    rom = training[3][4]
     with pytest.raises(ValueError, match="outside"):
         rom.truncate(5)
     with pytest.raises(ValueError, match="outside"):

@@ -7,9 +7,10 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ranks, parameters, pod_basis, rmse
-from jaxbelt.rom.reduced import ReducedStep, reduced_operators
+from jaxbelt.rom.reduced import reduced_operators
 
 N_TRAIN, N_TEST = 150, 400  # 150: the training run of test_rom_dmdc / test_rom_indicator (one compiled program)
+DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene
 
 
 @pytest.fixture(scope="module")
@@ -17,7 +18,7 @@ def runs():
     out = {}
     for name in ("two-roller-1d", "two-roller-1d-train1", "two-roller-1d-train2"):
         m = jb.load_model(name)
-        _, Zp, Zq = collect_first_order(m, N_TRAIN)
+        _, Zp, Zq = collect_first_order(m, N_TRAIN, DT)
         out[name] = (m, jnp.concatenate([Zp, Zq], axis=1))
     return out
 
@@ -30,8 +31,8 @@ def test_full_basis_reproduces_the_full_model_exactly():
     # in 1D the solve is affine and the transport bilinear: the projection with V = I is exact
     m = jb.load_model("two-roller-1d-train1")
     V = jnp.eye(2 * m.n_unknowns)
-    rom = ReducedStep(basis=V, singular_values=jnp.ones(1), **reduced_operators(m, V))
-    _, ref = jb.simulate(m, n_steps=100)
+    rom = reduced_operators(m, V, DT)
+    _, ref = jb.simulate(m, n_steps=100, dt=DT)
     out = _predict(rom, m, 100)
     assert float(jnp.max(jnp.abs(out["tracer_u"] - ref.tracer_u))) < 1e-12
     assert float(jnp.max(jnp.abs(out["tracer_u_solved"] - ref.tracer_u_solved))) < 1e-12
@@ -39,9 +40,9 @@ def test_full_basis_reproduces_the_full_model_exactly():
 
 def test_single_configuration_error_falls_with_modes_and_meets_tolerance(runs):
     m, Z = runs["two-roller-1d-train1"]
-    _, ref = jb.simulate(m, n_steps=N_TEST)  # 250 steps beyond the training window
+    _, ref = jb.simulate(m, n_steps=N_TEST, dt=DT)  # 250 steps beyond the training window
     # one projection at r = 20, truncated (= a fit at each rank: test_rom_ranks)
-    roms = fit_reduced_pod_ranks(m, Z, (5, 10, 20))
+    roms = fit_reduced_pod_ranks(m, Z, (5, 10, 20), DT)
     errs = [float(rmse(ref.tracer_u, _predict(roms[r], m)["tracer_u"])) * 1e3 for r in (5, 10, 20)]
     assert errs[0] > errs[1] > errs[2]
     assert errs[2] < 0.02  # mm
@@ -52,9 +53,9 @@ def test_held_out_configuration_from_multi_configuration_training(runs):
     # tested on a configuration none of them had: -6 mm at 9 rad/s
     m0 = runs["two-roller-1d"][0]
     Z = jnp.concatenate([z for _, z in runs.values()], axis=1)
-    rom = fit_reduced_pod(m0, Z, n_modes=30)
-    test = m0.with_misalignment(translation=jnp.array([-6e-3, 0.0])).replace(omega=0.9 * m0.omega)
-    _, ref = jb.simulate(test, n_steps=N_TEST)
+    rom = fit_reduced_pod(m0, Z, DT, n_modes=30)
+    test = jb.with_misalignment(m0, translation=jnp.array([-6e-3, 0.0])).replace(omega=0.9 * m0.omega)
+    _, ref = jb.simulate(test, n_steps=N_TEST, dt=DT)
     err = float(rmse(ref.tracer_u, _predict(rom, test)["tracer_u"])) * 1e3
     assert err < 0.02
     # the online loop only sees r-sized operators
@@ -81,9 +82,9 @@ def test_gradient_through_the_whole_chain_wrt_a_misalignment():
     m = jb.load_model("two-roller-1d-train1")
 
     def metric(dx):
-        mm = m.with_misalignment(translation=jnp.stack([dx, 0.0]))
-        _, Zp, Zq = collect_first_order(mm, 40)
-        rom = fit_reduced_pod(mm, jnp.concatenate([Zp, Zq], axis=1), n_modes=8)
+        mm = jb.with_misalignment(m, translation=jnp.stack([dx, 0.0]))
+        _, Zp, Zq = collect_first_order(mm, 40, DT)
+        rom = fit_reduced_pod(mm, jnp.concatenate([Zp, Zq], axis=1), DT, n_modes=8)
         out = _predict(rom, mm, 60)
         return jnp.mean(out["tracer_u"] ** 2) * 1e6
 

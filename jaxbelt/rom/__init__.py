@@ -1,6 +1,7 @@
 """Model order reduction on the belt model (MODEL.md §5): snapshots, metrics, modal decomposition,
 POD-Galerkin (as the source), the fully reduced POD step, exact DMD, DMD with control and
-parametric DMD, and an a-posteriori error estimate (the error ROM of :mod:`jaxbelt.rom.indicator`)."""
+parametric DMD, and an a-posteriori error estimate (the error ROM of :mod:`jaxbelt.rom.indicator`);
+:func:`reduce_and_compare` trains one and measures it against the full model (``jaxbelt reduce``)."""
 
 from .dmd import DMDModel as DMDModel
 from .dmd import fit_dmd as fit_dmd
@@ -12,6 +13,9 @@ from .dmdc import fit_dmdc as fit_dmdc
 from .dmdc import fit_parametric_dmd as fit_parametric_dmd
 from .dmdc import interpolation_weights as interpolation_weights
 from .dmdc import stack_controlled as stack_controlled
+from .indicator import Calibration as Calibration
+from .indicator import ErrorEstimate as ErrorEstimate
+from .indicator import ErrorRomOptions as ErrorRomOptions
 from .indicator import calibrate as calibrate
 from .indicator import dmd_coordinates as dmd_coordinates
 from .indicator import error_rom as error_rom
@@ -23,6 +27,9 @@ from .metrics import rrmse as rrmse
 from .modal import fit_modal as fit_modal
 from .modal import forcing_order as forcing_order
 from .modal import modal_basis as modal_basis
+from .pipeline import ReduceConfig as ReduceConfig
+from .pipeline import ReductionResult as ReductionResult
+from .pipeline import reduce_and_compare as reduce_and_compare
 from .pod import PODGalerkin as PODGalerkin
 from .pod import choose_modes as choose_modes
 from .pod import fit_pod as fit_pod

@@ -527,53 +527,81 @@ def safety_factor(effectivities, margin: float = SAFETY_MARGIN) -> float:
     return float(margin / min(1.0, float(eta.min()))) if eta.size else float(margin)
 
 
-def calibrate(cases, margin: float = SAFETY_MARGIN, **kwargs) -> dict:
+@dataclasses.dataclass(frozen=True)
+class CalibrationCase:
+    """One case of :func:`calibrate`: ``true_mm`` the true tracer RMSE, ``estimate_mm`` the raw
+    :func:`error_rom` estimate of it, ``effectivity`` their ratio (``nan`` for a case without
+    error)."""
+
+    true_mm: float
+    estimate_mm: float
+    effectivity: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Calibration:
+    """:func:`calibrate`'s result: the ``safety_factor`` and the ``cases`` it came from."""
+
+    safety_factor: float
+    cases: tuple[CalibrationCase, ...]
+
+
+def calibrate(cases, dt, margin: float = SAFETY_MARGIN, **kwargs) -> Calibration:
     """Safety factor of :func:`error_rom` from cases whose true error is known from training data.
 
     ``cases``: iterable of ``(model, truth, prediction, inputs)`` — the observed tracers of the
     full model and of a reduced model fitted on part of the training data (each (n, o), m), and
     the :func:`error_rom` arguments of that prediction (``basis``, ``coords``, ``z_true0``, and
-    optionally ``integrator``); ``kwargs``: further :func:`error_rom` arguments (``stride``,
-    ``order``, …). **Returns:** ``dict(safety_factor, cases=[dict(true_mm, estimate_mm,
-    effectivity)])``.
+    optionally ``integrator``); ``dt`` the time step; ``kwargs``: further :func:`error_rom`
+    arguments (``stride``, ``order``, ``options``, …).
     """
     rows = []
     for model, truth, pred, inputs in cases:
         true_mm = float(rmse(jnp.asarray(truth), jnp.asarray(pred))) * 1e3
-        est_mm = error_rom(model, **{**kwargs, **inputs})["rmse_mm"]
+        est_mm = error_rom(model, dt=dt, **{**kwargs, **inputs}).rmse_mm
         # a case without error (the reduced model reproduces its training run) says nothing
         eta = est_mm / true_mm if true_mm > 1e-12 else float("nan")
-        rows.append(dict(true_mm=true_mm, estimate_mm=est_mm, effectivity=eta))
-    return dict(safety_factor=safety_factor([r["effectivity"] for r in rows], margin), cases=rows)
+        rows.append(CalibrationCase(true_mm=true_mm, estimate_mm=est_mm, effectivity=eta))
+    return Calibration(safety_factor=safety_factor([r.effectivity for r in rows], margin), cases=tuple(rows))
 
 
-def snapshot_count(model, fit_predict, tol_mm: float = 0.02, chunk: int = 50, safety: float = 0.1,
-                   max_steps: int = 2000, min_chunks: int = 2, integrator=None):
-    """Number of full-order steps worth training on, decided from the data.
+@dataclasses.dataclass(frozen=True)
+class SnapshotCount:
+    """:func:`snapshot_count`'s result: ``n_steps`` the chosen count; ``converged`` whether the
+    rule fired before ``max_steps``; ``history`` the validation errors ``[(m, rmse_mm), …]``;
+    ``Z`` the post-transport snapshots (2N, n_steps + 1)."""
+
+    n_steps: int
+    converged: bool
+    history: list
+    Z: jax.Array
+
+
+def snapshot_count(model, fit_predict, dt, tol_mm: float = 0.02, chunk: int = 50, safety: float = 0.1,
+                   max_steps: int = 2000, min_chunks: int = 2,
+                   integrator: AbstractIntegrator | None = None) -> SnapshotCount:
+    """Number of full-order steps (of size ``dt``) worth training on, decided from the data.
 
     Runs the full model ``chunk`` steps at a time. After each chunk ``k ≥ min_chunks`` it calls
     ``fit_predict(Z_train, n) -> tracer_u (n, n_tr)`` with the post-transport snapshots up to
     the previous chunk (2N, m) and compares the prediction of the newest ``chunk`` steps with the
     full model's tracers. Stops at the first chunk predicted within ``safety × tol_mm``.
-
-    **Returns:** ``dict(n_steps, converged, history=[(m, rmse_mm), …], Z)``: the chosen count,
-    whether the rule fired before ``max_steps``, the validation errors and the snapshots.
     """
-    integrator = resolve_integrator(integrator, model)
+    integrator = make_solver() if integrator is None else integrator
     C = tracer_operator(model)
     N = model.n_unknowns
     state = initial_state(model)
     Z = None
     history = []
     while True:
-        state, _, Zc = collect_first_order(model, chunk, integrator, state)
+        state, _, Zc = collect_first_order(model, chunk, dt, integrator, state)
         Zc = Zc if Z is None else Zc[:, 1:]  # the start state is the previous chunk's end
         if Z is not None and Z.shape[1] >= min_chunks * chunk:
             truth = (C @ Zc[:N]).T
             err = float(rmse(truth, fit_predict(Z, Zc.shape[1]))) * 1e3
             history.append((int(Z.shape[1] - 1), err))
             if err < safety * tol_mm:
-                return dict(n_steps=int(Z.shape[1] - 1), converged=True, history=history, Z=Z)
+                return SnapshotCount(n_steps=int(Z.shape[1] - 1), converged=True, history=history, Z=Z)
         Z = Zc if Z is None else jnp.concatenate([Z, Zc], axis=1)
         if Z.shape[1] - 1 >= max_steps:
-            return dict(n_steps=int(Z.shape[1] - 1), converged=False, history=history, Z=Z)
+            return SnapshotCount(n_steps=int(Z.shape[1] - 1), converged=False, history=history, Z=Z)
