@@ -1,4 +1,4 @@
-"""Assembly of the DAE ``K x + M ẍ = F`` for one time step (§3.3, §4.3, MODEL.md §2–§4).
+"""Assembly of the DAE ``K x + M ẍ = F`` for one time step (§3.3, §4.3, model specification §2–§4).
 
 Rows, in the unknowns' order:
 

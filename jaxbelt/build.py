@@ -19,7 +19,7 @@ from .scene import Scene
 
 
 def build_model(scene: Scene, mesh: Mesh | None = None) -> BeltModel:
-    """The :class:`~jaxbelt.model.BeltModel` of a validated scene (1D: MODEL.md §2; 2D: MODEL.md §4).
+    """The :class:`~jaxbelt.model.BeltModel` of a validated scene (1D: model specification §2; 2D: model specification §4).
 
     **Arguments:** ``scene`` from :func:`jaxbelt.load_scene`; ``mesh`` its grid, default
     :func:`jaxbelt.build_mesh` of it. **Returns:** the model (physics and grid only; how to

@@ -1,6 +1,6 @@
 """Belt path geometry: rollers in the (x³ᴰ, y³ᴰ) plane, common tangents and wrap arcs.
 
-The belt runs around the rollers in their numbering order (§2.1, MODEL.md §4). Each roller
+The belt runs around the rollers in their numbering order (§2.1, model specification §4). Each roller
 carries a *wrap sense* ``s_j = ±1``: ``+1`` when the belt goes counter-clockwise around it
 (seen from +z³ᴰ), ``-1`` when clockwise. For a loop travelled counter-clockwise the internal
 rollers have ``s = +1`` and the external ones ``s = -1``; a clockwise loop flips both.

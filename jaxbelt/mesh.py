@@ -1,4 +1,4 @@
-"""The fixed grid on the unrolled belt (§3.1.1, §4.1.1, MODEL.md §4).
+"""The fixed grid on the unrolled belt (§3.1.1, §4.1.1, model specification §4).
 
 ``x`` is the arc length along the belt path, starting at the incoming contact line of roller 1
 and increasing in the direction of motion; the loop closes after ``path.length``. Columns of
@@ -85,7 +85,7 @@ def _segment_counts(scene: Scene, path: BeltPath):
 
 
 def build_mesh(scene: Scene) -> Mesh:
-    """Belt path + grid for a scene, with the geometry/mesh checks of MODEL.md §1."""
+    """Belt path + grid for a scene, with the geometry/mesh checks of model specification §1."""
     rollers = scene.rollers
     try:
         path = belt_path(

@@ -10,12 +10,12 @@ in µm, so gradients come out in µm/mm and µm/mrad — numbers of order 1–10
 finite differences handle well. :func:`apply` maps ``theta`` onto a model's ``chi_static`` (SI),
 purely and differentiably.
 
-Components per roller, in the order of MODEL.md §1: ``dx, dy, dz`` (translation along x³ᴰ, y³ᴰ,
+Components per roller, in the order of model specification §1: ``dx, dy, dz`` (translation along x³ᴰ, y³ᴰ,
 z³ᴰ) and ``ax, ay, az`` (rotation about them). Two kinds are *structurally zero* and never
 become parameters:
 
 - ``az``, the rotation about the roller's own axis: a static offset of it is a relabelling of
-  the roller surface, not a misalignment (MODEL.md §6);
+  the roller surface, not a misalignment (model specification §6);
 - a force/torque-loaded DOF (a tension roller's loaded translation): its position is a dynamic
   unknown set by the load, so no static value can be prescribed.
 

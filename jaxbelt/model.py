@@ -6,7 +6,7 @@ true structure (the kind, the roller names and DOFs, which unknowns are algebrai
 columns touch rollers) is static. How to integrate and what to record are not here: they are
 arguments of :func:`jaxbelt.simulate`, so a new time step or misalignment is no new compile.
 
-Unknowns (MODEL.md §2, §4): ``x = [belt DOFs column by column (n_xi, b); roller DOFs (q,)]``
+Unknowns (model specification §2, §4): ``x = [belt DOFs column by column (n_xi, b); roller DOFs (q,)]``
 with ``b = 1`` (1D: ``u``) and per roller ``(d_x, α_z)`` in 1D, so ``N = n_xi + 2p``.
 *Algebraic* unknowns are the belt DOFs on roller arcs (no-slip constraint rows) and the
 prescribed roller DOFs (trivial rows); the others (free-belt nodes, force/torque-loaded

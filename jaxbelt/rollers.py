@@ -1,6 +1,6 @@
 """Roller kinematics and inertia: the no-slip map ``R_r`` and the roller mass matrix.
 
-1D (§3.2, MODEL.md §2): each roller has the unknowns ``χ_j = (d_x, α_z)``. A belt node on
+1D (§3.2, model specification §2): each roller has the unknowns ``χ_j = (d_x, α_z)``. A belt node on
 roller ``j`` at wrap angle θ moves along the belt by the tangential component of the
 translation plus the surface motion of the rotation,
 
@@ -37,13 +37,13 @@ def roller_inertia_1d(masses, radii):
     return np.stack([masses, 0.5 * masses * radii**2], axis=1).reshape(-1)
 
 
-# ----------------------------------------------------------------------------- 2D (MODEL.md §4)
+# ----------------------------------------------------------------------------- 2D (model specification §4)
 
 
 def roller_constraint_rows_2d(node_roller, node_theta, senses, radii, z):
     """``R_r`` at the reference lever arm ``z`` and its derivative w.r.t. the lever arm.
 
-    For a node on roller ``j`` at wrap angle θ and lateral position ``z`` (MODEL.md §4):
+    For a node on roller ``j`` at wrap angle θ and lateral position ``z`` (model specification §4):
 
         u = s (-d_x sin θ + d_y cos θ - z α_x cos θ - z α_y sin θ + r α_z)
         v = d_z + r (α_x sin θ - α_y cos θ)
@@ -52,7 +52,7 @@ def roller_constraint_rows_2d(node_roller, node_theta, senses, radii, z):
     ``R(v) = R0 + R_dz · v`` on the u-rows.
 
     No ``∂v/∂α_z`` cross term is added for the lateral surface velocity of a skewed roller
-    (MODEL.md §3): the transport step carries ``w = v - v_s(θ)`` along the arc, so material
+    (model specification §3): the transport step carries ``w = v - v_s(θ)`` along the arc, so material
     on the roller follows the static surface profile ``v_s(θ) = d_z + r(α_x sin θ - α_y cos θ)``,
     whose rate along the rotation ``θ̇ = sV/r`` is exactly ``V ψ(θ)``,
     ``ψ = s(α_x cos θ + α_y sin θ)``. Adding the cross term as well would count it twice.

@@ -1,4 +1,4 @@
-"""Scene files (TOML): loading, unit conversion and validation (MODEL.md §1).
+"""Scene files (TOML): loading, unit conversion and validation (model specification §1).
 
 A scene is read into plain frozen dataclasses in SI units. Every rejection raises
 :class:`SceneError`, whose message names the offending key and value; nothing is compiled or
@@ -386,7 +386,7 @@ def _roller(r: dict, j: int, kind: str) -> RollerSpec:
                       f"the linearised response is off by more than ~0.6 % (benchmarks/linearity_range.py)",
                       MisalignmentWarning, stacklevel=2)
     if kind == "1d":
-        # The 1D model (MODEL.md §2) carries per roller only the x translation and the z rotation.
+        # The 1D model (model specification §2) carries per roller only the x translation and the z rotation.
         if translation[1] != 0.0 or translation[2] != 0.0:
             raise _err(f"{where}.translation_mm", [t * 1e3 for t in translation],
                        "the 1D model has only the x translation; use [model] kind = '2d'")

@@ -27,7 +27,7 @@ class BeltState(eqx.Module):
 @eqx.filter_jit
 def initial_state(model: BeltModel) -> BeltState:
     """Static equilibrium ``K x = F`` on the misaligned rollers, with zero velocity except the
-    drive rollers (``α̇_z = ω``) and the belt on them (``u̇ = R_r χ̇ = V``), as MODEL.md §2."""
+    drive rollers (``α̇_z = ω``) and the belt on them (``u̇ = R_r χ̇ = V``), as model specification §2."""
     K, _ = dae_matrices(model, model.m_e0)
     u, chi = bordered_solve(K, *static_rhs(model))
     chi_dot = model.omega

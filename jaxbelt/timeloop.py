@@ -154,7 +154,7 @@ def tracer_values(model: BeltModel, u):
 def edge_margin(model: BeltModel, u, chi):
     """Per roller (p,): ``min over its belt nodes of (W_j/2 − |z_edge + v_edge − d_z,j|)`` for both
     belt edges, in m; ``W_j`` the roller's face width, ``d_z,j`` its axial translation. Negative:
-    the belt edge has left the roller's face (MODEL.md §1 requires belt ≤ roller width at rest;
+    the belt edge has left the roller's face (model specification §1 requires belt ≤ roller width at rest;
     lateral motion can still carry it off). ``+inf`` for a roller without belt nodes."""
     p, d = model.n_rollers, len(model.dofs)
     dz = chi.reshape(p, d)[:, model.dofs.index("dz")]

@@ -1,4 +1,4 @@
-"""The transport (interpolation) step that keeps the grid fixed in space (§3.5, MODEL.md §3).
+"""The transport (interpolation) step that keeps the grid fixed in space (§3.5, model specification §3).
 
 After a solve the belt material has moved by ``ũ`` while the grid stays put. Each grid point
 takes the value of the material that now sits on it, by exact linear interpolation between the
@@ -53,7 +53,7 @@ Two relabelling rules (``[solver] transport``):
   what keeps ``0 <= a < 1``. On ``two-roller-1d`` with the idle roller 1 mm out it gives the
   analytic steady strain d / (D + π r) to round-off for every Δt and mesh, and equal drive and
   idle speeds (``tests/test_transport.py``).
-* ``"source"``: eq. 3.55–3.56 literally, as MODEL.md §3 writes it: each grid point takes the
+* ``"source"``: eq. 3.55–3.56 literally, as model specification §3 writes it: each grid point takes the
   material whose *displaced position* ``X + ũ`` lies on it, then the mean is subtracted. The
   weights see the whole displacement ``ũ`` (static misalignment response included), not only
   the step's motion. Two consequences, both measured in ``tests/test_transport.py``:

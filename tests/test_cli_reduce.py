@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from jaxbelt.cli import _print_reduce, main
+from jaxbelt.cli import print_reduce, main
 
 from helpers import COARSE_2D_TWO_ROLLER
 
@@ -86,7 +86,7 @@ def test_dmd_single_configuration_json_plot_and_text(tmp_path, capsys):
     assert r["modes"] > 10 and r["modes_discarded"] == 0  # the λ ≈ 1 offset mode is kept
     assert png.stat().st_size > 10_000
     # the readable table, printed from the same report (without --json)
-    _print_reduce(r)
+    print_reduce(r)
     out = capsys.readouterr().out
     for fragment in ("RMSE", "mm", "speedup online", "speedup total", "offline", "two-roller-1d-train1", "dmd",
                      "effectivity", "safety factor"):

@@ -24,11 +24,11 @@ from .. import enable_x64
 from ..scene import MisalignmentWarning, SceneError
 from . import bench, demo, info, plot_scene, reduce, scenes, sensitivity, simulate, sweep, tolerance
 from ._common import SimulationError, UsageError
-from .reduce import _print_reduce
+from .reduce import print_reduce
 
 COMMANDS = (tolerance, sweep, sensitivity, demo, scenes, info, plot_scene, simulate, reduce, bench)  # in the order of ``jaxbelt --help``
 
-__all__ = ["COMMANDS", "SimulationError", "UsageError", "_print_reduce", "build_parser", "main"]
+__all__ = ["COMMANDS", "SimulationError", "UsageError", "print_reduce", "build_parser", "main"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -51,15 +51,9 @@ def build_parser():
 def enable_compilation_cache():
     """JAX's persistent compilation cache for the command line, on by default
     (``JAXBELT_COMPILATION_CACHE=0`` switches it off): a second call of the same command on the
-    same scene shapes skips XLA compilation (``sensitivity`` on a small scene: 41 s → 7.7 s).
-    Directory ``$JAXBELT_CACHE_DIR`` or ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``).
-
-    It was opt-in for a while: one whole-test-suite run with it on died in a segfault. The cause
-    was not the cache: the same run dies without it, because one process that compiles hundreds of
-    programs passes the kernel's limit on memory mappings (``vm.max_map_count``, 65530; every CPU
-    executable holds its own), and the next compile crashes. The test suite now frees compiled
-    programs between modules (``tests/conftest.py``); a CLI command compiles a few dozen. The test
-    suite itself runs with the cache off, so tests never depend on what an earlier run left."""
+    same scene shapes skips XLA compilation. Directory ``$JAXBELT_CACHE_DIR`` or
+    ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``). **Returns:** the directory, or
+    ``None`` where it is off."""
     if os.environ.get("JAXBELT_COMPILATION_CACHE", "1") == "0":
         return None
     path = os.environ.get("JAXBELT_CACHE_DIR") or str(
@@ -73,9 +67,9 @@ def enable_compilation_cache():
 def configure_process():
     """The process settings of the command line: float64 (:func:`jaxbelt.enable_x64`) and one
     OpenBLAS thread unless the user chose otherwise. The LAPACK calls behind ``jnp.linalg`` (the
-    reduced models' SVD, QR, eig) spin extra OpenBLAS threads against XLA's own pool, which on a
-    small, busy machine is several times slower (the OpenBLAS-threads benchmark); the variable is
-    read when OpenBLAS loads, at the first LAPACK call."""
+    reduced models' SVD, QR, eig) would otherwise spin extra OpenBLAS threads against XLA's own
+    pool, which on a small, busy machine is several times slower; the variable is read when
+    OpenBLAS loads, at the first LAPACK call."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     enable_x64()
 

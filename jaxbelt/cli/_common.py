@@ -96,7 +96,3 @@ def emit(args, data, print_text):
         print_json(data)
     else:
         print_text(data)
-
-
-# the names jaxbelt.cli.reduce imports
-_emit, _finite, _fmt, _load, _positive, _timed = emit, finite_or_none, fmt, scene_from_args, check_at_least, timed

@@ -16,7 +16,8 @@ from ..design.sampling import distribution_from_dict
 from ..rom.pipeline import METHODS as REDUCE_METHODS
 from ..rom.pipeline import FullRunDivergedError, ReducedRunDivergedError
 from ..timeloop import RunOptions
-from ._common import SCENE_HELP, SimulationError, UsageError, _emit, _finite, _fmt, _load, _positive
+from ._common import (SCENE_HELP, SimulationError, UsageError, check_at_least, emit, finite_or_none, fmt,
+                      scene_from_args)
 from ._design import read_toml
 
 REDUCE_HELP = """\
@@ -94,7 +95,7 @@ def add_parser(subparsers):
 
 def run(args):
     _check_args(args)
-    scene = _load(args.scene)
+    scene = scene_from_args(args.scene)
     test, opts = build_model(scene), RunOptions.from_scene(scene)
     train_names, train, train_solvers = _training_set(args, scene, test, opts)
     n = int(args.steps or opts.n_steps)
@@ -119,19 +120,19 @@ def run(args):
 
     def print_text(report):
         print(f"reduced {scene.name} ({scene.kind}, N = {test.n_unknowns}) with {args.method}:")
-        _print_reduce(report)
+        print_reduce(report)
 
-    _emit(args, report, print_text)
+    emit(args, report, print_text)
     return 0
 
 
 def _check_args(args):
     """The options alone (before any scene is read)."""
     method = args.method
-    _positive("--modes", args.modes)
-    _positive("--steps", args.steps)
-    _positive("--train-steps", args.train_steps, 2 if method == "dmd" else 1)
-    _positive("--stride", args.stride, 0)
+    check_at_least("--modes", args.modes)
+    check_at_least("--steps", args.steps)
+    check_at_least("--train-steps", args.train_steps, 2 if method == "dmd" else 1)
+    check_at_least("--stride", args.stride, 0)
     train = list(args.train or [])
     if args.train_ranges is not None:
         if train:
@@ -181,7 +182,7 @@ def _training_set(args, scene, test, opts):
 
 
 def _scene_run(name):
-    scene = _load(name)
+    scene = scene_from_args(name)
     return name, build_model(scene), RunOptions.from_scene(scene)
 
 
@@ -205,7 +206,7 @@ def _report(r: rom.ReductionResult, scene_name: str, train_names, stride: int) -
     return dict(
         scene=scene_name, method=r.method, train=list(train_names), modes=r.modes, **extra, train_steps=r.train_steps,
         steps=r.n_steps, predict_from_step=r.predict_from_step, predict_steps=r.predict_steps, compared=r.compared,
-        n_unknowns=r.n_unknowns, n_tracers=r.n_tracers, rmse_mm=_finite(r.rmse_mm), rrmse=_finite(r.rrmse),
+        n_unknowns=r.n_unknowns, n_tracers=r.n_tracers, rmse_mm=finite_or_none(r.rmse_mm), rrmse=finite_or_none(r.rrmse),
         max_rmse_over_time_mm=_optional(r.max_rmse_over_time_mm),
         error_estimate_mm=None if e is None else _optional(e.rmse_mm),
         error_estimate_max_mm=None if e is None else _optional(e.max_mm),
@@ -214,7 +215,7 @@ def _report(r: rom.ReductionResult, scene_name: str, train_names, stride: int) -
 
 
 def _optional(v):
-    return None if v is None else _finite(v)
+    return None if v is None else finite_or_none(v)
 
 
 def _plot(r: rom.ReductionResult, report: dict, path):
@@ -228,18 +229,18 @@ def _plot(r: rom.ReductionResult, report: dict, path):
     report["plot"] = str(path)
 
 
-def _print_reduce(r):
+def print_reduce(r):
     rows = [
         ("scene", r["scene"]), ("method", r["method"]),
         ("trained on", ", ".join(r["train"]) + f" ({r['train_steps']} steps each)"),
         ("modes", str(r["modes"])
          + (f" ({r['modes_discarded']} unstable discarded)" if r.get("modes_discarded") else "")),
         ("predicted", f"{r['predict_steps']} steps from step {r['predict_from_step']} ({r['compared']})"),
-        ("RMSE", _fmt(r["rmse_mm"], " mm")), ("RRMSE", _fmt(r["rrmse"])),
-        ("max RMSE over time", _fmt(r["max_rmse_over_time_mm"], " mm")),
-        ("error estimate", (_fmt(r["error_estimate_mm"], " mm") + f" (max over time {_fmt(r['error_estimate_max_mm'], ' mm')}; "
-                            f"effectivity {_fmt(r['effectivity'])}, safety factor "
-                            f"{_fmt(r['error_estimate']['safety_factor'])})") if r.get("error_estimate_mm") is not None
+        ("RMSE", fmt(r["rmse_mm"], " mm")), ("RRMSE", fmt(r["rrmse"])),
+        ("max RMSE over time", fmt(r["max_rmse_over_time_mm"], " mm")),
+        ("error estimate", (fmt(r["error_estimate_mm"], " mm") + f" (max over time {fmt(r['error_estimate_max_mm'], ' mm')}; "
+                            f"effectivity {fmt(r['effectivity'])}, safety factor "
+                            f"{fmt(r['error_estimate']['safety_factor'])})") if r.get("error_estimate_mm") is not None
          else "-" if r["stride"] == 0 else "nan"),
     ]
     tm = r["timings"]
@@ -247,10 +248,10 @@ def _print_reduce(r):
     rows += [("full run", f"{tm['full_run_s']:.4g} s ({tm['full_mode']}, the fastest; {modes})"),
              ("offline", f"{tm['offline_s']:.4g} s (snapshots + fit; first call with compilation "
                          f"{tm['offline_first_call_s']:.4g} s)"),
-             ("online", f"{tm['online_s']:.4g} s"), ("speedup online", _fmt(tm["speedup_online"], "×")),
-             ("speedup total", _fmt(tm["speedup_total"], "×") + f" (vs the scene's own mode "
-                               f"{_fmt(tm['speedup_total_vs_scene_mode'], '×')}; source's eq. 7.5: "
-                               f"{_fmt(tm['speedup_eq_7_5'], '×')})")]
+             ("online", f"{tm['online_s']:.4g} s"), ("speedup online", fmt(tm["speedup_online"], "×")),
+             ("speedup total", fmt(tm["speedup_total"], "×") + f" (vs the scene's own mode "
+                               f"{fmt(tm['speedup_total_vs_scene_mode'], '×')}; source's eq. 7.5: "
+                               f"{fmt(tm['speedup_eq_7_5'], '×')})")]
     if "plot" in r:
         rows.append(("plot", r["plot"]))
     w = max(len(k) for k, _ in rows)

@@ -1,4 +1,4 @@
-"""Tolerance design (MODEL.md §6): metrics, sensitivities, tolerance boxes, yield, sharding.
+"""Tolerance design (model specification §6): metrics, sensitivities, tolerance boxes, yield, sharding.
 
 Sits above :mod:`jaxbelt.timeloop` and :mod:`jaxbelt.rom` and is never imported by them.
 

@@ -2,7 +2,7 @@
 
 A *tolerance box* is a vector of half-widths ``h`` (P,) ≥ 0 around the scene's own
 misalignment: every configuration ``θ`` with ``|θ_k| ≤ h_k`` must keep the metric at or below
-the limit. The response is nearly linear in the misalignments (MODEL.md §6),
+the limit. The response is nearly linear in the misalignments (model specification §6),
 ``r(θ) ≈ r₀ + J θ`` (:func:`jaxbelt.design.sensitivity.response_jacobian`), so the worst case
 over the box is known in closed form or nearly so:
 

@@ -123,7 +123,7 @@ def _flip(state):
 
 
 class Structured(AbstractLinearSolver):
-    """The exact structured solve: the bordered block-cyclic matrix (MODEL.md §4) factored in full
+    """The exact structured solve: the bordered block-cyclic matrix (model specification §4) factored in full
     every step, ``O(n b³)`` (:func:`jaxbelt.linalg.bordered.factorise`).
 
     ``interior``: ``"thomas"``, ``"cyclic-reduction"`` or ``None`` (by backend:

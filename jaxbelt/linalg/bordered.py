@@ -1,4 +1,4 @@
-"""Cyclic block-tridiagonal matrices bordered by roller unknowns (MODEL.md §4).
+"""Cyclic block-tridiagonal matrices bordered by roller unknowns (model specification §4).
 
 With the unknowns ordered column by column along the belt, the DAE matrices have the form
 

@@ -1,4 +1,4 @@
-"""Model order reduction on the belt model (MODEL.md §5): snapshots, metrics, modal decomposition,
+"""Model order reduction on the belt model (model specification §5): snapshots, metrics, modal decomposition,
 POD-Galerkin (as the source), the fully reduced POD step, exact DMD, DMD with control and
 parametric DMD, and an a-posteriori error estimate (the error ROM of :mod:`jaxbelt.rom.indicator`);
 :func:`reduce_and_compare` trains one and measures it against the full model (``jaxbelt reduce``)."""

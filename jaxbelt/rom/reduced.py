@@ -1,4 +1,4 @@
-"""The fully reduced POD step: solve *and* transport projected (MODEL.md §5, the source's §8.1).
+"""The fully reduced POD step: solve *and* transport projected (model specification §5, the source's §8.1).
 
 The source's POD-Galerkin reduced only the solve and handed the full state to the transport
 step, so every reduced step still cost O(N) (§7.3, §8.1). Here both halves of the discrete step

@@ -1,4 +1,4 @@
-"""Snapshot matrices from full-order runs (§6.3, §6.4, MODEL.md §5).
+"""Snapshot matrices from full-order runs (§6.3, §6.4, model specification §5).
 
 The reduced models work on the state *before* transport (eq. 6.10): the solve's result ``x̃``,
 which still carries the mean displacement that the transport removes. :func:`collect_snapshots`
