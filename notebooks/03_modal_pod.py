@@ -78,7 +78,7 @@ def err_mm(a, b):
 sc1 = jb.load_scene("two-roller-1d-train1")
 m1, DT1 = jb.build_model(sc1), sc1.time.dt  # Δt = 5 ms
 s1 = jb.initial_state(m1)
-omega, Phi, force = jax.jit(lambda s: rom.modal_basis(m1, s, DT1))(s1)  # one compiled program, not op by op
+omega, Phi, force = jax.jit(lambda s: rom.modal_basis(m1, s, dt=DT1))(s1)  # one compiled program, not op by op
 omega, Phi, force = np.asarray(omega), np.asarray(Phi), np.asarray(force)
 print(f"{Phi.shape[0]} dynamic unknowns (source: 139); lowest frequencies {np.round(omega[:4] / 2 / np.pi, 2)} Hz")
 
@@ -110,8 +110,9 @@ forward = jb.Checkpointed(steps=0)  # forward runs only: one scan, no checkpoint
 _, ref1 = jb.simulate(m1, jb.make_solver("eliminated"), n_steps=STEPS_1D, dt=DT1, adjoint=forward)
 modal = {}
 for order in ("frequency", "forcing"):
-    modal[order] = [err_mm(ref1.tracer_u, jb.simulate(m1, rom.fit_modal(m1, r, DT1, order), n_steps=STEPS_1D,
-                                                      dt=DT1, adjoint=forward)[1].tracer_u) for r in RANKS_MODAL]
+    fits = [rom.fit_modal(m1, r, dt=DT1, order=order) for r in RANKS_MODAL]
+    modal[order] = [err_mm(ref1.tracer_u, jb.simulate(m1, f, n_steps=STEPS_1D, dt=DT1, adjoint=forward)[1].tracer_u)
+                    for f in fits]
     print(f"modal, {order:9s} order: RMSE " + ", ".join(f"{r} modes {e:.3g} mm" for r, e in zip(RANKS_MODAL, modal[order])))
 
 # %% [markdown]
@@ -121,7 +122,7 @@ for order in ("frequency", "forcing"):
 # the first 50 steps, the reduced solve in their span, the transport on the full state.
 
 # %%
-_, X1, _ = rom.collect_snapshots(m1, TRAIN_1D, DT1, jb.make_solver("eliminated"))
+_, X1, _ = rom.collect_snapshots(m1, TRAIN_1D, dt=DT1, integrator=jb.make_solver("eliminated"))
 dyn, _ = m1.partition  # (dynamic, algebraic) unknowns
 _, sv1 = rom.pod_basis(X1[jnp.asarray(dyn)], n_modes=1)
 # check=False: a basis with modes of numerically zero energy can make the projected step unstable;
@@ -169,7 +170,7 @@ m2, DT2 = jb.build_model(sc2), sc2.time.dt  # Δt = 0.02 s
 reuse2 = jb.make_solver("direct", "reuse")
 t0 = time.perf_counter()
 # one full run gives both the training snapshots (its first TRAIN_2D steps) and the reference
-_, Zpre, Zpost = jax.block_until_ready(rom.collect_first_order(m2, STEPS_2D, DT2, reuse2))
+_, Zpre, Zpost = jax.block_until_ready(rom.collect_first_order(m2, STEPS_2D, dt=DT2, integrator=reuse2))
 N2 = m2.n_unknowns
 ref_u = (rom.tracer_operator(m2, "x") @ Zpost[:N2, 1:]).T  # tracers after each step's transport
 ref_v = (rom.tracer_operator(m2, "z") @ Zpost[:N2, 1:]).T
@@ -178,7 +179,7 @@ print(f"N = {N2}; the {STEPS_2D}-step full run with snapshots: {time.perf_counte
 
 Z = jnp.concatenate([Zpre[:, :TRAIN_2D], Zpost[:, :TRAIN_2D + 1]], axis=1)
 t0 = time.perf_counter()
-roms = rom.fit_reduced_pod_ranks(m2, Z, DT2, RANKS_2D)  # one SVD and one projection for every rank
+roms = rom.fit_reduced_pod_ranks(m2, Z, RANKS_2D, dt=DT2)  # one SVD and one projection for every rank
 fit_s = time.perf_counter() - t0
 sv2 = np.asarray(next(iter(roms.values())).singular_values)
 n_rule = rom.choose_modes(sv2, rule="source")
@@ -242,7 +243,7 @@ thetas = jnp.diag(jnp.array([5.0, 5.0, 0.5, 0.5, 0.5, 5.0]))  # mm / mrad: Table
 
 def snapshots(theta):
     m = misalignment.apply(base, space, theta)
-    return rom.collect_snapshots(m, 50, DT2, reuse2)[1][:, 3:]  # pre-transport x̃, steps 4 … 50
+    return rom.collect_snapshots(m, 50, dt=DT2, integrator=reuse2)[1][:, 3:]  # pre-transport x̃, steps 4 … 50
 
 
 t0 = time.perf_counter()

@@ -102,7 +102,7 @@ print(f"N = {N}; {len(train_names)} training configurations, {len(test_names)} h
 
 
 def first_order_run(chi, n):
-    return rom.collect_first_order(base.replace(chi_static=chi), n, DT, reuse)
+    return rom.collect_first_order(base.replace(chi_static=chi), n, dt=DT, integrator=reuse)
 
 
 # the axial design of the last section: the aligned machine and each component the test runs vary
@@ -130,7 +130,7 @@ print(f"training runs: {n_t} (Table 7.4 design) + {len(chi_axial)} (axial design
 mu_train = jax.vmap(lambda c: rom.parameters(base.replace(chi_static=c)))(chi_train)
 t0 = time.perf_counter()
 snaps = [jnp.concatenate([Zpre[j], Zpost[j]], 1)[:, ::POD_STRIDE] for j in range(len(chi_train))]
-pod = rom.fit_reduced_pod(base, jnp.concatenate(snaps, 1), DT, n_modes=RANK)  # linearised at the nominal machine
+pod = rom.fit_reduced_pod(base, jnp.concatenate(snaps, 1), dt=DT, n_modes=RANK)  # linearised at the nominal machine
 t_pod = time.perf_counter() - t0
 post = [Zpost[j][:, ::STRIDE] for j in range(len(chi_train))]
 X, Y, U = rom.stack_controlled(post, [rom.belt_inputs(mu, z.shape[1] - 1) for mu, z in zip(mu_train, post)])
@@ -176,7 +176,7 @@ def reduced_tracers(m0, models, obs, chis):
         st, mu = jb.initial_state(m), rom.parameters(m)
         out = pod.run(pod.project(m, st), mu, TEST)
         p_pod = jnp.concatenate([out["tracer_u"], out["tracer_v"]], 1)
-        p_dmdc = dmdc.predict(rom.state_to_z(m, st, DT), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE, observe=obs)
+        p_dmdc = dmdc.predict(rom.state_to_z(m, st, dt=DT), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE, observe=obs)
         p_pdmd = pdmd.predict(mu, TEST // STRIDE, observe=obs)  # k = 0 is step STRIDE
         p_pdmd_z0 = pdmd_z0.predict(mu, TEST // STRIDE + 1, observe=obs)[1:]  # k = 0 is the initial state
         return {"POD": p_pod, "DMDc": p_dmdc, "parametric DMD": p_pdmd, "parametric DMD from z_0": p_pdmd_z0}
@@ -278,7 +278,7 @@ print(f"total speedup ×{t_full / (offline + t_online):.2f} for these {len(test_
 # full-order one-step residuals of the reduced trajectory (lifted to full states), neither needing
 # a reference run. The **error ROM** (`jaxbelt.rom.indicator.error_rom`, what `jaxbelt reduce`
 # reports as `error_estimate_mm`) propagates window means of the residuals through the full
-# step's Jacobian in a small residual-enriched subspace; the older **triangle-inequality
+# step's Jacobian in a small residual-enriched subspace; the simpler **triangle-inequality
 # indicator** (`residual_indicator`) only accumulates the tracer residual of every `stride`-th
 # step. Here both, raw (no safety factor), for POD on held-out runs:
 
@@ -294,20 +294,20 @@ for ax, i in zip(axs, picks):
     xi0 = pod.project(m, st)
     out = pod.run(xi0, rom.parameters(m), TEST)
     coords = jnp.concatenate([xi0[None], out["xi"]])
-    est = error_rom(m, DT, pod.basis, coords, z_true0=rom.state_to_z(m, st, DT), stride=stride, integrator=reuse)
-    ind = residual_indicator(m, DT, pod.fields(coords), stride=stride, integrator=reuse)
+    est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, integrator=reuse)
+    ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, integrator=reuse)
     e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out["tracer_u"])) ** 2, 1)) * 1e3
-    plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est["error_mm"]), ax=ax,
+    plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est.error_mm), ax=ax,
                              estimate_label="error ROM estimate")
-    ax.semilogy((np.asarray(ind["step"]) + 1) * DT, np.asarray(ind["estimate_mm"]), "x:", ms=3, lw=1,
+    ax.semilogy((np.asarray(ind.step) + 1) * DT, np.asarray(ind.estimate_mm), "x:", ms=3, lw=1,
                 color="tab:gray", label="triangle-inequality indicator")
     ax.legend(fontsize=8)
     ax.set_title(f"POD, {labels[i]}", fontsize=9)
     true_rmse = float(np.sqrt(np.mean(e_t**2)))
     print(f"{labels[i]:11s}: true RMSE {true_rmse:.2e} mm (max over time {e_t.max():.2e}); error ROM "
-          f"{est['rmse_mm']:.2e} mm (×{est['rmse_mm'] / true_rmse:.2f}, max ×{est['max_mm'] / e_t.max():.2f}, "
-          f"{est['cost']['full_step_equivalents']} full-step equivalents for {TEST} steps); triangle inequality "
-          f"{float(ind['estimate_mm'][-1]):.2e} mm at the end (×{float(ind['estimate_mm'][-1]) / e_t[-1]:.0f})")
+          f"{est.rmse_mm:.2e} mm (×{est.rmse_mm / true_rmse:.2f}, max ×{est.max_mm / e_t.max():.2f}, "
+          f"{est.cost.full_step_equivalents} full-step equivalents for {TEST} steps); triangle inequality "
+          f"{float(ind.estimate_mm[-1]):.2e} mm at the end (×{float(ind.estimate_mm[-1]) / e_t[-1]:.0f})")
 show(fig)
 
 # %% [markdown]
@@ -342,7 +342,7 @@ def dmdc_predictions(m0, model, obs, chis):
     def one(chi):
         m = m0.replace(chi_static=chi)
         mu = rom.parameters(m)
-        return model.predict(rom.state_to_z(m, jb.initial_state(m), DT), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE,
+        return model.predict(rom.state_to_z(m, jb.initial_state(m), dt=DT), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE,
                              observe=obs)
 
     return jax.vmap(one)(chis)

@@ -144,10 +144,10 @@ study = design.make_study(dmodel, "lateral_max", t_eval=T_EVAL, dt=dscene.time.d
                           integrator=jb.make_solver("direct", "reuse"))
 report = design.sensitivity_report(study, repeat=1)
 print(f"N = {dmodel.n_unknowns}, {study.n_steps} steps; study + sensitivities in {time.perf_counter() - t0:.1f} s "
-      f"(forward {report['forward_s']:.2f} s, gradient {report['gradient_s']:.2f} s, at the kink: {report['at_kink']})")
-for p in report["parameters"]:
+      f"(forward {report.forward_s:.2f} s, gradient {report.gradient_s:.2f} s, at the kink: {report.at_kink})")
+for p in report.parameters:
     print(f"  {p['component']:12s} {p['gradient']:9.3f} µm/{p['unit']}")
-print("structurally zero:", ", ".join(z["component"] for z in report["structural_zero"]))
+print("structurally zero:", ", ".join(z["component"] for z in report.structural_zero))
 show_png("sensitivity.png", plot.plot_sensitivity, report)
 
 # %% [markdown]
@@ -179,12 +179,12 @@ print(f"at roller 2 tilted 0.2 mrad: lateral_max {float(value):.3f} µm; d/d(rol
 # %%
 t0 = time.perf_counter()
 box = design.tolerance_box(study, LIMIT_UM)
-print(f"box in {time.perf_counter() - t0:.1f} s: verified worst case {box['worst_case_um']:.2f} µm "
-      f"(linear prediction {box['predicted_worst_um']:.2f} µm), {box['iterations']} iteration(s)")
-for lab, hw, u in zip(box["labels"], box["half_widths"], box["units"]):
-    tag = "  (binding)" if lab in box["binding"][:3] else "  (not felt: capped)" if lab in box["unconstrained"] else ""
+print(f"box in {time.perf_counter() - t0:.1f} s: verified worst case {box.worst_case_um:.2f} µm "
+      f"(linear prediction {box.predicted_worst_um:.2f} µm), {box.iterations} iteration(s)")
+for lab, hw, u in zip(box.labels, box.half_widths, box.units):
+    tag = "  (binding)" if lab in box.binding[:3] else "  (not felt: capped)" if lab in box.unconstrained else ""
     print(f"  {lab:12s} ± {hw:8.4g} {u}{tag}")
-print(f"RSS stack-up with σ = h/3: {box['rss_um']:.2f} µm (the worst case is the sum, RSS the statistical stack-up)")
+print(f"RSS stack-up with σ = h/3: {box.rss_um:.2f} µm (the worst case is the sum, RSS the statistical stack-up)")
 show_png("box.png", plot.plot_tolerance_box, box)
 
 # %% [markdown]
@@ -202,20 +202,19 @@ show_png("box.png", plot.plot_tolerance_box, box)
 # run) and, near yield 1, importance sampling around FORM's design point.
 
 # %%
-dist = design.Distribution(tuple(box["labels"]), ("normal",) * len(box["labels"]),
-                           tuple(np.asarray(box["half_widths"]) / 2.0))
+dist = design.Distribution(tuple(box.labels), ("normal",) * len(box.labels), tuple(np.asarray(box.half_widths) / 2.0))
 t0 = time.perf_counter()
 # FORM and importance sampling run gradients through the whole run: left out of the quick run
 sweep = design.run_sweep(study, dist, SAMPLES, LIMIT_UM, chunk=8 if SMALL else 50, with_form=not SMALL)
-lo, hi = sweep["ci95"]
-print(f"{SAMPLES} samples in {time.perf_counter() - t0:.1f} s: Monte-Carlo yield {sweep['yield']:.4f} "
+lo, hi = sweep.ci95
+print(f"{SAMPLES} samples in {time.perf_counter() - t0:.1f} s: Monte-Carlo yield {sweep.yield_:.4f} "
       f"(95 %: {lo:.4f}–{hi:.4f})")
-if "form_yield" in sweep:
-    print(f"FORM: yield {sweep['form_yield']:.6f} (β = {sweep['form_beta']:.2f}); linear RSS 3σ stack-up "
-          f"{sweep['rss_3sigma_um']:.1f} µm" + (f"; importance sampling {sweep['is_yield']:.6f} (95 %: "
-                                               f"{sweep['is_ci95'][0]:.6f}–{sweep['is_ci95'][1]:.6f})"
-                                               if "is_yield" in sweep else ""))
-show_png("yield.png", plot.plot_yield, sweep["metric_values"], LIMIT_UM, sweep)
+if sweep.form_yield is not None:
+    print(f"FORM: yield {sweep.form_yield:.6f} (β = {sweep.form_beta:.2f}); linear RSS 3σ stack-up "
+          f"{sweep.rss_3sigma_um:.1f} µm" + (f"; importance sampling {sweep.is_yield:.6f} (95 %: "
+                                            f"{sweep.is_ci95[0]:.6f}–{sweep.is_ci95[1]:.6f})"
+                                            if sweep.is_yield is not None else ""))
+show_png("yield.png", plot.plot_yield, sweep.metric_values, LIMIT_UM, sweep)
 
 # %% [markdown]
 # Each component leaves the box with a probability of 4.6 % (±2σ), yet the yield is close to

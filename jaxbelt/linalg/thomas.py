@@ -139,6 +139,14 @@ def _phases(chains):
     return tuple(out)
 
 
+def take_blocks(a, index):
+    """``a[index]`` for a static integer ``index`` of any shape, gathered through the flattened
+    index and reshaped: a product of two arrays gathered with a 2-D index, batched by ``vmap``,
+    fails XLA's HLO verifier on the CPU (jax 0.10.2); the flat gather does not."""
+    index = np.asarray(index, int)
+    return a[index.reshape(-1)].reshape(index.shape + a.shape[1:])
+
+
 def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
     """Rearrange ``F`` along its chains (:class:`ChainedThomasFactors`). ``breaks`` (m,) static
     booleans: ``True`` where the block's ``L_i`` and ``U_i`` are zero (the caller's guarantee;
@@ -150,9 +158,9 @@ def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
     fw = [c for c in fw if len(c) > 1]
     bw = [c for c in elimination_chains(m, breaks, reverse=True) if len(c) > 1]
     f_ph, b_ph = _phases(fw), _phases(bw)
-    f_inv = tuple(F.inv[np.asarray(t)] for t in f_ph)
-    f_P = tuple(fi @ F.L[np.asarray(t)] for fi, t in zip(f_inv, f_ph))
-    b_C = tuple(F.C_hat[np.asarray(t)] for t in b_ph)
+    f_inv = tuple(take_blocks(F.inv, t) for t in f_ph)
+    f_P = tuple(fi @ take_blocks(F.L, t) for fi, t in zip(f_inv, f_ph))
+    b_C = tuple(take_blocks(F.C_hat, t) for t in b_ph)
     return ChainedThomasFactors(f_inv, f_P, F.inv[np.asarray(singles, int)], b_C, (f_ph, singles, b_ph, m))
 
 
@@ -197,7 +205,7 @@ def chained_thomas_apply(F: ChainedThomasFactors, rhs):
     """:func:`thomas_apply` along the chains; ``rhs`` (m, b, k)."""
     f_ph, singles, b_ph, _ = F.layout
     fwd, bwd = _chain_gathers(F.layout)
-    g = [inv @ rhs[np.asarray(t)] for inv, t in zip(F.f_inv, f_ph)]  # den⁻¹ r of each phase, batched
+    g = [inv @ take_blocks(rhs, t) for inv, t in zip(F.f_inv, f_ph)]  # den⁻¹ r of each phase, batched
     y = jnp.concatenate(_sweep(F.f_P, g) + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
-    xs = _sweep(F.b_C, [y[np.asarray(t)] for t in b_ph])
+    xs = _sweep(F.b_C, [take_blocks(y, t) for t in b_ph])
     return jnp.concatenate(xs + [y])[bwd]
