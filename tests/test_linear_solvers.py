@@ -73,12 +73,45 @@ def test_lever_columns_are_the_tilts_in_2d(step_case):
         assert set(rows) <= set(cols)
 
 
+
+def test_chained_sweeps_batch_under_vmap():
+    """The chained Thomas sweeps (the kept and frozen factors' interior) under ``vmap`` over the
+    factors themselves, chains of equal length run side by side (2-D block-index tables): each
+    member equals its own rearrangement and the plain Thomas solve."""
+    from jaxbelt.linalg.thomas import chain_thomas, chained_thomas_apply, thomas_apply, thomas_factor
+
+    rng = np.random.default_rng(1)
+    m, b, k = 12, 3, 2
+    breaks = np.zeros(m, bool)
+    breaks[[0, 4, 8]] = True  # three chains of four blocks; a break block couples to no neighbour
+    keep = ~breaks[None, :, None, None]
+    diag = jnp.asarray(rng.normal(size=(2, m, b, b)) + 8 * np.eye(b))
+    lower = jnp.asarray(rng.normal(size=(2, m, b, b)) * keep)
+    upper = jnp.asarray(rng.normal(size=(2, m, b, b)) * keep)
+    rhs = jnp.asarray(rng.normal(size=(2, m, b, k)))
+
+    def chained(d, lo, up, r):
+        return chained_thomas_apply(chain_thomas(thomas_factor(d, lo, up), breaks), r)
+
+    batched = jax.jit(jax.vmap(chained))(diag, lower, upper, rhs)
+    factors = jax.vmap(thomas_factor)(diag, lower, upper)  # batched factors into the rearrangement alone
+    rearranged = jax.jit(jax.vmap(lambda F: chain_thomas(F, breaks).f_P))(factors)
+    for i in range(2):
+        one = chain_thomas(jax.tree.map(lambda a: a[i], factors), breaks).f_P
+        for got, want in zip(rearranged, one):
+            np.testing.assert_allclose(np.asarray(got[i]), np.asarray(want), rtol=1e-12)
+        plain = thomas_apply(thomas_factor(diag[i], lower[i], upper[i]), rhs[i])
+        np.testing.assert_allclose(np.asarray(batched[i]), np.asarray(plain), rtol=1e-10, atol=1e-12)
+
+
 def test_reuse_runs_under_vmap_over_misalignments(step_case):
-    """Each configuration factors its own first step inside the batched run (the chained interior
-    gathers blocks by 2-D static indices, which must batch)."""
+    """Each configuration factors its own first step inside the batched run; in 2D a tilt changes
+    the factors, so the chained interior's block gathers are batched too."""
     model, _, dt = step_case
     solver = jb.DirectBackwardEuler(jb.Reuse())
-    chis = jnp.stack([model.chi_static, model.chi_static.at[0].add(1e-5)])
+    d = len(model.dofs)
+    k = d + model.dofs.index("ax") if "ax" in model.dofs else 0  # roller 2's tilt in 2D; a shift in 1D
+    chis = jnp.stack([model.chi_static, model.chi_static.at[k].add(1e-4 if "ax" in model.dofs else 1e-5)])
 
     def last_tracers(chi):
         _, tr = jb.simulate(model.replace(chi_static=chi), solver, n_steps=3, dt=dt, check=False)
