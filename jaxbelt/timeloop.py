@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import equinox as eqx
 import jax
@@ -430,7 +431,8 @@ def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_st
     check_time_step(model, dt)
     dt = jnp.asarray(dt, dtype=model.ell.dtype)
     if progress:
-        out = _simulate_in_chunks(model, solver, y0, dt, n_steps, saveat, adjoint)
+        chunked = simulate_in_chunks(model, solver, n_steps=n_steps, dt=dt, saveat=saveat, adjoint=adjoint, y0=y0)
+        out = chunked.state, chunked.trajectory
     else:
         out = _simulate(model, solver, y0, dt, n_steps, saveat, adjoint, None)
     if check:
@@ -438,22 +440,63 @@ def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_st
     return out
 
 
-def _simulate_in_chunks(model, solver, y0, dt, n_steps, saveat, adjoint, chunk: int = 200):
-    """:func:`simulate` in compiled chunks (whole record intervals) with a tqdm progress bar; the
-    run data is computed once, so the result equals one call."""
+@dataclasses.dataclass(frozen=True)
+class ChunkedRun:
+    """A run made in compiled chunks (:func:`simulate_in_chunks`).
+
+    **Fields:** ``state`` the final :class:`~jaxbelt.BeltState`; ``trajectory`` the records, as one
+    call of :func:`simulate` makes them; ``fields`` (len(field_rows), n_xi, b) the full displacement
+    at the requested record rows, or ``None``; ``compile_s``, ``run_s`` seconds spent compiling
+    (with the run data) and running."""
+
+    state: BeltState
+    trajectory: Trajectory
+    fields: np.ndarray | None
+    compile_s: float
+    run_s: float
+
+
+def simulate_in_chunks(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,
+                       saveat: SaveAt = SaveAt(), adjoint: Checkpointed = Checkpointed(),
+                       y0: BeltState | None = None, field_rows=None, progress: bool = True,
+                       chunk: int = 200) -> ChunkedRun:
+    """:func:`simulate` in compiled chunks of about ``chunk`` steps (whole record intervals), for
+    long runs at the command line: a progress bar, compilation ahead of the run (timed apart), and
+    the full field kept only at ``field_rows`` (record rows, in the order given, repeats allowed),
+    so memory holds one chunk's fields, not the run's. The run data (factors) are computed once,
+    so the records equal one :func:`simulate` call. Not traceable; no finiteness check.
+    """
     from tqdm import tqdm
 
+    solver = make_solver() if solver is None else solver
+    n_steps = int(n_steps)
+    check_time_step(model, dt)
+    dt = jnp.asarray(dt, dtype=model.ell.dtype)
+    run_saveat = SaveAt(saveat.every, fields=saveat.fields or field_rows is not None)
     chunk = max(saveat.every, (chunk // saveat.every) * saveat.every)
-    state, run_data = _init_run(model, solver, y0, dt)
-    parts = []
-    with tqdm(total=n_steps, unit="step", leave=False) as bar:
-        for k in [min(chunk, n_steps - k) for k in range(0, n_steps, chunk)]:
-            state, traj = _simulate(model, solver, state, dt, k, saveat, adjoint, run_data)
-            parts.append(traj)
+    sizes = [min(chunk, n_steps - k) for k in range(0, n_steps, chunk)] or [0]
+    t0 = time.perf_counter()
+    state, run_data = jax.block_until_ready(_init_run(model, solver, y0, dt))
+    compiled = {k: _simulate.lower(model, solver, state, dt, k, run_saveat, adjoint, run_data).compile()
+                for k in sorted(set(sizes))}
+    compile_s = time.perf_counter() - t0
+    wanted, kept, parts, row0 = set(field_rows or ()), {}, [], 0
+    t0 = time.perf_counter()
+    with tqdm(total=n_steps, unit="step", disable=not progress, leave=False) as bar:
+        for k in sizes:
+            state, traj = compiled[k](model, solver, state, dt, k, run_saveat, adjoint, run_data)
+            n_rec = traj.t.shape[0]
+            for r in wanted:
+                if row0 <= r < row0 + n_rec:
+                    kept[r] = np.asarray(traj.u[r - row0])
+            parts.append(traj if saveat.fields else dataclasses.replace(traj, u=None))
+            row0 += n_rec
             bar.update(k)
-    if not parts:
-        return _simulate(model, solver, state, dt, 0, saveat, adjoint, run_data)
-    return state, jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=0), *parts)
+    jax.block_until_ready(state.u)
+    run_s = time.perf_counter() - t0
+    traj = jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=0), *parts)
+    fields = None if field_rows is None else np.stack([kept[r] for r in field_rows])
+    return ChunkedRun(state, traj, fields, compile_s, run_s)
 
 
 def compile_simulation(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,

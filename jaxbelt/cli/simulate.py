@@ -2,23 +2,16 @@
 
 from __future__ import annotations
 
-import dataclasses
 import sys
-import time
 from pathlib import Path
 from types import SimpleNamespace
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .. import plot
 from ..prestress import slack_message, slack_spans
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, TRANSPORT_RULES
-from ..state import initial_state
-from ..timeloop import NonFiniteStateError, SaveAt, check_finite
-from ..timeloop import run as run_steps
+from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
 from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run
 
 
@@ -150,56 +143,6 @@ def _field_request(args, scene, options):
     return dict(rows=rows, t=t_rec[rows], components=comps, exaggerate=ex)
 
 
-@eqx.filter_jit
-def _start(model, solver, dt):
-    state = initial_state(model)
-    return state, solver.init(model, state, dt)
-
-
-@eqx.filter_jit
-def _steps(model, solver, state, dt, n_steps, saveat, run_data):
-    return run_steps(model, solver, state, dt, n_steps, saveat, None, run_data)
-
-
-def _run_chunked(model, options, rows, progress, chunk=200):
-    """The run of ``options`` in compiled chunks of about ``chunk`` steps (whole record intervals;
-    one run's data, so the result equals one :func:`jaxbelt.simulate` call), compiled ahead so
-    compilation and run are timed apart, with a progress bar. Where ``rows`` (recorded rows) are
-    given the full field ``u`` is recorded and kept at those rows only (in the order given,
-    repeats allowed), so memory holds one chunk's fields, not the run's.
-
-    **Returns:** ``(traj, fields (len(rows), n_xi, b) or None, {"compile_s", "run_s"})``;
-    ``traj.u`` as ``options.saveat`` asks."""
-    from tqdm import tqdm
-
-    solver, n_steps, every = options.solver, int(options.n_steps), options.saveat.every
-    saveat = SaveAt(every, fields=options.saveat.fields or rows is not None)
-    dt = jnp.asarray(options.dt, model.ell.dtype)
-    chunk = max(every, (chunk // every) * every)
-    sizes = [min(chunk, n_steps - k) for k in range(0, n_steps, chunk)] or [0]
-    t0 = time.perf_counter()
-    state, run_data = jax.block_until_ready(_start(model, solver, dt))
-    compiled = {k: _steps.lower(model, solver, state, dt, k, saveat, run_data).compile() for k in sorted(set(sizes))}
-    compile_s = time.perf_counter() - t0
-    wanted, kept, parts, row0 = set(rows or ()), {}, [], 0
-    t0 = time.perf_counter()
-    with tqdm(total=n_steps, unit="step", disable=not progress, leave=False) as bar:
-        for k in sizes:
-            state, traj = compiled[k](model, solver, state, dt, k, saveat, run_data)
-            n_rec = traj.t.shape[0]
-            for r in wanted:
-                if row0 <= r < row0 + n_rec:
-                    kept[r] = np.asarray(traj.u[r - row0])
-            parts.append(traj if options.saveat.fields else dataclasses.replace(traj, u=None))
-            row0 += n_rec
-            bar.update(k)
-    jax.block_until_ready(state.u)
-    run_s = time.perf_counter() - t0
-    traj = jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=0), *parts)
-    fields = None if rows is None else np.stack([kept[r] for r in rows])
-    return traj, fields, {"compile_s": compile_s, "run_s": run_s}
-
-
 def _write_npz(path, traj, mesh, model, request, fields):
     np.savez(
         Path(path), t=np.asarray(traj.t), transport_weights=np.asarray(traj.transport_weights),
@@ -262,8 +205,10 @@ def run(args, demo=False):
         print(f"jaxbelt: warning: {slack_message(slack)}; the linear model carries compression like "
               "tension, so the results are not a real belt's", file=sys.stderr)
     progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
-    traj, fields, timing = _run_chunked(model, options, None if request is None else request["rows"], progress)
-    s = _summary(scene, options, model, traj, timing)
+    chunked = simulate_in_chunks(model, **options, field_rows=None if request is None else request["rows"],
+                                 progress=progress)
+    traj, fields = chunked.trajectory, chunked.fields
+    s = _summary(scene, options, model, traj, {"compile_s": chunked.compile_s, "run_s": chunked.run_s})
     s["slack"] = slack
     try:
         check_finite(traj, options.dt)
