@@ -157,7 +157,7 @@ def test_scene_element_key():
 
     assert sc().mesh.element == MeshSpec().element == DEFAULT_ELEMENT == _ELEMENTS[0] == "qm6"
     assert set(_ELEMENTS) == set(QUAD_ELEMENTS)
-    q4, qm6 = jb.compile_scene(sc(element="q4")), jb.compile_scene(sc())
+    q4, qm6 = jb.build_model(sc(element="q4")), jb.build_model(sc())
     free = jnp.asarray(jb.build_mesh(sc()).elem_free, float)
     for model, element in ((q4, "q4"), (qm6, "qm6")):
         Kd = free_belt_stiffness_2d(model.ell, jnp.diff(model.z0), free, 2.5e9, 0.34, 3e-4, element=element)[0]

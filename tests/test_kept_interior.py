@@ -2,7 +2,7 @@
 
 With the shift transport the belt's interior blocks of ``M + Δt² K`` never change; only the
 tilt columns (lever arm ``z + v``) and, for dynamic tilts, their roller rows do
-(:class:`jaxbelt.integrators.DirectBackwardEuler`). Checked against a full factorisation of
+(:class:`jaxbelt.integrators.KeptInterior`). Checked against a full factorisation of
 every step's matrix and against dense solves, forward and in reverse mode."""
 
 import jax
@@ -11,16 +11,17 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
-from jaxbelt.integrators import DirectBackwardEuler
-from jaxbelt.linalg import BorderedBlockCyclic
+from jaxbelt.integrators import DirectBackwardEuler, KeptInterior, StepOperator, Structured
+from jaxbelt.integrators.linear import lever_columns
+from jaxbelt.linalg import BorderedBlockCyclic, join
 from jaxbelt.linalg.bordered import dense_solve, factor_solve, factorise, refactorise_border, scaled_schur
 from jaxbelt.timeloop import run
-from helpers import scene_with
+from helpers import load, scene_with, solve_step
 
 
-def FullFactorisation(linear_solver="structured"):
+def FullFactorisation():
     """The exact solver without the kept interior: every step's matrix factored in full."""
-    return DirectBackwardEuler(linear_solver, keep_interior=False)
+    return DirectBackwardEuler(Structured())
 
 
 def _random_bordered(rng, n=7, b=4, q=5):
@@ -53,7 +54,7 @@ def test_refactorise_border_is_the_exact_factorisation(method):
 
 
 @pytest.fixture(scope="module")
-def walking():
+def walking_loaded():
     """A small three-roller belt whose lever arms keep moving: a skewed roller with lateral
     transport (the belt walks), and a tension roller whose x-tilt is a dynamic, torque-loaded DOF
     (its roller row moves with the lever arm too)."""
@@ -66,24 +67,63 @@ def walking():
                                                                     rotation_mrad=[0.0, 0.0, 0.0])
         d["variant"].setdefault("roller 3", {}).update(rotation_mrad=[0.0, 2.0, 0.0])
 
-    return jb.compile_scene(scene_with(mutate, "three-roller-t72"))
+    return load(scene_with(mutate, "three-roller-t72"))
+
+
+@pytest.fixture(scope="module")
+def walking(walking_loaded):
+    return walking_loaded[0]
+
+
+@pytest.fixture(scope="module")
+def dt(walking_loaded):
+    return walking_loaded[1].dt
+
+
+@pytest.fixture(scope="module")
+def moved(walking, dt):
+    """The state after 4 steps: the lever arms have moved away from the reference's."""
+    return jax.jit(lambda m: run(m, FullFactorisation(), jb.initial_state(m), dt, 4)[0])(walking)
 
 
 def test_lever_columns_and_dynamic_rows(walking):
-    integ = DirectBackwardEuler.for_model(walking)
+    cols, rows = lever_columns(walking)
     d = len(walking.dofs)
-    assert integ.lever_columns == tuple(j * d + walking.dofs.index(a) for j in range(3) for a in ("ax", "ay"))
-    assert integ.lever_rows == (d + walking.dofs.index("ax"),)  # roller 2's torque-loaded x tilt
+    assert cols == tuple(j * d + walking.dofs.index(a) for j in range(3) for a in ("ax", "ay"))
+    assert rows == (d + walking.dofs.index("ax"),)  # roller 2's torque-loaded x tilt
 
 
-def test_run_equals_a_full_factorisation_every_step(walking):
-    """With the static facts of :meth:`for_model` (dynamic rows known) and without them (every
-    tilt row recomputed), against the full factorisation of every step's matrix."""
+def test_kept_factors_solve_as_a_full_factorisation(walking, dt, moved):
+    """At a state whose lever arms have moved, the kept interior with the step's border solves
+    the step's matrix as its full factorisation and a dense solve do; the reference's factors
+    alone would not."""
+    s = moved
+    rng = np.random.default_rng(4)
+    rb = jnp.asarray(rng.normal(size=(walking.n_xi, walking.block)))
+    rr = jnp.asarray(rng.normal(size=walking.n_roller_dofs))
+
+    @jax.jit
+    def solves(m, s, rb, rr):
+        op = StepOperator(m, s.m_e, jb.assembly.roller_R(m, s.u), dt)
+        ref = KeptInterior().reference(m, s, dt)
+        kept = KeptInterior().compute(KeptInterior().init(op, ref), rb, rr)
+        full = Structured().compute(Structured().init(op), rb, rr)
+        return kept, full, dense_solve(op.matrix(), rb, rr), factor_solve(ref.F, rb, rr)
+
+    kept, full, dense, frozen = (join(*x) for x in solves(walking, s, rb, rr))
+    scale = float(jnp.max(jnp.abs(dense)))
+    np.testing.assert_allclose(np.asarray(kept), np.asarray(full), rtol=0, atol=1e-11 * scale)
+    np.testing.assert_allclose(np.asarray(kept), np.asarray(dense), rtol=0, atol=1e-10 * scale)
+    assert float(jnp.max(jnp.abs(frozen - dense))) > 1e-8 * scale  # the test can fail
+
+
+def test_run_equals_a_full_factorisation_every_step(walking, dt):
+    """The kept interior against the full factorisation of every step's matrix, over a run whose
+    lever arms move."""
     n = 16
     s0 = jb.initial_state(walking)
     (s_full, tr_full), *kept = jax.jit(lambda s: [
-        run(walking, i, s, n) for i in (FullFactorisation("structured"), DirectBackwardEuler.for_model(walking),
-                                        DirectBackwardEuler("structured"))])(s0)
+        run(walking, i, s, dt, n) for i in (FullFactorisation(), DirectBackwardEuler(KeptInterior()))])(s0)
     scale_u = float(jnp.max(jnp.abs(s_full.u)))
     r = np.asarray(tr_full.roller_reaction)
     for s_kept, tr_kept in kept:
@@ -94,30 +134,49 @@ def test_run_equals_a_full_factorisation_every_step(walking):
     assert float(jnp.max(jnp.abs(s_full.u[:, 1::2] - s0.u[:, 1::2]))) > 1e-7
 
 
-def test_gradient_through_the_kept_interior(walking):
+def test_gradient_through_the_kept_interior(walking, dt, moved):
     """Reverse mode through one step (its adjoint solve is the transposed kept-interior solve)
     equals reverse mode through the full factorisation."""
-    s = jax.jit(lambda m: run(m, DirectBackwardEuler("structured"), jb.initial_state(m), 4)[0])(walking)
-    kept = jax.jit(DirectBackwardEuler.for_model(walking).prepare)(walking)
-    assert kept.reference is not None
+    s = moved
+    kept, full = DirectBackwardEuler(KeptInterior()), FullFactorisation()
 
-    def metric(integrator, rot):
-        solved = integrator.solve_step(walking.with_misalignment(rotation=rot), s)
+    def metric(integrator, run_data, rot):
+        solved = integrator.step(jb.with_misalignment(walking, rotation=rot), s, dt, run_data)
         return jnp.sum(solved.u[:, 1::2] ** 2) + jnp.sum(solved.chi ** 2)
 
+    @jax.jit
+    def grads(r):
+        kept_data, full_data = kept.init(walking, s, dt), full.init(walking, s, dt)
+        assert kept_data.linear is not None  # the run's kept interior (static: checked while tracing)
+        return (jax.grad(lambda r: metric(kept, kept_data, r))(r), jax.grad(lambda r: metric(full, full_data, r))(r))
+
     rot = jnp.zeros((3, 3)).at[2, 1].set(2e-3)
-    g_kept, g_full = jax.jit(lambda r: (jax.grad(lambda r: metric(kept, r))(r),
-                                        jax.grad(lambda r: metric(FullFactorisation("structured"), r))(r)))(rot)
+    g_kept, g_full = grads(rot)
     np.testing.assert_allclose(np.asarray(g_kept), np.asarray(g_full), rtol=1e-9,
                                atol=1e-9 * float(jnp.max(jnp.abs(g_full))))
     assert float(jnp.max(jnp.abs(g_full))) > 0
 
 
-def test_source_transport_factors_every_step(walking):
-    m = walking.replace(transport="source")
-    assert DirectBackwardEuler.for_model(m).prepare(m).reference is None
-    assert DirectBackwardEuler.for_model(walking).prepare(walking).reference is not None
-    assert FullFactorisation().prepare(walking).reference is None
+def test_reuse_factors_come_from_the_start_state_of_the_run(walking, dt, moved):
+    """:class:`jaxbelt.Reuse` factors the matrix of the state a run starts from (its ``init``,
+    inside the run): without refinement, its first step from a state whose lever arms have moved
+    is the exact step, and the same frozen solve with the factors of another state is not."""
+    reuse = DirectBackwardEuler(jb.Reuse(refine=0))
+    exact = solve_step(walking, FullFactorisation(), moved, dt)
+    first = solve_step(walking, reuse, moved, dt)
+    stale = jax.jit(lambda s0, s: reuse.step(walking, s, dt, reuse.init(walking, s0, dt)))(jb.initial_state(walking),
+                                                                                          moved)
+    scale = float(jnp.max(jnp.abs(exact.u_dot)))
+    np.testing.assert_allclose(np.asarray(first.u_dot), np.asarray(exact.u_dot), rtol=0, atol=1e-11 * scale)
+    np.testing.assert_allclose(np.asarray(first.chi), np.asarray(exact.chi), rtol=0, atol=1e-13)
+    assert float(jnp.max(jnp.abs(stale.u_dot - exact.u_dot))) > 1e-9 * scale  # the test can fail
+
+
+def test_source_transport_factors_every_step(walking, dt):
+    s0 = jb.initial_state(walking)
+    assert DirectBackwardEuler(KeptInterior(), transport="source").init(walking, s0, dt).linear is None
+    assert DirectBackwardEuler(KeptInterior()).init(walking, s0, dt).linear is not None
+    assert FullFactorisation().init(walking, s0, dt).linear is None
 
 
 def test_stencil_product_equals_the_block_product(walking):
@@ -132,17 +191,17 @@ def test_stencil_product_equals_the_block_product(walking):
     assert 0 < len(cols) < walking.n_xi
     np.testing.assert_allclose(np.asarray(stencil_matvec(S, u, cols)), np.asarray(ref)[np.asarray(cols)], rtol=0,
                                atol=tol)
-    assert free_belt_stencil(jb.compile_scene(jb.load_scene("two-roller-1d"))) is None
+    assert free_belt_stencil(jb.build_model(jb.load_scene("two-roller-1d"))) is None
 
 
-def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking):
+def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking, dt):
     from jaxbelt.timeloop import make_step
 
     s = jb.initial_state(walking)
-    integ = DirectBackwardEuler.for_model(walking)
-    r_on = jax.jit(lambda s: make_step(walking, integ)(s)[1]["roller_reaction"])(s)
+    integ = DirectBackwardEuler(KeptInterior())
+    r_on = jax.jit(lambda s: make_step(walking, integ, dt)(s)[1]["roller_reaction"])(s)
     full = walking.replace(contact_columns=None)
-    r_all = jax.jit(lambda s: make_step(full, integ)(s)[1]["roller_reaction"])(s)
+    r_all = jax.jit(lambda s: make_step(full, integ, dt)(s)[1]["roller_reaction"])(s)
     np.testing.assert_allclose(np.asarray(r_on), np.asarray(r_all), rtol=1e-10, atol=1e-9 * float(jnp.max(jnp.abs(r_all))))
     assert float(jnp.max(jnp.abs(r_all))) > 1.0  # the supports do carry load
 

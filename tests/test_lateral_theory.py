@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
-from helpers import simulate_optimised
+from helpers import load, simulate_optimised
 from jaxbelt import lateral_theory as th
 
 E, NU, T_B, R, SPAN = 2.5e9, 0.34, 0.3e-3, 0.08, 1.0
@@ -110,8 +110,13 @@ def test_steering_split_of_a_tilted_roller():
 
 
 @pytest.fixture(scope="module")
-def two_roller_model():
-    return jb.compile_scene(two_roller())
+def two_roller_loaded():
+    return load(two_roller())
+
+
+@pytest.fixture(scope="module")
+def two_roller_model(two_roller_loaded):
+    return two_roller_loaded[0]
 
 
 def _walk(tr):
@@ -120,16 +125,17 @@ def _walk(tr):
     return float(np.polyfit(t[n // 2:], v[n // 2:], 1)[0])
 
 
-def _run(model, rotation):
+def _run(loaded, rotation):
     """1600 steps (16 s) with ``rotation``: one program for the module, compiled optimised (long
     runs: ``helpers.simulate_optimised``)."""
-    return simulate_optimised(model.with_misalignment(rotation=jnp.asarray(rotation)))
+    model, opts = loaded
+    return simulate_optimised(jb.with_misalignment(model, rotation=jnp.asarray(rotation)), opts)
 
 
 @pytest.fixture(scope="module")
-def skew_run(two_roller_model):
+def skew_run(two_roller_loaded):
     """Roller 2 skewed by 1 mrad: the trajectory of two tests below."""
-    return _run(two_roller_model, rot(1, 1))
+    return _run(two_roller_loaded, rot(1, 1))
 
 
 def test_skew_walk_equals_the_timoshenko_loop(skew_run):
@@ -143,8 +149,8 @@ def test_skew_walk_equals_the_timoshenko_loop(skew_run):
     assert abs(c / (-1e-3 * SPAN / L_LOOP)) < 0.7  # far from the string limit at this K L
 
 
-def test_twist_walk_equals_the_per_pass_shift(two_roller_model):
-    c = _walk(_run(two_roller_model, rot(1, 0)))
+def test_twist_walk_equals_the_per_pass_shift(two_roller_loaded):
+    c = _walk(_run(two_roller_loaded, rot(1, 0)))
     assert c == pytest.approx(2 * R * 1e-3 / L_LOOP, rel=0.01)
 
 
@@ -166,7 +172,7 @@ def test_entry_line_correction_is_the_roller_skew_at_the_contact_line(two_roller
     roller's circumferential lines at the contact line (reference formula ``e_z · (α × t)``),
     for a skew (σ = ∓α) and a twist (σ = 0 on spans along x); u is untouched."""
     s = 0.01
-    m = two_roller_model.with_misalignment(rotation=jnp.asarray(rot(1, axis)))
+    m = jb.with_misalignment(two_roller_model, rotation=jnp.asarray(rot(1, axis)))
     corr = np.asarray(_entry_line_correction(m, s))
     g = geometry()
     node_roller = np.asarray(m.node_roller)

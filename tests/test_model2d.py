@@ -4,6 +4,8 @@ The runs share the coarse grid (three lines across) and a few run lengths that a
 of the scan's checkpoint chunks (9, 36, 156), so that they share compiled programs (with each other
 and with test_vmap.py, test_validation.py's 2D statics, test_reuse.py, test_rom_snapshots.py)."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,15 +14,21 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.assembly import dae_matrices, roller_R
 from jaxbelt.linalg import bordered_solve, dense_solve, join
-from helpers import scene_with
+from helpers import load, scene_with
 
 
-def small(name="three-roller", n_eta=3, **extra):
+@functools.cache
+def small(name="three-roller", n_eta=3):
+    """``(model, run options)`` of a built-in scene with ``n_eta`` lines across (built once)."""
     def m(d):
         d.setdefault("mesh", {})["n_eta"] = n_eta
-        for table, values in extra.items():
-            d.setdefault(table, {}).update(values)
-    return jb.compile_scene(scene_with(m, name))
+    return load(scene_with(m, name))
+
+
+def simulate(m, n_steps, solver=None, name="three-roller"):
+    """``jb.simulate`` of ``m`` at the time step of the scene it was built from."""
+    opts = small(name)[1]
+    return jb.simulate(m, solver or opts.solver, n_steps=n_steps, dt=opts.dt)
 
 
 def with_variant(model, rollers):
@@ -30,13 +38,13 @@ def with_variant(model, rollers):
     for j, v in rollers.items():
         t[j] = v.get("translation", (0, 0, 0))
         r[j, :2] = v.get("rotation", (0, 0))
-    return model.with_misalignment(translation=jnp.asarray(t), rotation=jnp.asarray(r))
+    return jb.with_misalignment(model, translation=jnp.asarray(t), rotation=jnp.asarray(r))
 
 
 @pytest.mark.parametrize("scene,n_eta,expected", [("three-roller", 18, 3762), ("three-roller", 4, 850),
                                                   ("four-roller-external", 18, 3768), ("three-roller-tension", 5, None)])
 def test_unknown_counts(scene, n_eta, expected):
-    m = small(scene, n_eta=n_eta)
+    m, _ = small(scene, n_eta=n_eta)
     assert m.n_unknowns == 2 * m.n_xi * m.n_eta + 6 * m.n_rollers
     if expected is not None:
         assert m.n_unknowns == expected
@@ -53,11 +61,12 @@ def test_default_scene_count_via_info(capsys):
 
 
 def test_structured_solve_equals_dense_2d():
-    m = with_variant(small(n_eta=4), {0: dict(translation=(0, 2e-3, 1e-3)), 1: dict(rotation=(4e-4, 2e-4))})
+    base, opts = small(n_eta=4)
+    m = with_variant(base, {0: dict(translation=(0, 2e-3, 1e-3)), 1: dict(rotation=(4e-4, 2e-4))})
     s0 = jb.initial_state(m)
     R = roller_R(m, s0.u)
     K, M = dae_matrices(m, s0.m_e, R)
-    A = M + K.scale(m.dt**2)
+    A = M + K.scale(opts.dt**2)
     rng = np.random.default_rng(0)
     rb, rr = jnp.asarray(rng.normal(size=(m.n_xi, m.block))), jnp.asarray(rng.normal(size=m.n_roller_dofs))
     structured, dense = jax.jit(bordered_solve), jax.jit(dense_solve)  # one program each, not op by op
@@ -67,8 +76,8 @@ def test_structured_solve_equals_dense_2d():
 
 
 def test_mass_conserved_500_steps_and_idle_speeds():
-    m = with_variant(small(n_eta=3), {0: dict(translation=(1e-3, 2e-3, 0)), 2: dict(rotation=(3e-4, 0))})
-    _, tr = jb.simulate(m, n_steps=500)
+    m = with_variant(small()[0], {0: dict(translation=(1e-3, 2e-3, 0)), 2: dict(rotation=(3e-4, 0))})
+    _, tr = simulate(m, 500)
     mass = np.asarray(tr.belt_mass)
     assert np.max(np.abs(mass - mass[0])) / mass[0] < 1e-13
     w = np.asarray(tr.roller_velocity)[-1, :, 5]
@@ -79,8 +88,8 @@ def test_mass_conserved_500_steps_and_idle_speeds():
 def test_aligned_stretched_belt_is_symmetric():
     """No lateral misalignment, belt stretched by moving roller 2 outwards: Poisson contraction
     only, v = 0 on the centre line and v(-z) = -v(z), u(-z) = u(z)."""
-    m = with_variant(small(n_eta=3), {1: dict(translation=(2e-3, 0, 0))})
-    s, tr = jb.simulate(m, n_steps=36)
+    m = with_variant(small()[0], {1: dict(translation=(2e-3, 0, 0))})
+    s, tr = simulate(m, 36)
     u, v = np.asarray(s.u[:, 0::2]), np.asarray(s.u[:, 1::2])
     assert np.max(np.abs(v)) > 1e-7  # the contraction is there (the test is not vacuous)
     np.testing.assert_allclose(v[:, 1], 0.0, atol=1e-15 + 1e-9 * np.max(np.abs(v)))
@@ -90,11 +99,11 @@ def test_aligned_stretched_belt_is_symmetric():
 
 
 def test_mirrored_lateral_misalignment_mirrors_the_field():
-    base = small(n_eta=3)
+    base = small()[0]
     a = with_variant(base, {0: dict(translation=(0, 0, 1e-3)), 1: dict(rotation=(4e-4, -2e-4))})
     b = with_variant(base, {0: dict(translation=(0, 0, -1e-3)), 1: dict(rotation=(-4e-4, 2e-4))})
-    sa, _ = jb.simulate(a, n_steps=36)
-    sb, _ = jb.simulate(b, n_steps=36)
+    sa, _ = simulate(a, 36)
+    sb, _ = simulate(b, 36)
     ua, va = np.asarray(sa.u[:, 0::2]), np.asarray(sa.u[:, 1::2])
     ub, vb = np.asarray(sb.u[:, 0::2]), np.asarray(sb.u[:, 1::2])
     assert np.max(np.abs(va)) > 1e-5
@@ -103,12 +112,12 @@ def test_mirrored_lateral_misalignment_mirrors_the_field():
 
 
 def test_doubling_a_small_misalignment_doubles_the_response():
-    base = small(n_eta=3)
+    base = small()[0]
     c1 = {0: dict(translation=(0, 1e-4, 1e-4)), 1: dict(rotation=(5e-5, 0)), 2: dict(rotation=(0, 4e-5))}
     c2 = {k: {kk: tuple(2 * x for x in vv) for kk, vv in v.items()} for k, v in c1.items()}
-    zero = jb.simulate(base, n_steps=36)[1]
-    r1 = jb.simulate(with_variant(base, c1), n_steps=36)[1]
-    r2 = jb.simulate(with_variant(base, c2), n_steps=36)[1]
+    zero = simulate(base, 36)[1]
+    r1 = simulate(with_variant(base, c1), 36)[1]
+    r2 = simulate(with_variant(base, c2), 36)[1]
     for f in ("tracer_u", "tracer_v"):
         d1 = np.asarray(getattr(r1, f) - getattr(zero, f))
         d2 = np.asarray(getattr(r2, f) - getattr(zero, f))
@@ -119,17 +128,17 @@ def test_doubling_a_small_misalignment_doubles_the_response():
 def test_integrators_agree_2d(name):
     """The eliminated and the naive integrator give the direct one's run. The naive one (a dense
     3N = 1926 solve a step) is slow here; test_integrators.py checks it in 1D."""
-    m = with_variant(small(n_eta=3), {0: dict(translation=(0, 1e-3, 5e-4)), 1: dict(rotation=(3e-4, 1e-4))})
-    ref = jb.simulate(m, "direct", n_steps=9)[1]
+    m = with_variant(small()[0], {0: dict(translation=(0, 1e-3, 5e-4)), 1: dict(rotation=(3e-4, 1e-4))})
+    ref = simulate(m, 9, jb.make_solver("direct"))[1]
     scale = float(jnp.max(jnp.abs(ref.tracer_u)))
-    tr = jb.simulate(m, name, n_steps=9)[1]
+    tr = simulate(m, 9, jb.make_solver(name))[1]
     assert float(jnp.max(jnp.abs(tr.tracer_u - ref.tracer_u))) < 1e-9 * scale
     assert float(jnp.max(jnp.abs(tr.tracer_v - ref.tracer_v))) < 1e-9 * scale
 
 
 def test_tension_roller_moves_and_is_balanced():
-    m = small("three-roller-tension", n_eta=3)
-    s, tr = jb.simulate(m, n_steps=156)
+    m, _ = small("three-roller-tension")
+    s, tr = simulate(m, 156, name="three-roller-tension")
     dx = np.asarray(tr.roller_state)[-1, 1, 0]
     assert dx > 0  # pulled outwards by the 200 N
     w = np.asarray(tr.roller_velocity)[-1, :, 5]
@@ -139,7 +148,7 @@ def test_tension_roller_moves_and_is_balanced():
 def test_exact_static_rotation_matches_linear_for_small_angles():
     from jaxbelt.rollers import exact_static_displacement
 
-    m = small(n_eta=3)
+    m, _ = small()
     chi = jnp.zeros((3, 6)).at[1, 3].set(1e-6).at[1, 4].set(-2e-6).at[0, 1].set(1e-6)
     g = exact_static_displacement(chi, m.node_roller, m.node_theta, m.node_radius, m.node_sense, m.z0)
     lin = jnp.einsum("nbq,q->nb", m.R, chi.reshape(-1))
@@ -152,7 +161,7 @@ def test_exact_static_rotation_matches_linear_for_small_angles():
 
 def test_rejects_too_coarse_2d_grid():
     with pytest.raises(jb.SceneError, match="at least 5"):
-        jb.compile_scene(scene_with(lambda d: d["mesh"].update(n_xi=60), "three-roller"))
+        jb.build_model(scene_with(lambda d: d["mesh"].update(n_xi=60), "three-roller"))
 
 
 def test_unknown_variant_roller():
@@ -168,8 +177,8 @@ def test_roller_reactions_balance_and_vanish_at_dynamic_dofs():
     """Post-processed support loads: the equations of dynamic DOFs hold (residual ≈ 0); the
     in-plane support forces of all rollers plus the applied force sum to zero in steady state
     (the belt carries no other load); the drive delivers no torque without losses."""
-    m = small("three-roller-tension", n_eta=3)
-    _, tr = jb.simulate(m, n_steps=156)
+    m, _ = small("three-roller-tension")
+    _, tr = simulate(m, 156, name="three-roller-tension")
     reac = np.asarray(tr.roller_reaction)[-1]  # (p, 6)
     dyn = np.asarray(m.dynamic).reshape(3, 6)
     assert np.max(np.abs(reac[dyn])) < 1e-6 * 200.0

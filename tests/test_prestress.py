@@ -91,8 +91,8 @@ def test_tension_stiffening_needs_tension():
     """No pre-tension, no tension roller: K_σ = 0 and the model is unchanged (the source's scenes);
     with the tension roller's 200 N it changes the lateral response."""
     def model(name, ts):
-        return jb.compile_scene(scene_with(lambda d: (d.setdefault("mesh", {}).update(n_eta=3),
-                                                      d.setdefault("solver", {}).update(tension_stiffening=ts)), name))
+        return jb.build_model(scene_with(lambda d: (d.setdefault("mesh", {}).update(n_eta=3),
+                                                    d.setdefault("solver", {}).update(tension_stiffening=ts)), name))
 
     a, b = model("three-roller", False), model("three-roller", True)
     assert np.array_equal(np.asarray(a.K_diag), np.asarray(b.K_diag))

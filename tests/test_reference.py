@@ -32,7 +32,7 @@ def test_statics_translated_idle_roller_hand_calculation():
     """Idle roller moved by d away from the drive: strain d/D in both spans, no idle rotation."""
     sc = jb.load_scene("two-roller-1d-idle-translated")
     mesh = jb.build_mesh(sc)
-    model = jb.compile_scene(sc, mesh)
+    model = jb.build_model(sc, mesh)
     d, D = 1e-3, 0.275
     s0 = jb.initial_state(model)
     for eps in span_strains(model, mesh, s0.u):
@@ -49,7 +49,7 @@ def test_statics_tension_roller_force_balance():
     """Tension roller pulled with F: each span carries F/2 (no pre-tension, 180° wraps)."""
     sc = jb.load_scene("two-roller-1d-tension")
     mesh = jb.build_mesh(sc)
-    model = jb.compile_scene(sc, mesh)
+    model = jb.build_model(sc, mesh)
     s0 = jb.initial_state(model)
     EA = sc.belt.youngs_modulus * sc.belt.area
     for eps in span_strains(model, mesh, s0.u):
@@ -62,7 +62,7 @@ def test_pretension_statics():
     """A belt shorter than its path by δ carries the tension EA δ / L everywhere in the spans."""
     sc = jb.load_scene("two-roller-1d-pretension")
     mesh = jb.build_mesh(sc)
-    model = jb.compile_scene(sc, mesh)
+    model = jb.build_model(sc, mesh)
     s0 = jb.initial_state(model)
     eps0 = mesh.length / sc.belt.length - 1.0
     for eps in span_strains(model, mesh, s0.u):

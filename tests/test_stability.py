@@ -6,13 +6,13 @@ import copy
 import tomllib
 from importlib import resources
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxbelt as jb
+from helpers import load, solve_step
 
 
 def base_1d():
@@ -36,7 +36,8 @@ def test_dt_just_below_the_cfl_limit_runs_and_just_above_is_rejected():
     sc = scene_1d()
     dt_max = cfl_limit(sc)
     ok = scene_1d(time={"dt_s": 0.99 * dt_max, "t_end_s": 50 * 0.99 * dt_max})
-    _, tr = jb.simulate(jb.compile_scene(ok))
+    model, opts = load(ok)
+    _, tr = jb.simulate(model, **opts)
     assert np.all(np.isfinite(np.asarray(tr.tracer_u)))
     m = np.asarray(tr.belt_mass)
     assert np.max(np.abs(m / m[0] - 1)) < 1e-13
@@ -48,30 +49,33 @@ def test_dt_just_below_the_cfl_limit_runs_and_just_above_is_rejected():
     assert np.all(w[10:] < 1.0) and w[-1, 1] == pytest.approx(0.99, abs=1e-6)
     with pytest.raises(jb.SceneError, match=r"time\.dt_s .*CFL.*use dt_s <"):
         jb.build_mesh(scene_1d(time={"dt_s": 1.01 * dt_max, "t_end_s": 1.0}))  # before any compile
+    with pytest.raises(ValueError, match=r"CFL.*use dt <"):  # a run of the model at such a step: refused too
+        jb.simulate(model, opts.solver, n_steps=opts.n_steps, dt=1.01 * dt_max)
 
 
 def test_nonfinite_state_stops_with_step_and_cause():
-    model = jb.compile_scene(scene_1d(time={"t_end_s": 0.1}))
+    model, opts = load(scene_1d(time={"t_end_s": 0.1}))
+    run = dict(solver=opts.solver, dt=opts.dt)
     st = jb.initial_state(model)
     bad = st.__class__(u=st.u.at[7, 0].set(jnp.nan), u_dot=st.u_dot, chi=st.chi, chi_dot=st.chi_dot,
                        m_e=st.m_e, step=st.step)
     with pytest.raises(jb.NonFiniteStateError, match=r"non-finite belt displacement at step 1 \(t = 0\.005 s\)"):
-        jb.simulate(model, state=bad, n_steps=30)  # 30 steps: a run length other modules compile too
+        jb.simulate(model, y0=bad, n_steps=30, **run)  # 30 steps: a run length other modules compile too
     # under jit the flag travels with the trajectory and the caller checks it
-    tr = jax.jit(lambda s: jb.simulate(model, state=s, n_steps=10)[1])(bad)
+    tr = jax.jit(lambda s: jb.simulate(model, y0=s, n_steps=10, **run)[1])(bad)
     assert np.asarray(tr.nonfinite)[0] == 1
     with pytest.raises(jb.NonFiniteStateError):
-        jb.check_finite(tr, model.dt)
+        jb.check_finite(tr, opts.dt)
     # a healthy run passes the guard: every step's flag is 0
-    _, tr = jb.simulate(model, n_steps=30)
+    _, tr = jb.simulate(model, n_steps=30, **run)
     assert not np.any(np.asarray(tr.nonfinite))
 
 
 def test_long_run_keeps_mass_and_mean_displacement():
     """10 000 steps (50 s; the 100 000-step version is marked slow): no drift of the belt mass or
     of the mean tracer displacement once the belt has settled."""
-    model = jb.compile_scene(scene_1d(time={"t_end_s": 50.0}, output={"every": 100}))
-    _, tr = jb.simulate(model)
+    model, opts = load(scene_1d(time={"t_end_s": 50.0}, output={"every": 100}))
+    _, tr = jb.simulate(model, **opts)
     m = np.asarray(tr.belt_mass)
     assert np.max(np.abs(m / m[0] - 1)) < 1e-12
     mean_u = np.asarray(tr.tracer_u).mean(axis=1)
@@ -80,8 +84,8 @@ def test_long_run_keeps_mass_and_mean_displacement():
 
 @pytest.mark.slow
 def test_100000_steps_keep_mass_and_mean_displacement():
-    model = jb.compile_scene(scene_1d(time={"t_end_s": 500.0}, output={"every": 500}))
-    _, tr = jb.simulate(model)
+    model, opts = load(scene_1d(time={"t_end_s": 500.0}, output={"every": 500}))
+    _, tr = jb.simulate(model, **opts)
     m = np.asarray(tr.belt_mass)
     assert len(m) == 200
     assert np.max(np.abs(m / m[0] - 1)) < 1e-11
@@ -100,22 +104,21 @@ def test_stiffness_over_five_orders_of_magnitude(E, rho):
     import dataclasses
 
     from helpers import span_strains, whole_chunks
-    from jaxbelt.integrators import make_integrator
 
     sc = jb.load_scene("two-roller-1d-idle-translated")
     sc = sc.replace(belt=dataclasses.replace(sc.belt, youngs_modulus=E, density=rho))
     mesh = jb.build_mesh(sc)
-    model = jb.compile_scene(sc, mesh)
+    model = jb.build_model(sc, mesh)
     for e in span_strains(model, mesh, jb.initial_state(model).u):
         np.testing.assert_allclose(e, 1e-3 / 0.275, rtol=1e-9)
-    integ = make_integrator("direct", model)
+    integ, dt = jb.make_solver("direct"), sc.time.dt
     # 1225 steps (6.1 s): whole checkpoint chunks, the compiled run of test_transport.py's 6 s runs
-    s, tr = jb.simulate(model, integ, n_steps=whole_chunks(1200))
+    s, tr = jb.simulate(model, integ, n_steps=whole_chunks(1200), dt=dt)
     assert not np.any(np.asarray(tr.nonfinite))
     m = np.asarray(tr.belt_mass)
     assert np.max(np.abs(m / m[0] - 1)) < 1e-12
     if E >= 2.5e9:
-        for e in span_strains(model, mesh, eqx.filter_jit(integ.solve_step)(model, s).u):
+        for e in span_strains(model, mesh, solve_step(model, integ, s, dt).u):
             np.testing.assert_allclose(e, 1e-3 / (0.275 + np.pi * 0.05), rtol=1e-9)
 
 
@@ -124,7 +127,7 @@ def test_span_forces_of_a_pretensioned_belt_are_E_A_eps0():
 
     sc = jb.load_scene("two-roller-1d-pretension")
     mesh = jb.build_mesh(sc)
-    model = jb.compile_scene(sc, mesh)
+    model = jb.build_model(sc, mesh)
     eps0 = mesh.length / sc.belt.length - 1.0
     for s in span_forces(sc, mesh, model):
         assert s["force_n"] == pytest.approx(sc.belt.youngs_modulus * sc.belt.area * eps0, rel=1e-9)
@@ -144,7 +147,7 @@ def test_slack_belt_is_detected_and_located(tmp_path, capsys):
         d["roller"][1]["translation_mm"] = [dx, 0.0, 0.0]
         sc = jb.scene_from_dict(d)
         mesh = jb.build_mesh(sc)
-        found = slack_spans(sc, mesh, jb.compile_scene(sc, mesh))
+        found = slack_spans(sc, mesh, jb.build_model(sc, mesh))
         assert bool(found) == slack
         if slack:
             assert {s["span"] for s in found} >= {"roller 1 → roller 2", "roller 2 → roller 3"}
@@ -184,11 +187,11 @@ def test_linearity_error_grows_with_the_skew_as_measured():
     d["mesh"].update(n_eta=3)
     d["time"].update(t_end_s=0.4)
     d["solver"] = {"linear_solver": "reuse"}
-    model = jb.compile_scene(jb.scene_from_dict(d))
-    _, ref = jb.simulate(model)
+    model, opts = load(jb.scene_from_dict(d))
+    _, ref = jb.simulate(model, **opts)
 
     def resp(a):
-        _, tr = jb.simulate(model.with_misalignment(rotation=jnp.zeros((3, 3)).at[1, 1].set(a)))
+        _, tr = jb.simulate(jb.with_misalignment(model, rotation=jnp.zeros((3, 3)).at[1, 1].set(a)), **opts)
         return np.concatenate([np.asarray(tr.tracer_u[-1] - ref.tracer_u[-1]), np.asarray(tr.tracer_v[-1] - ref.tracer_v[-1])])
 
     s0 = resp(1e-6) / 1e-6
@@ -201,24 +204,26 @@ def test_linearity_error_grows_with_the_skew_as_measured():
 # --- float32 and the reduced models at the edges -------------------------------------------------
 
 def test_float32_end_to_end_error_is_small():
-    """JAXBELT_X64=0 runs the whole model in float32 (a subprocess: x64 is process-wide); on
-    two-roller-1d-train1 over 400 steps the tracers differ from float64 by < 1e-3 of the response
-    (benchmarks/float32.py: 4.4e-4 over 1000 steps, 6.4e-4 on three-roller-t72 over 5000)."""
+    """Without :func:`jaxbelt.enable_x64` the whole model runs in float32 (a subprocess: x64 is
+    process-wide); on two-roller-1d-train1 over 400 steps the tracers differ from float64 by
+    < 1e-3 of the response (benchmarks/float32.py: 4.4e-4 over 1000 steps, 6.4e-4 on
+    three-roller-t72 over 5000)."""
     import os
     import subprocess
     import sys
 
     code = ("import numpy as np, jaxbelt as jb\n"
-            "m = jb.compile_scene(jb.load_scene('two-roller-1d-train1'))\n"
-            "_, tr = jb.simulate(m, n_steps=400)\n"
+            "sc = jb.load_scene('two-roller-1d-train1')\n"
+            "_, tr = jb.simulate(jb.build_model(sc), n_steps=400, dt=sc.time.dt)\n"
             "print(tr.tracer_u.dtype)\n"
             "print(' '.join(repr(float(x)) for x in np.asarray(tr.tracer_u[-1])))\n")
-    r = subprocess.run([sys.executable, "-c", code], env={**os.environ, "JAXBELT_X64": "0"},
+    r = subprocess.run([sys.executable, "-c", code], env={**os.environ, "JAX_ENABLE_X64": "0"},
                        capture_output=True, text=True, check=True)
     dtype, values = r.stdout.strip().splitlines()[-2:]
     assert dtype == "float32"
     u32 = np.array([float(v) for v in values.split()])
-    _, tr = jb.simulate(jb.compile_scene(jb.load_scene("two-roller-1d-train1")), n_steps=400)
+    model, opts = load("two-roller-1d-train1")
+    _, tr = jb.simulate(model, opts.solver, n_steps=400, dt=opts.dt)
     u64 = np.asarray(tr.tracer_u[-1])
     assert np.max(np.abs(u32 - u64)) < 1e-3 * np.max(np.abs(u64))
 
@@ -284,7 +289,8 @@ def _t72_run(n_eta):
 
     sc = jb.load_scene("three-roller-t72")
     sc = sc.replace(mesh=dataclasses.replace(sc.mesh, n_eta=n_eta), solver=dataclasses.replace(sc.solver, linear_solver="reuse"))
-    _, tr = jb.simulate(jb.compile_scene(sc), n_steps=20)
+    model, opts = load(sc, n_steps=20)
+    _, tr = jb.simulate(model, **opts)
     return tr
 
 

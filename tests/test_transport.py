@@ -5,15 +5,13 @@ Backs the numbers quoted in ``jaxbelt.transport`` (source rule vs. reference shi
 
 import dataclasses
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxbelt as jb
-from jaxbelt.integrators import make_integrator
 from jaxbelt.transport import upwind_weights
-from helpers import span_strains, whole_chunks
+from helpers import load, solve_step, span_strains, whole_chunks
 
 
 def test_weights_are_exact_linear_interpolation_of_displaced_positions():
@@ -41,10 +39,10 @@ def _steady_strain(transport, dt, refine=1):
         solver=dataclasses.replace(sc.solver, transport=transport),
     )
     mesh = jb.build_mesh(sc)
-    model = jb.compile_scene(sc, mesh)
-    integ = make_integrator("direct", model)
-    s, tr = jb.simulate(model, integ, n_steps=whole_chunks(int(round(6.0 / dt))))  # ~6 s, whole checkpoint chunks
-    solved = eqx.filter_jit(integ.solve_step)(model, s)  # one program (op by op: ~40 compiles)
+    model = jb.build_model(sc, mesh)
+    integ = jb.RunOptions.from_scene(sc).solver  # the scene's transport rule
+    s, tr = jb.simulate(model, integ, n_steps=whole_chunks(int(round(6.0 / dt))), dt=dt)  # ~6 s, whole chunks
+    solved = solve_step(model, integ, s, dt)
     eps = span_strains(model, mesh, solved.u)
     w = np.asarray(tr.roller_velocity)[-1, :, 1]
     return eps, w
@@ -81,12 +79,13 @@ def test_plain_interpolation_on_arcs_erases_a_translation(monkeypatch):
     of a translated idle roller decay to zero; with the roller-relative transport it persists."""
     import jaxbelt.transport as T
 
-    model = jb.load_model("two-roller-1d-idle-translated")
+    model, opts = load("two-roller-1d-idle-translated")
     mesh = jb.build_mesh(jb.load_scene("two-roller-1d-idle-translated"))
-    s, _ = jb.simulate(model, n_steps=1024)  # 1024 and 992: whole checkpoint chunks
-    kept = span_strains(model, mesh, eqx.filter_jit(jb.DirectBackwardEuler().solve_step)(model, s).u)[0]
+    integ, dt = jb.DirectBackwardEuler(), opts.dt
+    s, _ = jb.simulate(model, integ, n_steps=1024, dt=dt)  # 1024 and 992: whole checkpoint chunks
+    kept = span_strains(model, mesh, solve_step(model, integ, s, dt).u)[0]
     monkeypatch.setattr(T, "roller_relative_correction", lambda *a: 0.0)
-    s, _ = jb.simulate(model, n_steps=992)  # a new n_steps (static) forces a fresh trace
-    lost = span_strains(model, mesh, eqx.filter_jit(jb.DirectBackwardEuler().solve_step)(model, s).u)[0]
+    s, _ = jb.simulate(model, integ, n_steps=992, dt=dt)  # a new n_steps (static) forces a fresh trace
+    lost = span_strains(model, mesh, solve_step(model, integ, s, dt).u)[0]
     assert np.all(np.abs(lost) < 1e-9)
     np.testing.assert_allclose(kept, 1e-3 / (0.275 + np.pi * 0.05), rtol=1e-9)

@@ -133,8 +133,9 @@ def two_roller(kind="1d", span_mm=1000.0, radius_mm=50.0, width_mm=50.0, thickne
 
 
 def compiled(scene):
+    """``(model, mesh, run options)`` of a scene."""
     mesh = jb.build_mesh(scene)
-    return jb.compile_scene(scene, mesh), mesh
+    return jb.build_model(scene, mesh), mesh, jb.RunOptions.from_scene(scene)
 
 
 # ----------------------------------------------------------------------------- 1. wave speed
@@ -151,9 +152,9 @@ def wave_scene(kind="1d", h_mm=5.0, c_dt_mm=2.0, speed=REST, width_mm=50.0, nu=N
                       output={"tracers_per_segment": 0, "tracers_mm": tracers, "fields": "full"})
 
 
-def wave_steps(model):
+def wave_steps(dt):
     """Until the pulse has passed the far tracers (rounded up to whole checkpoint chunks)."""
-    return whole_chunks(round((FAR_MM + 2 * SIGMA_MM) * 1e-3 / (C0 * model.dt)))
+    return whole_chunks(round((FAR_MM + 2 * SIGMA_MM) * 1e-3 / (C0 * dt)))
 
 
 def moving_state(model, mesh, speed, extra_u):
@@ -179,11 +180,11 @@ def peak_time(t, y):
     return t[k] - b / (2 * a)
 
 
-def wave_speeds(model, mesh, speed):
+def wave_speeds(model, mesh, opts, speed):
     """``(downstream, upstream, tracer history)``: pulse speeds (m/s) between the tracers."""
     x = np.nan_to_num(span1_coordinate(mesh), nan=-1.0)
     g = np.where(x >= 0, 1e-6 * np.exp(-0.5 * ((x - PULSE_MM * 1e-3) / (SIGMA_MM * 1e-3)) ** 2), 0.0)
-    _, tr = jb.simulate(model, state=moving_state(model, mesh, speed, g), n_steps=wave_steps(model))
+    _, tr = jb.simulate(model, **opts.replace(n_steps=wave_steps(opts.dt)), y0=moving_state(model, mesh, speed, g))
     t, tu = np.asarray(tr.t), np.asarray(tr.tracer_u)
     arrive = [peak_time(t, tu[:, k]) for k in range(4)]
     gap = (FAR_MM - NEAR_MM) * 1e-3
@@ -192,28 +193,28 @@ def wave_speeds(model, mesh, speed):
 
 @pytest.fixture(scope="module")
 def wave_1d():
-    model, mesh = compiled(wave_scene("1d"))
-    fast, _ = compiled(wave_scene("1d", speed=100.0))  # same static fields: the same compiled run
-    return model, fast, mesh
+    model, mesh, opts = compiled(wave_scene("1d"))
+    fast, _, _ = compiled(wave_scene("1d", speed=100.0))  # same static fields: the same compiled run
+    return model, fast, mesh, opts
 
 
 def test_wave_speed_1d_at_rest_and_moving(wave_1d):
-    model, fast, mesh = wave_1d
-    down, up, _ = wave_speeds(model, mesh, REST)
+    model, fast, mesh, opts = wave_1d
+    down, up, _ = wave_speeds(model, mesh, opts, REST)
     assert down == pytest.approx(C0, rel=0.02) and up == pytest.approx(C0, rel=0.02)
     V = 100.0
-    down, up, _ = wave_speeds(fast, mesh, V)
+    down, up, _ = wave_speeds(fast, mesh, opts, V)
     assert down == pytest.approx(C0 + V, rel=0.02) and up == pytest.approx(C0 - V, rel=0.02)
     assert (down - up) / 2 == pytest.approx(V, rel=0.05)  # the moving frame: arrivals shifted by V
 
 
 def test_wave_speed_2d_bar_and_plate_limits(wave_1d):
-    model_1d, _, mesh_1d = wave_1d
-    *_, history_1d = wave_speeds(model_1d, mesh_1d, REST)
+    model_1d, _, mesh_1d, opts_1d = wave_1d
+    *_, history_1d = wave_speeds(model_1d, mesh_1d, opts_1d, REST)
     plate = C0 / math.sqrt(1 - NU**2)
     for width, nu, ref in ((50.0, 0.0, C0), (10.0, NU, C0), (400.0, NU, plate)):
-        model, mesh = compiled(wave_scene("2d", width_mm=width, nu=nu))
-        down, up, history = wave_speeds(model, mesh, REST)
+        model, mesh, opts = compiled(wave_scene("2d", width_mm=width, nu=nu))
+        down, up, history = wave_speeds(model, mesh, opts, REST)
         assert down == pytest.approx(ref, rel=0.02) and up == pytest.approx(ref, rel=0.02), (width, nu)
         if nu == 0.0:  # no Poisson coupling: the 2D belt is the 1D bar
             np.testing.assert_allclose(history, history_1d, rtol=0, atol=1e-12 * np.abs(history_1d).max())
@@ -226,7 +227,7 @@ def test_wave_speed_2d_bar_and_plate_limits(wave_1d):
 MODES = (2, 20, 60, 120, 180)
 
 
-def be_damping(model, mesh, modes=MODES, steps=40, amplitude=1e-7):
+def be_damping(model, mesh, opts, modes=MODES, steps=40, amplitude=1e-7):
     """Free vibration of sine modes of span 1 (zero mean: the transport shift stays ~0).
 
     **Returns:** ``(theta (k,), eigen_residual (k,), amplitude_error (k,), energy_ratio (k, steps-1))``:
@@ -246,19 +247,20 @@ def be_damping(model, mesh, modes=MODES, steps=40, amplitude=1e-7):
         residual.append(float(jnp.linalg.norm(Kx - w**2 * Mx) / jnp.linalg.norm(Kx)))
     u0 = np.zeros(model.n_xi)
     u0[cols] = amplitude * shapes.sum(axis=0)
-    _, tr = jb.simulate(model, state=moving_state(model, mesh, REST, u0), n_steps=wave_steps(model))
+    dt = opts.dt
+    _, tr = jb.simulate(model, **opts.replace(n_steps=wave_steps(dt)), y0=moving_state(model, mesh, REST, u0))
     U = np.concatenate([u0[None, cols], np.asarray(tr.u)[:steps, cols, 0]])
     q = U @ shapes.T / (shapes**2).sum(axis=1) / amplitude  # (steps+1, k)
-    theta = omega * model.dt
+    theta = omega * dt
     k = np.arange(steps + 1)[:, None]
     exact = (1 + theta**2) ** (-k / 2) * np.cos(k * np.arctan(theta))
-    energy = 0.5 * (omega**2 * q[1:] ** 2 + (np.diff(q, axis=0) / model.dt) ** 2)
+    energy = 0.5 * (omega**2 * q[1:] ** 2 + (np.diff(q, axis=0) / dt) ** 2)
     return theta, np.array(residual), np.abs(q - exact).max(axis=0), (energy[1:] / energy[:-1]).T
 
 
 def test_backward_euler_damps_each_mode_by_its_amplification_factor(wave_1d):
-    model, _, mesh = wave_1d
-    theta, residual, amp_err, ratio = be_damping(model, mesh)
+    model, _, mesh, opts = wave_1d
+    theta, residual, amp_err, ratio = be_damping(model, mesh, opts)
     assert theta.min() < 0.02 and theta.max() > 0.75
     assert residual.max() < 1e-10  # the analytic ω is the model's own eigenvalue
     assert amp_err.max() < 1e-6  # amplitude and phase: x_n = ρⁿ cos(n atan θ)
@@ -323,8 +325,8 @@ def run_statics_1d(n_steps=400):
     out = {}
     for name in ("two-roller-1d-pretension", "two-roller-1d-tension"):
         sc = jb.load_scene(name)
-        model, mesh = compiled(sc)
-        state, tr = jb.simulate(model, n_steps=n_steps)
+        model, mesh, opts = compiled(sc)
+        state, tr = jb.simulate(model, **opts.replace(n_steps=n_steps))
         reac = np.asarray(tr.roller_reaction)  # (steps, p, [dx, az]): support force / torque
         EA = E * sc.belt.area
         pre = sc.belt.length is not None
@@ -333,7 +335,7 @@ def run_statics_1d(n_steps=400):
             support=reac[-1, :, 0],
             support_hand=np.array([-2 * T, 2 * T] if pre else [-2 * T, 0.0]),  # tension roller: its residual
             span_tension=np.concatenate(span_strains(model, mesh, state.u)) * EA + (T if pre else 0.0),
-            tension_hand=T, steady_torque=reac[-1, 0, 1], impulse=reac[:, 0, 1].sum() * model.dt,
+            tension_hand=T, steady_torque=reac[-1, 0, 1], impulse=reac[:, 0, 1].sum() * opts.dt,
             impulse_hand=start_up_momentum(mesh, RHO * sc.belt.area, 0.5, [0.5, 0.5], [0.05, 0.05]))
     return out
 
@@ -345,9 +347,10 @@ def run_statics_2d():
     hub = np.array([t[i] - t[i - 1] for i in range(3)])
     out = {}
     for name, belt in (("three-roller", {"length_mm": 2830.0}), ("three-roller-tension", {})):
-        model, mesh = coarse_three_roller(name, **belt)
+        model, mesh, opts = coarse_three_roller(name, **belt)
         # 36 steps; the tension roller (it moves during the start-up) 156, the run of test_model2d.py
-        reac = np.asarray(jb.simulate(model, n_steps=None if belt else 156)[1].roller_reaction)  # (steps, 3, 6)
+        opts = opts if belt else opts.replace(n_steps=156)
+        reac = np.asarray(jb.simulate(model, **opts)[1].roller_reaction)  # (steps, 3, 6)
         # pre-tension: T = E A ε₀; tension roller: the belt's pull on roller 2 balances the 200 N
         T = E * 0.4 * 0.3e-3 * (L_path / 2.830 - 1) if belt else 200.0 / -hub[1][0]  # 172.8 N; 115.15 N
         support_hand = -T * hub
@@ -355,7 +358,7 @@ def run_statics_2d():
             support_hand[1, 0] = 0.0  # roller 2's x is dynamic: the residual of its equation
         out[name] = dict(
             path_length=mesh.length, path_length_hand=L_path, tension_hand=T, support=reac[-1, :, :2],
-            support_hand=support_hand, steady_torque=reac[-1, 0, 5], impulse=reac[:, 0, 5].sum() * model.dt,
+            support_hand=support_hand, steady_torque=reac[-1, 0, 5], impulse=reac[:, 0, 5].sum() * opts.dt,
             impulse_hand=start_up_momentum(mesh, RHO * 0.4 * 0.3e-3, 1.0, MASSES, RADII))
     return out
 
@@ -404,8 +407,8 @@ def lateral_scene(eps0=0.0, span=40, arc=10, n_eta=5, dt=0.02, lateral_transport
                     span=span, n_eta=n_eta, dt=dt, speed=1.0, second="idle", belt=belt, solver=solver)
     d = np.zeros((2, 3))
     d[1, 2] = LAT["d"]
-    model, _ = compiled(sc)
-    return model.with_misalignment(translation=jnp.asarray(d))
+    model, _, opts = compiled(sc)
+    return jb.with_misalignment(model, translation=jnp.asarray(d)), opts
 
 
 def beam_shapes(xi, eps0=0.0, kappa=5 / 6):
@@ -433,9 +436,9 @@ def carried_rotation_shape(xi):
 def run_lateral(eps0=0.0, n_steps=400, **mesh):
     """Lateral tracer values / d (roller 2 arc, span 1, span 2; 5 each) at rest and after
     ``n_steps`` of running, the history of roller 2's z support load (N) and its hand value."""
-    model = lateral_scene(eps0, **mesh)
+    model, opts = lateral_scene(eps0, **mesh)
     static = np.asarray(tracer_values(model, jb.initial_state(model).u)[1]) / LAT["d"]
-    _, tr = jb.simulate(model, n_steps=n_steps)
+    _, tr = jb.simulate(model, **opts.replace(n_steps=n_steps))
     v = np.asarray(tr.tracer_v) / LAT["d"]
     shape, shear = beam_shapes(XI, eps0)
     parts = lambda a: (a[..., 10:15], a[..., 5:10], a[..., 15:20])
@@ -494,8 +497,8 @@ def corner_exponent(nu=NU):
 
 def t72_tracers(n_eta=3, dt=0.02, n_xi=104):
     """``(u, v)`` tracer displacements (m) of the coarsened ``three-roller-t72`` at ``T_END``."""
-    model, _ = coarse_three_roller("three-roller-t72", n_eta=n_eta, dt=dt, n_xi=n_xi, solver=NO_TENSION)
-    _, tr = jb.simulate(model)
+    model, _, opts = coarse_three_roller("three-roller-t72", n_eta=n_eta, dt=dt, n_xi=n_xi, solver=NO_TENSION)
+    _, tr = jb.simulate(model, **opts)
     return np.asarray(tr.tracer_u)[-1], np.asarray(tr.tracer_v)[-1]
 
 
