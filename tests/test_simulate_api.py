@@ -222,3 +222,12 @@ def test_progress_bar_run_equals_one_call(translated, solver):
         restarted = jb.simulate(model, **run.replace(n_steps=5), y0=s200, progress=True)
         scale = float(jnp.max(jnp.abs(s1.u)))
         assert float(jnp.max(jnp.abs(restarted[0].u - s1.u))) > 1e-10 * scale
+
+
+def test_solver_objects_reject_bad_settings_when_built():
+    with pytest.raises(ValueError, match="transport = 'nope'"):
+        jb.make_solver(transport="nope")
+    with pytest.raises(ValueError, match="unknown rule"):
+        jb.NaiveBackwardEuler(transport="upwind")
+    with pytest.raises(TypeError, match="a linear solver object"):
+        jb.DirectBackwardEuler("dense")

@@ -8,7 +8,7 @@ from typing import Any
 import equinox as eqx
 
 from ..model import BeltModel
-from ..registry import DEFAULT_TRANSPORT
+from ..registry import DEFAULT_TRANSPORT, TRANSPORT_RULES
 from ..state import BeltState
 
 
@@ -25,6 +25,10 @@ class AbstractIntegrator(eqx.Module):
     """
 
     transport: str = eqx.field(static=True, default=DEFAULT_TRANSPORT, kw_only=True)
+
+    def __check_init__(self):
+        if self.transport not in TRANSPORT_RULES:
+            raise ValueError(f"transport = {self.transport!r}: unknown rule (one of {', '.join(TRANSPORT_RULES)})")
 
     def init(self, model: BeltModel, state: BeltState, dt) -> Any:
         """Data kept for the run (factors, stencils), from the model, the start state and the time

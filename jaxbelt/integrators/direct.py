@@ -28,6 +28,11 @@ class DirectBackwardEuler(AbstractIntegrator):
 
     linear_solver: AbstractLinearSolver = KeptInterior()
 
+    def __check_init__(self):
+        if not isinstance(self.linear_solver, AbstractLinearSolver):
+            raise TypeError(f"linear_solver = {self.linear_solver!r}: a linear solver object (KeptInterior(), "
+                            "Structured(), CyclicReduction(), Reuse(), Dense()); jaxbelt.make_solver takes names")
+
     def init(self, model, state, dt):
         return _DirectRunData(free_belt_stencil(model), self.linear_solver.reference(model, state, dt, self.transport))
 
