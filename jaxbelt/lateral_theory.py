@@ -37,6 +37,8 @@ import dataclasses
 
 import numpy as np
 
+from .geometry import belt_path
+
 SHEAR_COEFFICIENT = 5.0 / 6.0  # rectangular section (Timoshenko / Reissner)
 
 
@@ -194,8 +196,6 @@ def belt_section(width, thickness, youngs_modulus, poisson_ratio, kappa=SHEAR_CO
 
 def scene_geometry(scene) -> tuple[LoopGeometry, float]:
     """The :class:`LoopGeometry` of a :class:`jaxbelt.scene.Scene`'s belt path, and the path length (m)."""
-    from .geometry import belt_path
-
     rl = scene.rollers
     path = belt_path(np.array([r.center for r in rl]), np.array([r.radius for r in rl]),
                      np.array([r.external for r in rl]), scene.direction)

@@ -29,9 +29,10 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from .elements import GAUSS_POINTS, column_pair_to_blocks, plane_stress_D, quad_B, quad_dofs
 from .state import initial_state
-from .elements import GAUSS_POINTS, quad_dofs, column_pair_to_blocks, plane_stress_D, quad_B
 
 
 def quad_geometric_stiffness(ell, w, sig_gp, t):
@@ -101,10 +102,6 @@ def span_forces(scene, mesh, model) -> list[dict]:
 
     **Returns:** per span ``{"span": "roller a → roller b", "force_n", "strain", "x_m"}`` with
     ``strain = force / (E A)`` and ``x_m`` the span's mid-point along the belt."""
-    import numpy as np
-
-    from .state import initial_state
-
     belt = scene.belt
     eps0 = belt.pre_strain(mesh.length)
     u = initial_state(model).u

@@ -43,6 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
+from jax.scipy.linalg import lu_factor, lu_solve
 
 from .cyclic_reduction import CyclicReductionFactors, bcr_apply, bcr_factor
 from .thomas import (ChainedThomasFactors, ThomasFactors, elimination_chains, chain_thomas, chained_thomas_apply, thomas_apply,
@@ -281,8 +282,6 @@ def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFact
 
     ``method``: ``"thomas"`` (sequential ``lax.scan``) or ``"cyclic-reduction"`` (``log₂ n``
     batched levels); default :func:`default_interior_method`."""
-    from jax.scipy.linalg import lu_factor
-
     method = method or default_interior_method()
     n, b = A.n_blocks, A.block
     As, row_b, row_r = row_equilibrate(A, jnp.ones((n, b)), jnp.ones(A.n_border))  # scales = scaled ones
@@ -329,8 +328,6 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     arm moves with the lateral displacement (§4.2) while nothing else in ``M + Δt² K`` changes
     under the shift transport, this is the whole difference between two steps' matrices
     (:class:`jaxbelt.integrators.DirectBackwardEuler`)."""
-    from jax.scipy.linalg import lu_factor
-
     b = A.block
     row_b, row_r = F_ref.row_b, F_ref.row_r
     cols, rws = jnp.asarray(columns, int), jnp.asarray(rows, int)
@@ -361,8 +358,6 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
 
 def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
     """Solve with the factors: exact for the factored matrix, a preconditioner for a nearby one."""
-    from jax.scipy.linalg import lu_solve
-
     rb, rr = rhs_belt * F.row_b, rhs_roll * F.row_r
     b = rb.shape[1]
     y_r = _apply_interior(F.interior, rb[1:, :, None])[:, :, 0]

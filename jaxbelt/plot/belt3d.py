@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rollers import rotation_xyz
 from ._common import pyplot
 from .fields import field_values
 
@@ -62,8 +63,6 @@ def belt_geometry_3d(model, mesh=None):
 
 def _roller_frames(model, chi, scale):
     """Per roller: centre offset (3,) and rotation (3, 3) of its static/solved motion, scaled."""
-    from ..rollers import rotation_xyz
-
     p, dofs = model.n_rollers, model.dofs
     chi = np.asarray(chi, float).reshape(p, len(dofs))
     get = lambda k: chi[:, dofs.index(k)] if k in dofs else np.zeros(p)  # noqa: E731
