@@ -8,13 +8,12 @@ three stages; ``method`` chooses the reduced model.
 the nominal configuration (``theta = 0``) and at ``±`` the training width of each varied
 component, one at a time (3σ for a normal law, the half-width for a uniform one). The response
 to misalignments is nearly linear, so the nominal run plus runs along each direction span what
-the sweep asks for (README, "Model order reduction": a model trained like that predicts held-out
-2D configurations to ~1e-3 mm, and it cannot extrapolate to a component no run varied, hence
-every varied component is trained). Every full run of the surrogate (training and validation)
+the sweep asks for (a model trained like that cannot extrapolate to a component no run varied,
+docs/reduction.md, hence every varied component is trained). Every full run of the surrogate (training and validation)
 goes through :func:`~jaxbelt.simulate` with the study's model and integrator: the program the
 study compiled for its aligned reference run, so the surrogate compiles no full-order program
-of its own (a vmapped batch would be cheaper per run but costs a compilation worth 40–60 serial
-runs of ``three-roller-t72``).
+of its own (a vmapped batch would be cheaper per run but costs a compilation worth dozens of
+serial runs).
 
 * ``method="response"`` (default): :class:`ResponseSurface`. The training runs' tracer
   deviations themselves are the model: the nominal run ``d_0`` plus, per component, the slope
@@ -22,8 +21,7 @@ runs of ``three-roller-t72``).
   quadratic without mixed terms, exact at every training run. Only the steps the metric reads
   are kept (:func:`steps_needed`). No snapshots, no basis, no projection; a prediction is
   ``P`` multiply-adds per tracer value. It is the limit of a reduced model of the map
-  ``θ → tracers`` when that map is affine, as the belt's is to ~1e-9 relative (README,
-  "Tolerance design"), and what it leaves out — the mixed second-order terms of the 2D lever
+  ``θ → tracers`` when that map is affine, as the belt's nearly is (docs/tolerance.md), and what it leaves out — the mixed second-order terms of the 2D lever
   arms — is what the validation measures.
 * ``method="pod"``: the fully reduced POD step of :mod:`jaxbelt.rom.reduced`. The scaled
   first-order snapshots before and after each transport
@@ -40,21 +38,6 @@ The tracers minus the study's aligned reference are the deviations in µm; the m
 from them by the study's own :func:`~jaxbelt.design.metrics.response_from_deviation` and
 :func:`~jaxbelt.design.metrics.aggregate`, so the full and the reduced metric share one
 definition. The batch is ``vmap``-ed and compiled once: rows are padded to ``batch``.
-
-**Measured** (``OPENBLAS_NUM_THREADS=1 python benchmarks/yield_rom.py``,
-``results/yield_rom.json``; ``three-roller-t72``, N = 3762, ``lateral_max`` at 2 s = 100 steps,
-5 components, 1000 configurations, limit 60 µm, reuse solver; each sweep in a fresh process,
-the sides interleaved, best of 2 rounds, a shared 2-core machine at load 7–9). Full only:
-46.5 s in batches of 16 (122.9 s in the default 64), yield 0.879 [0.857, 0.898]. ``--rom auto``
-with the response surface: 3.7 s — offline 3.5 s (11 training and 12 validation runs), 0
-re-runs, the same yield and interval and the full model's pass/fail call on every sample —
-**×12.6** (×12.6 and ×15.4 round by round; ×10.3 in an earlier run at load 7–13); it pays from
-~80 configurations. The largest true metric error over the 1000 samples was 5.3e-6 µm (median
-5.2e-7 µm) under bounds of 2.2e-5–4.1e-5 µm, no violation, smallest effectivity 4.6. With the
-POD step (123 modes): 64.0 s, of it 42.7 s for the basis and the projection, ×0.73 — slower than
-the full-only sweep since the full step became faster; largest error 8.3e-5 µm under
-3.5e-4–6.6e-4 µm. Counted from each fresh process's start (imports, scene, the study's set-up
-with its compilation, then the sweep): 65.9 s against 18.2 s, ×3.6.
 
 **Bound** (``n_validation`` more full runs). ``n_validation`` fresh samples of ``dist``
 (:func:`~jaxbelt.design.sampling.standard_normal_samples` with ``seed``) run both ways. With
@@ -73,19 +56,15 @@ is where a yield's failures are. ``bound_um`` is the bound on the validation sam
 ``safety``-fold (effectivity ≥ safety). ``validation["loo_effectivity_min"]`` gives the
 leave-one-out check: each validation sample against the bound the other samples would have set.
 
-*Why a constant and not a per-sample indicator.* A cheap per-sample indicator was built and
-measured for the POD step while this module was written: the difference between the
-``r``-mode model and its leading ``r/2`` modes. It is free, because with a nested POD basis the
-Galerkin operators of the sub-basis are the leading blocks. It was calibrated against the
-validation errors in the same way. It did not follow the error. On 256 fresh samples its rank
-correlation with the true error was −0.07 on ``three-roller-t72`` (N = 3762, 122 modes) and 0.30
-on the coarse CI scene (67 modes). The distance ``‖u‖`` did little better, at 0.12 and 0.26.
-With this many modes the remaining error is scattered with little dependence on the
-configuration. The constant bound held on every fresh sample (figures above), and it was tighter
-than the calibrated indicator (median 8.6e-4 µm on t72 against a constant 4.9e-4 µm then). The
-full residual indicator (:mod:`jaxbelt.rom.indicator`) needs full steps for every sample, which
-is the work the surrogate is meant to avoid. Twelve samples give a statistical statement, not a
-proof; the safety factor is what covers that.
+*Why a constant and not a per-sample indicator.* A free per-sample indicator for the POD step —
+the difference between the ``r``-mode model and its leading ``r/2`` modes (with a nested basis the
+sub-basis operators are the leading blocks) — was calibrated the same way and did not follow the
+error: with this many modes the remaining error is scattered with little dependence on the
+configuration, while the constant bound held on every fresh sample and was the tighter one. The
+full residual indicator (:mod:`jaxbelt.rom.indicator`) needs full steps for every sample, the work
+the surrogate is meant to avoid. A dozen samples give a statistical statement, not a proof; the
+safety factor covers that. The measured errors, bounds and speed-ups are on the benchmarks page
+(the yield-with-ROM benchmark).
 
 A prediction that is not finite gets ``bound = inf`` and ``metric = limit_um``, so the sweep
 re-runs it in full.
