@@ -93,10 +93,9 @@ class ChainedThomasFactors(eqx.Module):
     scatter in the forward pass is slow on a CPU).
 
     **No padding.** A sweep streams its factor blocks from memory once per solve, and that,
-    not the chain's latency, sets its pace on a CPU: a dependent ``(3, 36, 36)`` block product
-    inside the scan takes 2.0 µs with its blocks streamed and 0.9 µs with the same blocks in
-    cache at every step; two-ended sweeps (twice the chains, half the steps) take as long as
-    one-ended ones (``benchmarks/sweep_streaming.py``). The chains are therefore sorted by length
+    not the chain's latency, sets its pace on a CPU: a dependent block product inside the scan
+    takes about twice as long with its blocks streamed as with the same blocks in cache, and
+    two-ended sweeps (twice the chains, half the steps) take as long as one-ended ones. The chains are therefore sorted by length
     and each sweep runs in *phases*, one ``lax.scan`` per distinct length, the finished chains
     dropped from the carry — instead of padding every chain with zero blocks to the longest (a
     quarter of the blocks streamed on the default scene were zeros).

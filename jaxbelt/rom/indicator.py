@@ -27,7 +27,7 @@ a few per cent, but it costs one full step per step. Three approximations make i
    where it still changes from one window to the next: on the start-up of DMDc over the
    15-component box predicting ``three-roller-t72`` (steps 10-50) windows of 10 made the
    estimate 6x the true error at step 10 and its RMSE 2.35x; evaluated step by step there, 1.3x
-   and 1.57x (``benchmarks/rom_indicator_box.py``).
+   and 1.57x.
 2. *The Jacobian in a subspace* ``W``: the reduced model's own basis, the directions of the window
    residuals and of the initial error outside it (singular values above ``enrich_rtol`` of their
    norm, at most ``max_enrich``: the residual carries what the basis cannot represent, e.g. a
