@@ -52,11 +52,11 @@ Two relabelling rules (``[solver] transport``):
   only see the belt's motion during the step, so the CFL condition ``V Δt < ℓ_min`` is exactly
   what keeps ``0 <= a < 1``. On ``two-roller-1d`` with the idle roller 1 mm out it gives the
   analytic steady strain d / (D + π r) to round-off for every Δt and mesh, and equal drive and
-  idle speeds (``tests/test_transport.py``).
+  idle speeds (``tests/integration/test_transport.py``).
 * ``"source"``: eq. 3.55–3.56 literally, as model specification §3 writes it: each grid point takes the
   material whose *displaced position* ``X + ũ`` lies on it, then the mean is subtracted. The
   weights see the whole displacement ``ũ`` (static misalignment response included), not only
-  the step's motion. Two consequences, both measured in ``tests/test_transport.py``:
+  the step's motion. Two consequences, both measured in ``tests/integration/test_transport.py``:
   (1) with the idle roller 1 mm out the steady span strain is 0.002185 at Δt = 5 ms and 0.001965
   at 2.5 ms instead of 0.0023144: an error that does not vanish as Δt → 0 but grows; (2) once
   ``|ũ|`` exceeds an element length the weights leave [0, 1) and the step extrapolates: on

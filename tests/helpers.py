@@ -3,11 +3,14 @@
 import copy
 import tomllib
 from importlib import resources
+from pathlib import Path
 
 import jax
 import numpy as np
 
 import jaxbelt as jb
+
+REPO = Path(__file__).resolve().parent.parent  # the repository's root
 
 
 # A coarse 2D belt on the two-roller machine (28 columns x 3 rows), shared by the test modules that

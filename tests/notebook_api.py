@@ -1,5 +1,5 @@
 """A static check of the notebooks' use of the jaxbelt API, for the default test run (the
-notebooks' execution is slow: tests/test_notebooks.py).
+notebooks' execution is slow: tests/unit/test_notebooks.py).
 
 Without running a cell, it checks what breaks a notebook when the library changes under it:
 every code cell compiles; every name a notebook imports from ``jaxbelt`` exists; every attribute

@@ -1,5 +1,6 @@
-"""``jaxbelt bench``'s pieces: the Pareto front and the "if you need X µm" table, and the SuperLU
-baseline checked against jaxbelt on a small scene (timings themselves are never asserted)."""
+"""``jaxbelt bench``'s pieces: the Pareto front and the "if you need X µm" table, the SuperLU
+baseline checked against jaxbelt on a small scene, and the compiled programs it times giving
+``simulate``'s results (timings themselves are never asserted)."""
 
 import dataclasses
 
@@ -44,3 +45,16 @@ def test_need_table_on_both_directions_takes_the_worse_of_the_two():
             "b": dict(time_s=5.0, lateral_max_um=0.2, longitudinal_final_um=1.0, bytes=None)}
     assert pareto.need_table(rows, (2.0,))[0]["use"] == "a"
     assert pareto.need_table(rows, (2.0,), error=pareto._both)[0]["use"] == "b"
+
+
+def test_timed_programs_give_the_results_of_simulate():
+    from jaxbelt.bench import timing
+
+    model, dt = jb.load_model("two-roller-1d"), 0.005
+    solver = jb.DirectBackwardEuler(jb.Reuse())
+    _, ref = jb.simulate(model, solver, n_steps=6, dt=dt)
+    run, compile_s, _ = timing.compile_run(model, solver, n_steps=6, dt=dt)
+    steps, init_s = timing.compile_steps(model, solver, n_steps=6, dt=dt)
+    for traj in (run(model, dt)[1], steps()[1]):
+        np.testing.assert_allclose(np.asarray(traj.tracer_u), np.asarray(ref.tracer_u), rtol=1e-12, atol=1e-15)
+    assert compile_s > 0 and init_s > 0

@@ -12,7 +12,8 @@ On the default 2D scene (``three-roller-t72``, N = 3762), every figure per step:
   the run, the part of the factors the step's matrix changes refactored every step —
   ``DirectBackwardEuler(KeptInterior())``), the same with a **full factorisation every step**
   (``DirectBackwardEuler(Structured())``) and **reuse** (frozen factors, the default refinement:
-  ``DirectBackwardEuler(Reuse())``), each a compiled 200-step run divided by 200.
+  ``DirectBackwardEuler(Reuse())``), each 200 compiled steps divided by 200; what a run prepares
+  once (the kept or frozen factors: the solver's ``init``) is timed apart.
 
 All candidates are timed in interleaved rounds and the best of each kept (the machine's load
 changes the SuperLU figure by ×1.5 from one minute to the next). Besides: the whole 100 s run in
@@ -41,7 +42,7 @@ from ..integrators import DirectBackwardEuler, KeptInterior, Reuse, Structured
 from ..scene import load_scene
 from ..state import initial_state
 from ..timeloop import RunOptions, compile_simulation, tracer_values
-from ._common import clock, interleaved_best, write_json
+from .timing import clock, compile_steps, interleaved_best, write_json
 
 SCENE = "three-roller-t72"
 
@@ -71,7 +72,9 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
     integ = {"exact": DirectBackwardEuler(KeptInterior()),
              "exact, full factorisation": DirectBackwardEuler(Structured()),
              "reuse": DirectBackwardEuler(Reuse())}
-    runs = {k: compile_simulation(model, v, n_steps=steps, dt=dt) for k, v in integ.items()}
+    runs, init_s = {}, {}
+    for k, v in integ.items():
+        runs[k], init_s[k] = compile_steps(model, v, n_steps=steps, dt=dt, state=s0)
 
     sc = ScipyBelt(model, dt)
     st = [np.asarray(x) for x in (s0.u, s0.u_dot, s0.chi, s0.chi_dot, s0.m_e)]
@@ -88,7 +91,7 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
     s = st
     for _ in range(scipy_steps):
         s = list(sc.step(*s, permc_spec=order))
-    _, ref = runs["exact"](model, dt)
+    _, ref = runs["exact"]()
     tu, _ = tracer_values(model, jax.numpy.asarray(s[0]))
     ref_diff_mm = float(np.abs(np.asarray(tu) - np.asarray(ref.tracer_u[scipy_steps - 1])).max() * 1e3)
 
@@ -101,9 +104,9 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
         return go
 
     cands = {
-        "jaxbelt exact step": lambda: runs["exact"](model, dt)[0].u,
-        "jaxbelt exact step, full factorisation every step": lambda: runs["exact, full factorisation"](model, dt)[0].u,
-        "jaxbelt reuse step": lambda: runs["reuse"](model, dt)[0].u,
+        "jaxbelt exact step": lambda: runs["exact"]()[0].u,
+        "jaxbelt exact step, full factorisation every step": lambda: runs["exact, full factorisation"]()[0].u,
+        "jaxbelt reuse step": lambda: runs["reuse"]()[0].u,
         "SuperLU factor + solve (matrix given)": lambda: spla.splu(As, permc_spec=order).solve(b),
         "SuperLU solve, kept factor (matrix given)": lambda: kept_lu.solve(b),
         "numpy + SuperLU step, factor every step": scipy_steps_fn(None),
@@ -127,7 +130,8 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
         "reuse step vs numpy + SuperLU step, factor once (speedup)":
             ms["numpy + SuperLU step, factor once"] / ms["jaxbelt reuse step"],
     }
-    return {"ms_per_step": ms, "ratios": ratios, "superlu_ordering": order,
+    return {"ms_per_step": ms, "ratios": ratios, "ms_per_run_init": {k: 1e3 * t for k, t in init_s.items()},
+            "superlu_ordering": order,
             "superlu_factor_s_by_ordering": factor_t, "rounds": rounds, "jaxbelt_steps_per_call": steps,
             "scipy_reference_max_tracer_diff_vs_jaxbelt_mm": ref_diff_mm, "scipy_reference_steps_checked": scipy_steps}
 
@@ -188,7 +192,7 @@ def vmap_batches(batches, steps: int, repeat: int) -> dict:
     model, dt = build_model(scene), RunOptions.from_scene(scene).dt
     rows = {}
     for solver, integ in (("exact", DirectBackwardEuler(KeptInterior())), ("reuse", DirectBackwardEuler(Reuse()))):
-        study = design.make_study(model, "lateral_max", t_eval=steps * dt, dt=dt, integrator=integ)
+        study = design.make_study(model, "lateral_max", dt=dt, n_steps=steps, integrator=integ)
         rng = np.random.default_rng(0)
         for b in batches:
             thetas = 0.01 * rng.standard_normal((b, study.space.size))

@@ -54,7 +54,7 @@ from ..rom import collect_first_order, fit_dmd, fit_reduced_pod_ranks, parameter
 from ..scene import TimeSpec, load_scene
 from ..state import initial_state
 from ..timeloop import RunOptions, check_finite, simulate
-from ._common import clock, compile_run, compiled_bytes, write_json
+from .timing import clock, compile_run, compiled_bytes, write_json
 
 SCENE = "three-roller-t72"
 OUT_DT = 0.02  # s, the common output grid of all candidates

@@ -1,4 +1,7 @@
-"""Timing and output helpers shared by the benchmark modules."""
+"""Timing and output helpers of the benchmarks (:mod:`jaxbelt.bench` and the scripts in
+``benchmarks/``): the machine, best-of timings in interleaved rounds, JSON output, and runs
+compiled ahead of time with their compile time and memory (:func:`compile_run`) or with the
+solver's once-per-run data computed beforehand (:func:`compile_steps`)."""
 
 from __future__ import annotations
 
@@ -12,7 +15,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ..timeloop import SaveAt, simulate
+from ..state import initial_state
+from ..timeloop import SaveAt, run, simulate
 
 
 def machine() -> dict:
@@ -89,3 +93,33 @@ def compile_run(model, solver, *, n_steps: int, dt, saveat: SaveAt = SaveAt()):
         return compiled(m, solver, jnp.asarray(t, dtype=dt.dtype), int(n_steps), saveat)
 
     return run, compile_s, compiled_bytes(compiled)
+
+
+@eqx.filter_jit
+def _init(model, solver, state, dt):
+    return solver.init(model, state, dt)
+
+
+@eqx.filter_jit
+def _stepped(model, solver, state, dt, run_data, n_steps, saveat):
+    return run(model, solver, state, dt, n_steps, saveat, None, run_data)
+
+
+def compile_steps(model, solver, *, n_steps: int, dt, state=None, saveat: SaveAt = SaveAt()):
+    """The steps of a run apart from what the run prepares once: ``solver.init``'s data (the kept
+    interior factors, the frozen first-step factors) computed beforehand, then ``n_steps`` steps
+    of ``dt`` from ``state`` (default the initial state) compiled ahead of time — the per-step
+    cost of a solver.
+
+    **Returns:** ``(steps, init_s)``: ``steps() -> (final_state, Trajectory)`` and the seconds of
+    one ``solver.init`` (compiled; the best of two calls after the first)."""
+    state = initial_state(model) if state is None else state
+    dt = jnp.asarray(dt, dtype=model.ell.dtype)
+    run_data = jax.block_until_ready(_init(model, solver, state, dt))
+    init_s = min(clock(_init, model, solver, state, dt)[0] for _ in range(2))
+    compiled = _stepped.lower(model, solver, state, dt, run_data, int(n_steps), saveat).compile()
+
+    def steps():
+        return compiled(model, solver, state, dt, run_data, int(n_steps), saveat)
+
+    return steps, init_s

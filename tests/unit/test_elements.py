@@ -5,7 +5,7 @@ clamped strip against Timoshenko beam theory (where the bilinear quad locks); th
 scikit-fem has no incompatible-modes element, so the QM6 matrix is cross-checked against the
 12 × 12 Wilson Q6 matrix written here independently (natural coordinates s, t ∈ [−1, 1],
 counter-clockwise nodes, DOFs blocked ``u₁..u₄, v₁..v₄, a₁..a₄``, 3 × 3 Gauss instead of 2 × 2),
-condensed with numpy; its bilinear part ``K_cc`` is the matrix that ``tests/test_reference.py``
+condensed with numpy; its bilinear part ``K_cc`` is the matrix that ``tests/unit/test_reference.py``
 checks against scikit-fem's ``ElementQuad1``. On rectangles Q6 and Taylor's QM6 coincide.
 """
 
@@ -19,9 +19,9 @@ import pytest
 from jaxbelt.elements import free_belt_stiffness_2d, quad_qm6_stiffness, quad_stiffness
 from jaxbelt.linalg import BorderedBlockCyclic
 from jaxbelt.scene import SceneError
-from helpers import scene_with
+from helpers import REPO, scene_with
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(REPO / "benchmarks"))
 from bending_locking import beam_deflection, strip_deflection  # noqa: E402
 
 E, NU, T = 2.5e9, 0.34, 3e-4

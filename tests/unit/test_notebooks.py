@@ -4,15 +4,16 @@ keywords and required arguments, CLI options; no cell run) — both in the defau
 small mode (``JAXBELT_NOTEBOOK_SMALL=1``: coarse grids and short runs, set in each notebook's
 parameter cell) 9–22 s a notebook, 75 s for the six — a third of the default suite's time, nearly
 all of it compiling programs that the library's own tests compile on their scenes too; full-size,
-minutes each. ``python -m pytest --runslow tests/test_notebooks.py`` runs all of it,
+minutes each. ``python -m pytest --runslow tests/unit/test_notebooks.py`` runs all of it,
 ``-m slow -k "executes and not full_size"`` the small runs alone."""
 
 import json
 from pathlib import Path
 
 import pytest
+from helpers import REPO
 
-NOTEBOOKS = sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
+NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
 
 
 def code_cells(nb) -> list[str]:

@@ -11,8 +11,9 @@ import re
 from pathlib import Path
 
 import pytest
+from helpers import REPO
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = REPO
 SCRIPTS = ROOT / "scripts"
 DOCS = ROOT / "docs"
 

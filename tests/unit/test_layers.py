@@ -7,8 +7,9 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from helpers import REPO
 
-PACKAGE = Path(__file__).resolve().parent.parent / "jaxbelt"
+PACKAGE = REPO / "jaxbelt"
 
 
 def private_name_imports(package: Path = PACKAGE) -> list[str]:
