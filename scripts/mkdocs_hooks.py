@@ -303,7 +303,7 @@ BENCHMARKS = {
                               "scene."),
     "transport_rules": ("The two transport rules", "The source's relabelling rule and the shift rule against the "
                         "analytic steady strain of a translated idle roller, and their interpolation weights."),
-    "validation": ("Validation set at fine resolution", "The checks of `tests/test_validation.py` (wave speed, "
+    "validation": ("Validation set at fine resolution", "The checks of `tests/integration/test_validation.py` (wave speed, "
                    "statics, lateral translation, convergence, Backward Euler's damping) at resolutions the tests "
                    "cannot afford ([validation](validation.md))."),
     "yield_rom": ("Yield with a reduced model standing in", "A Monte-Carlo yield study with full runs only and with "
