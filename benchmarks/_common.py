@@ -1,13 +1,27 @@
-"""Shared benchmark helpers: timing with compile and run apart, JSON output."""
+"""Shared benchmark helpers: timing with compile and run apart, JSON output.
+
+Importing it switches JAX to float64 (:func:`jaxbelt.enable_x64`): the benchmarks measure
+jaxbelt as the command line runs it (``float32.py`` sets each child process's precision itself).
+"""
 
 import json
-import platform
 import time
 from pathlib import Path
 
 import jax
 
+import jaxbelt as jb
+from jaxbelt.bench.timing import clock, machine  # noqa: F401  (clock: for the scripts)
+
+jb.enable_x64()
+
 RESULTS = Path(__file__).parent / "results"
+
+
+def load(source):
+    """``(model, run options)`` of a scene (a built-in name or a path, or a :class:`jaxbelt.Scene`)."""
+    scene = source if isinstance(source, jb.Scene) else jb.load_scene(source)
+    return jb.build_model(scene), jb.RunOptions.from_scene(scene)
 
 
 def timed(fn, *args, repeat=3):
@@ -23,13 +37,6 @@ def timed(fn, *args, repeat=3):
         runs.append(time.perf_counter() - t0)
     best = min(runs)
     return max(first - best, 0.0), best, out
-
-
-def machine():
-    import os
-
-    return {"platform": platform.platform(), "python": platform.python_version(), "jax": jax.__version__,
-            "device": str(jax.devices()[0]), "cpu_count": os.cpu_count()}
 
 
 def write(name, payload):

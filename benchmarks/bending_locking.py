@@ -3,7 +3,7 @@
 A strip of width w (across, z) and length L (along, x), plane stress, E = 2.5 GPa, ν = 0.34,
 t = 0.3 mm, meshed with ``n_eta`` nodes across (h = w / (n_eta − 1)) and elements of aspect
 ratio ℓ/h, assembled (sparse) from jaxbelt's element matrices like
-``tests/test_prestress.py::_strip_deflection``. Two load cases, every node of the clamped end(s)
+``tests/unit/test_prestress.py::_strip_deflection``. Two load cases, every node of the clamped end(s)
 fixed in u and v, the load P spread equally over the nodes of the loaded section:
 
 * ``clamped-clamped``: central lateral load; beam: ``δ = P L³/(192 EI) + P L/(4 κ G A)``;
@@ -18,7 +18,7 @@ would be 1.12 of Euler–Bernoulli (the rest is the 2D clamp and point load, whi
 idealises).
 
 Writes ``results/bending_locking.json`` and ``.png`` (ratio FE/beam against ℓ/h, q4 and qm6,
-several n_eta). Runs in ~10 s. ``tests/test_elements.py`` imports :func:`strip_deflection` and
+several n_eta). Runs in ~10 s. ``tests/unit/test_elements.py`` imports :func:`strip_deflection` and
 :func:`beam_deflection` and pins the n_eta = 3 row.
 """
 
@@ -92,7 +92,7 @@ def print_table(tab):
 
 
 def main():
-    from _common import RESULTS, write  # here, so that tests/test_elements.py can import the strip
+    from _common import RESULTS, write  # here, so that tests/unit/test_elements.py can import the strip
 
     tables = [table("clamped-clamped", 100.0), table("cantilever", 100.0),
               table("clamped-clamped", 10.0, n_etas=(5, 9, 18), aspects=(1, 2, 3))]

@@ -1,6 +1,7 @@
-"""float32 against float64, end to end (``JAXBELT_X64=0``), on the default scenes.
+"""float32 against float64, end to end, on the default scenes.
 
-Each precision runs in its own process (x64 is process-wide in JAX): ``two-roller-1d`` for 1000
+Each precision runs in its own process (``JAX_ENABLE_X64`` is process-wide in JAX; jaxbelt
+computes in float32 unless it is on): ``two-roller-1d`` for 1000
 steps and ``three-roller-t72`` for its whole 100 s (5000 steps, reuse solver); recorded: the
 largest tracer difference (mm), the largest tracer displacement (mm), the belt-mass drift in
 each precision, and the wall time of the run (compile apart). Writes ``results/float32.json``.
@@ -23,13 +24,12 @@ import numpy as np
 import jax, jaxbelt as jb
 name, steps, solver, out = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
 sc = jb.load_scene(name)
+m, opts = jb.build_model(sc), jb.RunOptions.from_scene(sc).replace(n_steps=steps)
 if solver != "-":
-    import dataclasses
-    sc = dataclasses.replace(sc, solver=dataclasses.replace(sc.solver, linear_solver=solver))
-m = jb.compile_scene(sc)
-_, tr = jb.simulate(m, n_steps=steps)          # compile + run
+    opts = opts.replace(solver=jb.make_solver("direct", solver))
+_, tr = jb.simulate(m, **opts)          # compile + run
 t0 = time.perf_counter()
-_, tr = jax.block_until_ready(jb.simulate(m, n_steps=steps))
+_, tr = jax.block_until_ready(jb.simulate(m, **opts))
 wall = time.perf_counter() - t0
 mass = np.asarray(tr.belt_mass, np.float64)
 np.savez(out, u=np.asarray(tr.tracer_u, np.float64),
@@ -41,7 +41,7 @@ print(json.dumps({"dtype": str(tr.tracer_u.dtype), "wall_s": wall, "mass_drift":
 def run(name, steps, solver, x64):
     with tempfile.TemporaryDirectory() as d:
         out = str(Path(d) / "r.npz")
-        env = {**os.environ, "JAXBELT_X64": "1" if x64 else "0"}
+        env = {**os.environ, "JAX_ENABLE_X64": "1" if x64 else "0"}
         r = subprocess.run([sys.executable, "-c", CHILD, name, str(steps), solver, out], env=env,
                            capture_output=True, text=True, check=True)
         info = json.loads(r.stdout.strip().splitlines()[-1])

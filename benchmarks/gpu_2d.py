@@ -1,6 +1,7 @@
-"""Accelerator figures for the 2D default scene: exact (Thomas / cyclic reduction) and reuse
-per-step times, and a vmap batch of misalignment configurations (reuse mode, factors per
-configuration). Run on the GPU machine: ``python benchmarks/gpu_2d.py --batch 256``."""
+"""Accelerator figures for the 2D default scene: exact (full factorisation every step, Thomas or
+cyclic-reduction interior; kept interior) and reuse per-step times, and a vmap batch of
+misalignment configurations. Run on the GPU machine: ``python benchmarks/gpu_2d.py --batch 256``.
+Writes ``results/gpu_2d_<tag>.json`` (tag ``gpu`` by default)."""
 
 import argparse
 import time
@@ -10,8 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from jaxbelt.timeloop import _run_jit, run
 from _common import write
+from jaxbelt.timeloop import compile_simulation, run
+
+VMAP_SOLVERS = {"reuse": jb.DirectBackwardEuler(jb.Reuse()),
+                "exact": jb.DirectBackwardEuler(jb.CyclicReduction()),
+                "kept-interior": jb.DirectBackwardEuler(jb.KeptInterior())}
 
 
 def main():
@@ -20,20 +25,22 @@ def main():
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--tag", default="gpu")
-    ap.add_argument("--vmap-integrator", choices=("reuse", "exact"), default="exact")
+    ap.add_argument("--vmap-integrator", choices=tuple(VMAP_SOLVERS), default="exact")
     ap.add_argument("--skip-single", action="store_true")
     args = ap.parse_args()
-    model = jb.load_model(args.scene)
-    s0 = jax.block_until_ready(jb.initial_state(model))
+    scene = jb.load_scene(args.scene)
+    model, dt = jb.build_model(scene), jb.RunOptions.from_scene(scene).dt
     rows = {}
-    for name, integ in [] if args.skip_single else [("exact thomas", jb.DirectBackwardEuler("structured", "thomas")),
-                        ("exact cyclic-reduction", jb.DirectBackwardEuler("structured", "cyclic-reduction")),
-                        ("reuse", jb.make_integrator("direct", model, "reuse"))]:
+    single = [("exact thomas", jb.DirectBackwardEuler(jb.Structured("thomas"))),
+              ("exact cyclic-reduction", jb.DirectBackwardEuler(jb.CyclicReduction())),
+              ("exact kept interior", jb.DirectBackwardEuler(jb.KeptInterior())),
+              ("reuse", jb.DirectBackwardEuler(jb.Reuse()))]
+    for name, integ in [] if args.skip_single else single:
         t0 = time.perf_counter()
-        c = _run_jit.lower(model, integ, s0, args.steps).compile()
+        c = compile_simulation(model, integ, n_steps=args.steps, dt=dt)
         comp = time.perf_counter() - t0
         t0 = time.perf_counter()
-        jax.block_until_ready(c(model, integ, s0, args.steps))
+        jax.block_until_ready(c(model, dt))
         rows[name] = {"compile_s": comp, "per_step_ms": (time.perf_counter() - t0) / args.steps * 1e3}
         print(name, rows[name], flush=True)
 
@@ -42,15 +49,11 @@ def main():
     chis[:, 1] = rng.uniform(-5e-3, 5e-3, args.batch)  # roller 1 y translation
     chis[:, 9] = rng.uniform(-5e-4, 5e-4, args.batch)  # roller 2 x rotation
     chis[:, 15] = rng.uniform(-5e-4, 5e-4, args.batch)  # roller 3 x rotation
+    integ = VMAP_SOLVERS[args.vmap_integrator]
 
     def one(chi):
         m = model.replace(chi_static=chi)
-        s = jb.initial_state(m)
-        if args.vmap_integrator == "reuse":
-            integ = jb.ReusedFactorisationBackwardEuler.for_model(m, state=s)
-        else:
-            integ = jb.DirectBackwardEuler("structured", "cyclic-reduction")
-        return run(m, integ, s, args.steps)[1].tracer_v
+        return run(m, integ, jb.initial_state(m), dt, args.steps)[1].tracer_v
 
     f = jax.jit(jax.vmap(one))
     t0 = time.perf_counter()

@@ -2,14 +2,15 @@
 
 Metric: RMS of the final lateral tracer displacement ``tracer_v[-1]``; parameters:
 ``model.chi_static`` (all roller misalignment components). For 50, 500 (and with ``--long``
-5000) steps on ``three-roller-t72``, exact (structured) and reuse solver: the wall time of the
+5000) steps on ``three-roller-t72``, exact (kept interior) and reuse solver: the wall time of the
 forward run and of ``jax.grad`` of it (both jit-compiled, static equilibrium included; compile
 timed apart; best of several runs, forward and gradient interleaved in one process, so that a
 shared machine's load hits both alike) and their ratio, and the memory: each case also runs
 alone in its own subprocess, which reports its peak resident set (``ru_maxrss``) and XLA's
-temporary buffer size (``compiled.memory_analysis()``). Two controls: the forward run without the checkpointed scan
-(``checkpoint=0``: ``jax.checkpoint`` costs nothing without differentiation) and, up to 500
-steps, the gradient without it (memory then grows with every step's stored residuals).
+temporary buffer size (``compiled.memory_analysis()``). Two controls: the forward run without the
+checkpointed scan (``adjoint=Checkpointed(steps=0)``: ``jax.checkpoint`` costs nothing without
+differentiation) and, up to 500 steps, the gradient without it (memory then grows with every
+step's stored residuals).
 
 Run: ``python benchmarks/gradient_cost.py [--long] [--steps 50 500]``. Writes
 ``results/gradient_cost.json`` and ``.png`` (``--tag`` changes the name).
@@ -20,12 +21,15 @@ import json
 import subprocess
 import sys
 import time
-from pathlib import Path
+
+import jaxbelt as jb
 
 RESULTS_NAME = "gradient_cost"
 REPEAT = {50: 7, 500: 3}  # best of; 1 for longer runs
 MODES = ("forward", "gradient", "forward_no_checkpoint", "gradient_no_checkpoint")
 NO_CHECKPOINT_GRAD_MAX_STEPS = 500
+
+SOLVERS = {"exact": jb.DirectBackwardEuler(jb.KeptInterior()), "reuse": jb.DirectBackwardEuler(jb.Reuse())}
 
 
 def run_case(scene, steps, solver, modes, repeat):
@@ -37,15 +41,15 @@ def run_case(scene, steps, solver, modes, repeat):
     import jax
     import jax.numpy as jnp
 
-    import jaxbelt as jb
-
-    model = jb.load_model(scene)
+    jb.enable_x64()
+    sc = jb.load_scene(scene)
+    model, dt = jb.build_model(sc), jb.RunOptions.from_scene(sc).dt
     chi = model.chi_static
+    integ = SOLVERS[solver]
 
     def metric(chi, checkpoint):
         m = model.replace(chi_static=chi)
-        kw = {} if checkpoint is None else {"checkpoint": checkpoint}
-        _, tr = jb.simulate(m, jb.make_integrator("direct", m, solver), n_steps=steps, **kw)
+        _, tr = jb.simulate(m, integ, n_steps=steps, dt=dt, adjoint=jb.Checkpointed(checkpoint))
         return jnp.sqrt(jnp.mean(tr.tracer_v[-1] ** 2))
 
     out = {"steps": steps, "solver": solver, "modes": {},
@@ -81,7 +85,7 @@ def in_subprocess(scene, steps, solver, modes, repeat):
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def plot(rows, ratios, baseline, path, title):
+def plot(rows, ratios, path, title):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -92,11 +96,8 @@ def plot(rows, ratios, baseline, path, title):
         return zip(*sorted(pts)) if pts else ((), ())
 
     fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
-    for solver, marker, color in (("structured", "o", "tab:blue"), ("reuse", "s", "tab:orange")):
+    for solver, marker, color in (("exact", "o", "tab:blue"), ("reuse", "s", "tab:orange")):
         a1.plot(*ratio_points(ratios, solver), marker=marker, color=color, label=solver)
-        if baseline:
-            a1.plot(*ratio_points(baseline["ratios"], solver), marker=marker, color=color, ls="", mfc="none",
-                    label=f"{solver}, before (AD through the factorisation)")
         for mode, ls in (("forward", ":"), ("gradient", "-"), ("gradient_no_checkpoint", "--")):
             pts = [(r["steps"], r["maxrss_bytes"] / 2**20) for r in rows if r["solver"] == solver and r["mode"] == mode]
             if pts:
@@ -123,10 +124,9 @@ def main():
     ap.add_argument("--scene", default="three-roller-t72")
     ap.add_argument("--steps", type=int, nargs="+", default=[50, 500])
     ap.add_argument("--long", action="store_true", help="also 5000 steps (the gradient takes minutes)")
-    ap.add_argument("--solvers", nargs="+", default=["structured", "reuse"])
+    ap.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=tuple(SOLVERS))
     ap.add_argument("--modes", nargs="+", default=list(MODES), choices=MODES)
     ap.add_argument("--tag", default=RESULTS_NAME, help="results file name")
-    ap.add_argument("--baseline", help="JSON of an earlier run (e.g. before a change) to keep beside these results")
     ap.add_argument("--case", nargs=5, help=argparse.SUPPRESS)  # SCENE STEPS SOLVER MODE[,MODE..] REPEAT
     args = ap.parse_args()
     if args.case:
@@ -134,8 +134,6 @@ def main():
         return run_case(scene, int(steps), solver, modes.split(","), int(repeat))
 
     from _common import RESULTS, write
-
-    import jaxbelt as jb
 
     steps = sorted(set(args.steps) | ({5000} if args.long else set()))
     rows, ratios = [], {}
@@ -170,12 +168,11 @@ def main():
             if "forward_no_checkpoint" in t:
                 ratio["forward_no_checkpoint_over_forward"] = t["forward_no_checkpoint"] / t["forward"]
     model = jb.load_model(args.scene)
-    baseline = json.loads(Path(args.baseline).read_text()) if args.baseline else None
     write(args.tag, {"scene": args.scene, "n_unknowns": model.n_unknowns, "n_parameters": int(model.chi_static.size),
                      "metric": "sqrt(mean(tracer_v[-1]**2)), gradient w.r.t. model.chi_static",
-                     "target_gradient_over_forward": 3.0, "ratios": ratios, "cases": rows,
-                     **({"baseline": baseline} if baseline else {})})
-    plot(rows, ratios, baseline, RESULTS / f"{args.tag}.png", f"{args.scene} (N = {model.n_unknowns}), d metric / d chi_static")
+                     "target_gradient_over_forward": 3.0, "ratios": ratios, "cases": rows})
+    plot(rows, ratios, RESULTS / f"{args.tag}.png", f"{args.scene} (N = {model.n_unknowns}), d metric / d chi_static")
+
 
 if __name__ == "__main__":
     main()

@@ -59,8 +59,8 @@ def simulated_walk(sc, rotation):
     lateral tracer displacement over the second half, and over the last quarter (settling)."""
     import jax.numpy as jnp
 
-    m = jb.compile_scene(sc)
-    _, tr = jb.simulate(m.with_misalignment(rotation=jnp.asarray(rotation)))
+    m = jb.with_misalignment(jb.build_model(sc), rotation=jnp.asarray(rotation))
+    _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc))
     t, v = np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1)
     n = len(t)
     return float(np.polyfit(t[n // 2:], v[n // 2:], 1)[0]), float(np.polyfit(t[3 * n // 4:], v[3 * n // 4:], 1)[0])
@@ -133,7 +133,8 @@ def span_shape(w_mm=50, eps0=5e-3, alpha=1e-3, n_xis=(200, 400)):
         mesh = jb.build_mesh(sc)
         rot = np.zeros((2, 3))
         rot[1, 1] = alpha
-        _, tr = jb.simulate(jb.compile_scene(sc, mesh).with_misalignment(rotation=jnp.asarray(rot)))
+        m = jb.with_misalignment(jb.build_model(sc, mesh), rotation=jnp.asarray(rot))
+        _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc))
         v = np.asarray(tr.tracer_v[-1])
         EI, kGA = th.belt_section(w_mm * 1e-3, T_B, E, NU)
         _, shape = th.walk_rate(th.scene_geometry(sc)[0], rot, E * eps0 * w_mm * 1e-3 * T_B, EI, kGA,

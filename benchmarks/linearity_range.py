@@ -30,14 +30,15 @@ def main():
     d["mesh"].update(n_eta=3)
     d["time"].update(t_end_s=2.0)
     d["solver"] = {"linear_solver": "reuse"}
-    model = jb.compile_scene(jb.scene_from_dict(d))
-    _, ref = jb.simulate(model)
+    scene = jb.scene_from_dict(d)
+    model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
+    _, ref = jb.simulate(model, **opts)
     r0 = np.concatenate([np.asarray(ref.tracer_u[-1]), np.asarray(ref.tracer_v[-1])])
 
     def response(kind, axis, a):
         arr = jnp.zeros((3, 3)).at[1, axis].set(a)
-        m = model.with_misalignment(**{kind: arr})
-        _, tr = jb.simulate(m, check=False)
+        m = jb.with_misalignment(model, **{kind: arr})
+        _, tr = jb.simulate(m, **opts, check=False)
         r = np.concatenate([np.asarray(tr.tracer_u[-1]), np.asarray(tr.tracer_v[-1])])
         return r - r0, bool(np.any(np.asarray(tr.nonfinite)))
 

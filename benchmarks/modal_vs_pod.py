@@ -11,12 +11,10 @@ Run: ``python benchmarks/modal_vs_pod.py``; writes ``results/modal_vs_pod.json``
 
 import dataclasses
 
-import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from _common import RESULTS, write
-from jaxbelt.integrators import algebraic_partition
+from _common import RESULTS, load, write
 from jaxbelt.rom import collect_snapshots, fit_modal, fit_pod, rmse
 
 TRAIN = 200
@@ -29,25 +27,27 @@ def err_mm(ref, tr):
     return 1e3 * max(e)
 
 
-def study(model, n_steps, ranks):
-    _, ref = jb.simulate(model, "eliminated", n_steps=n_steps)
-    _, X, _ = collect_snapshots(model, TRAIN, "eliminated")
-    dyn, _ = algebraic_partition(model)
+def study(model, dt, n_steps, ranks):
+    eliminated = jb.make_solver("eliminated")
+    _, ref = jb.simulate(model, eliminated, n_steps=n_steps, dt=dt)
+    _, X, _ = collect_snapshots(model, TRAIN, dt, eliminated)
+    dyn, _ = model.partition
     out = {"n_unknowns": int(model.n_unknowns), "n_dynamic": len(dyn), "steps": n_steps, "ranks": list(ranks),
            "train_steps_pod": TRAIN}
-    for name, make in (("modal, forcing order", lambda r: fit_modal(model, r, "forcing")),
-                       ("modal, frequency order", lambda r: fit_modal(model, r, "frequency")),
+    for name, make in (("modal, forcing order", lambda r: fit_modal(model, r, dt, "forcing")),
+                       ("modal, frequency order", lambda r: fit_modal(model, r, dt, "frequency")),
                        ("POD", lambda r: fit_pod(model, X, n_modes=r))):
-        out[name] = [err_mm(ref, jb.simulate(model, make(r), n_steps=n_steps)[1]) for r in ranks]
+        out[name] = [err_mm(ref, jb.simulate(model, make(r), n_steps=n_steps, dt=dt)[1]) for r in ranks]
         print(model.kind, name, ["%.3g" % e for e in out[name]], flush=True)
     return out
 
 
 def main():
-    res = {"1d": study(jb.load_model("two-roller-1d-train1"), 400, (5, 10, 20, 40, 80))}
+    m1, opts1 = load("two-roller-1d-train1")
+    res = {"1d": study(m1, opts1.dt, 400, (5, 10, 20, 40, 80))}
     sc = jb.load_scene("three-roller-t72")
-    m2 = jb.compile_scene(sc.replace(mesh=dataclasses.replace(sc.mesh, n_eta=4)))
-    res["2d (three-roller-t72, n_eta = 4)"] = study(m2, 400, (10, 20, 40, 80, 160))
+    m2, opts2 = load(sc.replace(mesh=dataclasses.replace(sc.mesh, n_eta=4)))
+    res["2d (three-roller-t72, n_eta = 4)"] = study(m2, opts2.dt, 400, (10, 20, 40, 80, 160))
     write("modal_vs_pod", res)
 
     import matplotlib

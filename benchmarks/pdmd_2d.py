@@ -1,4 +1,4 @@
-"""Parametric DMD in 2D, re-measured on the box of ``rom_box_2d.py`` (issue: "parametric DMD in 2D").
+"""Parametric DMD in 2D, on the box of ``rom_box_2d.py``.
 
 Same box, training and tests as ``rom_box_2d.py``: every free component of the three rollers of
 ``three-roller`` (15), ±3 mm / ±0.5 mrad; the axial design (aligned + each component at ±h, 31
@@ -12,8 +12,8 @@ training snapshots, one DMD per training configuration in it, forecasts combined
 minimum-norm affine weights ``w`` of :func:`jaxbelt.rom.interpolation_weights`), with the
 training trajectories starting at
 
-* ``z0``: the configuration's initial state (the static equilibrium), as the older 2D runs did,
-  snapshots ``z_0, z_4, … z_400``;
+* ``z0``: the configuration's initial state (the static equilibrium), snapshots
+  ``z_0, z_4, … z_400``;
 * ``z4``: the state after the first ``STRIDE`` steps, snapshots ``z_4, … z_400`` (the prediction's
   ``k = 0`` is then step 4, and it never needs the test configuration's state);
 
@@ -45,10 +45,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from _common import write
-from jaxbelt.design import parameter_space
-from jaxbelt.misalignment import apply
-from jaxbelt.integrators import ReusedFactorisationBackwardEuler
+from _common import load, write
+from jaxbelt.misalignment import apply, parameter_space
 from jaxbelt.rom import (axial_design, belt_inputs, collect_first_order, fit_dmdc, fit_parametric_dmd,
                          interpolation_weights, parameters, position_in_box, rmse, stack_controlled, state_to_z,
                          tracer_operator)
@@ -57,8 +55,9 @@ QUICK = "--quick" in sys.argv
 TRAIN, STRIDE, STEPS, N_RANDOM = (100, 4, 300, 1) if QUICK else (400, 4, 1500, 4)
 RANKS = (20, 40, 80, 160)
 DMD_RANKS = (None, 40)
-CUTS = (1e-5, 1e-8, None)  # the current default (first), the older cut, no cut
+CUTS = (1e-5, 1e-8, None)  # the default (first), a tighter cut, no cut
 STARTS = {"z0": 0, "z4": STRIDE}  # index of the first snapshot kept (post-transport states z_0 … z_STEPS)
+REUSE = jb.DirectBackwardEuler(jb.Reuse())
 
 
 def um(x):
@@ -76,8 +75,8 @@ def label(key):
 
 
 def main():
-    jax.config.update("jax_enable_x64", True)
-    nominal = jb.load_model("three-roller")
+    nominal, opts = load("three-roller")
+    dt = opts.dt
     space = parameter_space(nominal)
     h = np.array([3.0 if c.startswith("d") else 0.5 for _, c in space.entries])
     models, thetas, space = axial_design(nominal, space.labels(), h)
@@ -91,7 +90,7 @@ def main():
     t0 = time.perf_counter()
     trajs, full_train, mus = [], [], []
     for m in models:
-        _, _, Zq = collect_first_order(m, STEPS, ReusedFactorisationBackwardEuler.for_model(m))
+        _, _, Zq = collect_first_order(m, STEPS, dt, REUSE)
         trajs.append(Zq[:, :TRAIN + 1:STRIDE])  # z_0, z_STRIDE, … z_TRAIN (the start state first)
         full_train.append(np.asarray((obs @ Zq[:, 1:]).T)[sel])  # steps STRIDE … STEPS: (STEPS / STRIDE, 2 n_tr)
         mus.append(parameters(m))
@@ -138,7 +137,7 @@ def main():
                          "max_abs_eig": np.max(np.abs(np.asarray(pd.eigs)), axis=1).tolist()}
 
     rng = np.random.default_rng(1)  # the tests of rom_box_2d.py
-    t72 = jb.load_model("three-roller-t72")
+    t72 = load("three-roller-t72")[0]
     pos, outside = position_in_box(t72, space, h)
     assert not outside, outside
     tests = {"three-roller-t72": (t72, pos * h)}
@@ -147,7 +146,7 @@ def main():
         tests[f"random {i + 1} (all 15 components)"] = (apply(models[0], space, th, base=models[0].chi_static), th)
     rows = {}
     for name, (mt, th) in tests.items():
-        _, ref = jb.simulate(mt, ReusedFactorisationBackwardEuler.for_model(mt), n_steps=STEPS)
+        _, ref = jb.simulate(mt, REUSE, n_steps=STEPS, dt=dt)
         full = np.concatenate([np.asarray(ref.tracer_u), np.asarray(ref.tracer_v)], axis=1)[sel]
         w = np.asarray(interpolation_weights(thetas, th))
         row = {"theta_in_box_units_max": float(np.max(np.abs(th / h))),
@@ -161,7 +160,7 @@ def main():
             amp = {d: float(np.sum(np.abs(w) * np.asarray(forecast[key][f"rmse_{d}_um"]))) for d in "uv"}
             row[label(key)] = {**errors(full, pred, ntr),
                                "sum_abs_w_forecast_u_um": amp["u"], "sum_abs_w_forecast_v_um": amp["v"]}
-        pred = dmdc.predict(state_to_z(mt, jb.initial_state(mt)), belt_inputs(parameters(mt), 1)[:, 0],
+        pred = dmdc.predict(state_to_z(mt, jb.initial_state(mt), dt), belt_inputs(parameters(mt), 1)[:, 0],
                             STEPS // STRIDE, observe=obs)
         row["DMDc r=40 (every 4th step)"] = errors(full, np.asarray(pred), ntr)
         rows[name] = row

@@ -24,28 +24,20 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from jaxbelt.integrators import make_integrator
+from _common import clock, load, write
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_parametric_dmd, fit_reduced_pod,
-                         fit_reduced_pod_ranks,
-                         parameters, rmse, stack_controlled, state_to_z, tracer_operator)
-from _common import write
+                         fit_reduced_pod_ranks, parameters, rmse, stack_controlled, state_to_z, tracer_operator)
 
 N_SINGLE = 1000  # 20 s of the 100 s run
 N_DMD = 400
 N_MULTI = 400
 TOL = 0.02  # mm
 QUICK = "--quick" in sys.argv
+REUSE = jb.DirectBackwardEuler(jb.Reuse())
 
 
-def clock(fn, *args):
-    t0 = time.perf_counter()
-    out = jax.block_until_ready(fn(*args))
-    return time.perf_counter() - t0, out
-
-
-def full_run(m, n):
-    integ = make_integrator("direct", m, linear_solver="reuse")
-    return jb.simulate(m, integ, n_steps=n)
+def full_run(m, n, dt):
+    return jb.simulate(m, REUSE, n_steps=n, dt=dt)
 
 
 def err_mm(a, b):
@@ -53,23 +45,22 @@ def err_mm(a, b):
 
 
 def main():
-    n_full = 500 if QUICK else None
-    m = jb.load_model("three-roller-t72")
-    n_full = n_full or m.n_steps
-    full_run(m, n_full)  # compile
-    t_full, (_, ref) = clock(full_run, m, n_full)
+    m, opts = load("three-roller-t72")
+    dt = opts.dt
+    n_full = 500 if QUICK else opts.n_steps
+    full_run(m, n_full, dt)  # compile
+    t_full, (_, ref) = clock(full_run, m, n_full, dt)
     print(f"full run {n_full} steps: {t_full:.2f} s")
     out = {"scene": "three-roller-t72", "n_steps": n_full, "full_run_s": t_full, "tol_mm": TOL}
-    reuse = make_integrator("direct", m, linear_solver="reuse")
 
     # ---------- A: POD single configuration ----------
     n_single = min(N_SINGLE, n_full // 2)
-    t_snap, (_, Zp, Zq) = clock(lambda: collect_first_order(m, n_single, reuse))
+    t_snap, (_, Zp, Zq) = clock(lambda: collect_first_order(m, n_single, dt, REUSE))
     Z = jnp.concatenate([Zp, Zq], axis=1)
     st0 = jb.initial_state(m)
     pod = {}
     # every rank from one projection at the largest (ReducedStep.truncate): compiled once, not per rank
-    t_fit, roms = clock(lambda: fit_reduced_pod_ranks(m, Z, (5, 10, 20, 40), integrator="direct"))
+    t_fit, roms = clock(lambda: fit_reduced_pod_ranks(m, Z, (5, 10, 20, 40), dt, jb.make_solver("direct")))
     for r, rom in roms.items():
         xi0 = rom.project(m, st0)
         run = jax.jit(lambda x: rom.run(x, parameters(m), n_full))
@@ -85,7 +76,7 @@ def main():
 
     # ---------- B: DMD from 400 snapshots (pre-transport, source's setup) ----------
     n_dmd = min(N_DMD, n_full // 2)
-    t_snap, (_, Zp, _) = clock(lambda: collect_first_order(m, n_dmd, reuse))
+    t_snap, (_, Zp, _) = clock(lambda: collect_first_order(m, n_dmd, dt, REUSE))
     t_fit, dmd = clock(lambda: fit_dmd(Zp))
     C = tracer_operator(m)
     obs = jnp.concatenate([jnp.concatenate([C, jnp.zeros_like(C)], 1),
@@ -117,15 +108,15 @@ def main():
     t0 = time.perf_counter()
     tm, snaps_pod, snaps_post, mus = [], [], [], []
     for name in train:
-        mm = jb.load_model(name)
-        _, Zp, Zq = collect_first_order(mm, n_multi, make_integrator("direct", mm, linear_solver="reuse"))
+        mm, _ = load(name)
+        _, Zp, Zq = collect_first_order(mm, n_multi, dt, REUSE)
         tm.append(mm)
         snaps_pod.append(jnp.concatenate([Zp[:, ::2], Zq[:, ::2]], axis=1))
         snaps_post.append(Zq)
         mus.append(parameters(mm))
     t_train_runs = time.perf_counter() - t0
     Zall = jnp.concatenate(snaps_pod, axis=1)
-    t_pod_fit, rom = clock(lambda: fit_reduced_pod(tm[0], Zall, n_modes=40, integrator="direct"))
+    t_pod_fit, rom = clock(lambda: fit_reduced_pod(tm[0], Zall, dt, jb.make_solver("direct"), n_modes=40))
     X, Y, U = stack_controlled(snaps_post, [belt_inputs(mu, z.shape[1] - 1) for mu, z in zip(mus, snaps_post)])
     t_dmdc_fit, dmdc = clock(lambda: fit_dmdc(X, Y, U, rank=40))
     t_pdmd_fit, pdmd = clock(lambda: fit_parametric_dmd(snaps_post, jnp.stack(mus), rank=40))
@@ -136,12 +127,12 @@ def main():
     pdmd_run = jax.jit(lambda mu: pdmd.predict(mu, n_full + 1, observe=obs)[1:])
     rows, t_full_tests = {}, []
     for name in tests:
-        mt = jb.load_model(name)
-        tf, (_, rf) = clock(full_run, mt, n_full)
+        mt, _ = load(name)
+        tf, (_, rf) = clock(full_run, mt, n_full, dt)
         t_full_tests.append(tf)
         mu = parameters(mt)
         st = jb.initial_state(mt)
-        z0 = state_to_z(mt, st)
+        z0 = state_to_z(mt, st, dt)
         row = {"full_s": tf}
         xi0 = rom.project(mt, st)
         pod_run(xi0, mu)

@@ -1,5 +1,5 @@
 """One reduced model over every misalignment direction of the default 2D scene, tested on
-held-out configurations with all rollers misaligned (issue: "reduced models that pay off in 2D").
+held-out configurations with all rollers misaligned.
 
 Box: every free component of the three rollers of ``three-roller`` (15: dx, dy, dz, ax, ay of
 each; α_z is structurally zero), ±3 mm / ±0.5 mrad — it contains Table 7.2's configuration
@@ -17,39 +17,38 @@ Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/rom_box_2d.py [--quick]``.
 import sys
 import time
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from _common import write
-from jaxbelt.design import parameter_space
-from jaxbelt.misalignment import apply
-from jaxbelt.integrators import ReusedFactorisationBackwardEuler
+from _common import load, write
+from jaxbelt.misalignment import apply, parameter_space
 from jaxbelt.rom import (axial_design, belt_inputs, collect_first_order, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, state_to_z, tracer_operator)
 
 QUICK = "--quick" in sys.argv
 TRAIN, STRIDE, STEPS, N_RANDOM = (100, 4, 300, 1) if QUICK else (400, 4, 1500, 4)
 RANKS = (20, 40, 80)
+REUSE = jb.DirectBackwardEuler(jb.Reuse())
 
 
 def main():
-    nominal = jb.load_model("three-roller")
+    nominal, opts = load("three-roller")
+    dt = opts.dt
     space = parameter_space(nominal)
     h = np.array([3.0 if c.startswith("d") else 0.5 for _, c in space.entries])
     models, thetas, space = axial_design(nominal, space.labels(), h)
     t0 = time.perf_counter()
     post, both, mus = [], [], []
     for m in models:
-        _, Zp, Zq = collect_first_order(m, TRAIN, ReusedFactorisationBackwardEuler.for_model(m))
+        _, Zp, Zq = collect_first_order(m, TRAIN, dt, REUSE)
         post.append(Zq[:, ::STRIDE])
         both.append(jnp.concatenate([Zp[:, ::STRIDE], Zq[:, ::STRIDE]], axis=1))
         mus.append(parameters(m))
     t_runs = time.perf_counter() - t0
     print(f"{len(models)} training runs of {TRAIN} steps: {t_runs:.1f} s", flush=True)
     t0 = time.perf_counter()
-    pods = fit_reduced_pod_ranks(models[0], jnp.concatenate(both, axis=1), RANKS)
+    pods = fit_reduced_pod_ranks(models[0], jnp.concatenate(both, axis=1), RANKS, dt)
     t_pod = time.perf_counter() - t0
     t0 = time.perf_counter()
     X, Y, U = stack_controlled(post, [belt_inputs(mu, z.shape[1] - 1) for mu, z in zip(mus, post)])
@@ -61,20 +60,20 @@ def main():
     obs = jnp.concatenate([jnp.concatenate([C, jnp.zeros_like(C)], 1), jnp.concatenate([Cz, jnp.zeros_like(C)], 1)])
 
     rng = np.random.default_rng(1)
-    tests = {"three-roller-t72": jb.load_model("three-roller-t72")}
+    tests = {"three-roller-t72": load("three-roller-t72")[0]}
     for i in range(N_RANDOM):
         th = rng.uniform(-h, h)
         tests[f"random {i + 1} (all 15 components)"] = apply(models[0], space, th, base=models[0].chi_static)
     rows = {}
     for name, mt in tests.items():
-        _, ref = jb.simulate(mt, ReusedFactorisationBackwardEuler.for_model(mt), n_steps=STEPS)
+        _, ref = jb.simulate(mt, REUSE, n_steps=STEPS, dt=dt)
         mu, st = parameters(mt), jb.initial_state(mt)
         row = {}
         for r, rom in pods.items():
             out = rom.run(rom.project(mt, st), mu, STEPS)
             row[f"POD r={r}"] = {"rmse_u_um": float(rmse(ref.tracer_u, out["tracer_u"])) * 1e6,
                                  "rmse_v_um": float(rmse(ref.tracer_v, out["tracer_v"])) * 1e6}
-        pred = dmdc.predict(state_to_z(mt, st), belt_inputs(mu, 1)[:, 0], STEPS // STRIDE, observe=obs)
+        pred = dmdc.predict(state_to_z(mt, st, dt), belt_inputs(mu, 1)[:, 0], STEPS // STRIDE, observe=obs)
         ntr = C.shape[0]
         sel = slice(STRIDE - 1, STEPS, STRIDE)
         row["DMDc r=40 (every 4th step)"] = {

@@ -23,7 +23,7 @@ Cases:
    ``three-roller-t72`` and a configuration drawn uniformly in the box, POD and DMDc (40 modes).
 
 Ablation (1D held-out cases of 1., library calls, raw estimates without the safety factor): the
-old triangle-inequality indicator (sum of one-step residuals), point residual samples every 10th
+triangle-inequality indicator (sum of one-step residuals, :func:`jaxbelt.rom.residual_indicator`), point residual samples every 10th
 step, window-mean residuals of 10 steps, the same with the first 10 steps each their own window,
 then with the windows whose mean residual still changes cut into single steps, then with the
 quasi-static response added to the subspace (the default), and every step's residual (no
@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _common import RESULTS, write
+from _common import RESULTS, load, write
 from jaxbelt.cli import main
 
 QUICK = "--quick" in sys.argv
@@ -142,50 +142,52 @@ def ablation(paths):
     import jax.numpy as jnp
 
     import jaxbelt as jb
-    from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmdc, fit_reduced_pod_ranks, parameters, rmse,
-                             stack_controlled, tracer_operator)
-    from jaxbelt.rom.indicator import error_rom, residual_indicator
+    from jaxbelt.rom import (ErrorRomOptions, belt_inputs, collect_first_order, error_rom, fit_dmdc,
+                             fit_reduced_pod_ranks, parameters, residual_indicator, rmse, stack_controlled,
+                             tracer_operator)
 
     names = ["two-roller-1d", "two-roller-1d-train1", "two-roller-1d-train2"]
-    ms = [jb.load_model(n) for n in names]
-    runs = [collect_first_order(m, 150) for m in ms]
-    slow, same = jb.load_model(paths["two-roller-1d-drive6-slow"]), jb.load_model(paths["two-roller-1d-drive6"])
+    ms = [load(n)[0] for n in names]
+    dt = load(names[0])[1].dt  # the 1D scenes share their time step
+    runs = [collect_first_order(m, 150, dt) for m in ms]
+    slow, same = load(paths["two-roller-1d-drive6-slow"])[0], load(paths["two-roller-1d-drive6"])[0]
     C = tracer_operator(ms[0])
     Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
     n = 400
     tests = []
-    roms = fit_reduced_pod_ranks(ms[0], jnp.concatenate([z for r in runs for z in r[1:]], axis=1), (10, 20, 30))
-    Zs = collect_first_order(slow, n)[2]
+    roms = fit_reduced_pod_ranks(ms[0], jnp.concatenate([z for r in runs for z in r[1:]], axis=1), (10, 20, 30), dt)
+    Zs = collect_first_order(slow, n, dt)[2]
     for r, rom in roms.items():
         xi0 = rom.project(slow, jb.initial_state(slow))
         o = rom.run(xi0, parameters(slow), n)
         tests.append((f"POD r={r}", slow, rom.basis, jnp.concatenate([xi0[None], o["xi"]]), Zs, o["tracer_u"]))
     post = [r[2] for r in runs[:2]]
     X, Y, U = stack_controlled(post, [belt_inputs(parameters(m), z.shape[1] - 1) for m, z in zip(ms[:2], post)])
-    Zd = collect_first_order(same, n)[2]
+    Zd = collect_first_order(same, n, dt)[2]
     u = belt_inputs(parameters(same), 1)[:, 0]
     for r in (10, 30):
         f = fit_dmdc(X, Y, U, rank=r)
         co = jnp.concatenate([(f.basis.T @ Zd[:, 0])[None], f.predict(Zd[:, 0], u, n, observe=f.basis.T)])
         tests.append((f"DMDc r={r}", same, f.basis, co, Zd, f.predict(Zd[:, 0], u, n, observe=Cz)))
     plain = dict(refine_rtol=None, quasi_static=False)
-    variants = {"point samples, stride 10": dict(stride=10, dense=0, sampling="point", **plain),
-                "window means, stride 10": dict(stride=10, dense=0, **plain),
-                "window means, stride 10, first 10 steps single": dict(plain),
-                "window means, stride 25, first 10 steps single": dict(stride=25, **plain),
-                "the same + changing windows single": dict(quasi_static=False),
-                "the same + quasi-static response (default)": dict(),
-                "every step (stride 1)": dict(stride=1, dense=0, **plain),
-                "every step + quasi-static response": dict(stride=1, dense=0)}
+    variants = {"point samples, stride 10": (10, dict(dense=0, sampling="point", **plain)),
+                "window means, stride 10": (10, dict(dense=0, **plain)),
+                "window means, stride 10, first 10 steps single": (10, dict(plain)),
+                "window means, stride 25, first 10 steps single": (25, dict(plain)),
+                "the same + changing windows single": (10, dict(quasi_static=False)),
+                "the same + quasi-static response (default)": (10, dict()),
+                "every step (stride 1)": (1, dict(dense=0, **plain)),
+                "every step + quasi-static response": (1, dict(dense=0))}
     out = {}
     for label, m, basis, coords, Z, pred in tests:
         true = float(rmse((Cz @ Z[:, 1:]).T, pred)) * 1e3
         row = dict(true_rmse_mm=true)
-        # the old indicator: the accumulated one-step residual at the last step, as `reduce` reported it
-        old = residual_indicator(m, coords @ basis.T, stride=10)["estimate_mm"][-1]
-        row["triangle inequality (old), stride 10"] = float(old) / true
-        for name, kw in variants.items():
-            row[name] = error_rom(m, basis, coords, z_true0=Z[:, 0], **kw)["rmse_mm"] / true
+        # the triangle-inequality indicator: the accumulated one-step residual at the last step
+        tri = residual_indicator(m, coords @ basis.T, dt, stride=10).estimate_mm[-1]
+        row["triangle inequality, stride 10"] = float(tri) / true
+        for name, (stride, kw) in variants.items():
+            est = error_rom(m, basis, coords, dt, z_true0=Z[:, 0], stride=stride, options=ErrorRomOptions(**kw))
+            row[name] = est.rmse_mm / true
         out[label] = row
         print(label, {k: round(v, 3) for k, v in row.items()}, flush=True)
     return out
@@ -227,8 +229,8 @@ def main_():
     if "--ablation-only" in sys.argv:  # recompute the ablation into the existing JSON
         with tempfile.TemporaryDirectory() as tmp:
             abl = ablation(scenes(Path(tmp))[0])
-        old = json.loads((RESULTS / "rom_indicator.json").read_text())
-        write("rom_indicator", dict(old, ablation_raw_effectivity=abl))
+        existing = json.loads((RESULTS / "rom_indicator.json").read_text())
+        write("rom_indicator", dict(existing, ablation_raw_effectivity=abl))
         return
     with tempfile.TemporaryDirectory() as tmp:
         paths, text = scenes(Path(tmp))

@@ -1,5 +1,5 @@
 """Per-step cost against grid size (n_eta 6 → 36, n_xi 104 → 416) on the default geometry,
-exact and reuse modes, with the fitted log-log slope against N. (n_xi = 52 puts fewer than
+exact (kept interior) and reuse modes, with the fitted log-log slope against N. (n_xi = 52 puts fewer than
 5 elements on roller 2's arc, which jaxbelt rejects; Δt follows the CFL condition at 0.75.)
 Run: ``python benchmarks/scaling_2d.py``; writes ``results/scaling_2d[_tag].json`` and ``.png``."""
 
@@ -13,8 +13,10 @@ import jax
 import numpy as np
 
 import jaxbelt as jb
-from jaxbelt.timeloop import _run_jit
 from _common import RESULTS, write
+from jaxbelt.timeloop import compile_simulation
+
+SOLVERS = {"exact": jb.DirectBackwardEuler(jb.KeptInterior()), "reuse": jb.DirectBackwardEuler(jb.Reuse())}
 
 
 def model_for(n_eta, n_xi):
@@ -23,15 +25,14 @@ def model_for(n_eta, n_xi):
     d["mesh"] = {"n_eta": n_eta, "n_xi": n_xi}
     L = 2.8316
     d["time"]["dt_s"] = 0.75 * (L / n_xi) * 0.9  # below the CFL limit of the shortest element
-    return jb.compile_scene(jb.scene_from_dict(d))
+    scene = jb.scene_from_dict(d)
+    return jb.build_model(scene), jb.RunOptions.from_scene(scene).dt
 
 
-def per_step(model, solver, steps):
-    s0 = jax.block_until_ready(jb.initial_state(model))
-    integ = jb.make_integrator("direct", model, solver)
-    c = _run_jit.lower(model, integ, s0, steps).compile()
+def per_step(model, dt, solver, steps):
+    c = compile_simulation(model, SOLVERS[solver], n_steps=steps, dt=dt)
     t0 = time.perf_counter()
-    jax.block_until_ready(c(model, integ, s0, steps))
+    jax.block_until_ready(c(model, dt))
     return (time.perf_counter() - t0) / steps * 1e3
 
 
@@ -44,16 +45,16 @@ def main():
     grid = [(6, 104), (12, 104), (18, 104), (36, 104), (18, 208), (18, 416), (36, 208)]
     rows = []
     for n_eta, n_xi in grid:
-        m = model_for(n_eta, n_xi)
+        m, dt = model_for(n_eta, n_xi)
         if m.n_unknowns > args.max_n:
             continue
         row = {"n_eta": n_eta, "n_xi": n_xi, "N": m.n_unknowns}
-        for solver in ("structured", "reuse"):
-            row[f"{solver}_ms"] = per_step(m, solver, args.steps)
+        for solver in ("exact", "reuse"):
+            row[f"{solver}_ms"] = per_step(m, dt, solver, args.steps)
         print(row, flush=True)
         rows.append(row)
     N = np.array([r["N"] for r in rows], float)
-    fits = {s: float(np.polyfit(np.log(N), np.log([r[f"{s}_ms"] for r in rows]), 1)[0]) for s in ("structured", "reuse")}
+    fits = {s: float(np.polyfit(np.log(N), np.log([r[f"{s}_ms"] for r in rows]), 1)[0]) for s in ("exact", "reuse")}
     print("log-log slopes vs N:", fits)
     name = "scaling_2d" + (f"_{args.tag}" if args.tag else "")
     write(name, {"device": str(jax.devices()[0]), "rows": rows, "slope_vs_N": fits})
@@ -64,7 +65,7 @@ def main():
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
-    for s, mk in (("structured", "o-"), ("reuse", "s-")):
+    for s, mk in (("exact", "o-"), ("reuse", "s-")):
         order = np.argsort(N)
         ax.loglog(N[order], np.array([r[f"{s}_ms"] for r in rows])[order], mk, label=f"{s} (slope {fits[s]:.2f})")
     ax.set_xlabel("unknowns N")

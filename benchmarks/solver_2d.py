@@ -1,5 +1,7 @@
-"""2D full-order model on the default scene: jaxbelt's exact and reuse modes against a
-numpy + scipy.sparse reference (SuperLU every step), side by side in one run.
+"""2D full-order model on the default scene: jaxbelt's linear solvers (exact: kept interior, full
+factorisation with a Thomas or cyclic-reduction interior; reuse with 0 and 1 refinement iterations)
+against a numpy + scipy.sparse reference (SuperLU every step,
+:class:`jaxbelt.bench.scipy_reference.ScipyBelt`), side by side in one run.
 
 Run: ``python benchmarks/solver_2d.py [--scene three-roller-t72] [--steps 200]``. Checks that
 the scipy reference gives the same trajectory (max tracer difference) and writes
@@ -14,9 +16,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from jaxbelt.timeloop import _run_jit
 from _common import RESULTS, bar_plot, write
-from scipy_reference import ScipyBelt
+from jaxbelt.bench.scipy_reference import ScipyBelt
+from jaxbelt.timeloop import compile_simulation, tracer_values
 
 
 def main():
@@ -25,27 +27,29 @@ def main():
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--scipy-steps", type=int, default=60)
     args = ap.parse_args()
-    model = jb.load_model(args.scene)
+    scene = jb.load_scene(args.scene)
+    model, dt = jb.build_model(scene), jb.RunOptions.from_scene(scene).dt
     s0 = jax.block_until_ready(jb.initial_state(model))
     rows, trajs = {}, {}
-    for name, integ in [("jaxbelt exact (structured)", jb.make_integrator("direct", model, "structured")),
-                        ("jaxbelt exact, cyclic reduction", jb.DirectBackwardEuler("structured", "cyclic-reduction")),
-                        ("jaxbelt reuse (refine=2)", jb.make_integrator("direct", model, "reuse")),
-                        ("jaxbelt reuse (refine=1)", jb.ReusedFactorisationBackwardEuler.for_model(model, refine=1))]:
+    for name, integ in [("jaxbelt exact (kept interior)", jb.DirectBackwardEuler(jb.KeptInterior())),
+                        ("jaxbelt exact, full factorisation", jb.DirectBackwardEuler(jb.Structured())),
+                        ("jaxbelt exact, cyclic reduction", jb.DirectBackwardEuler(jb.CyclicReduction())),
+                        ("jaxbelt reuse (refine=0)", jb.DirectBackwardEuler(jb.Reuse(refine=0))),
+                        ("jaxbelt reuse (refine=1)", jb.DirectBackwardEuler(jb.Reuse(refine=1)))]:
         t0 = time.perf_counter()
-        c = _run_jit.lower(model, integ, s0, args.steps).compile()
+        c = compile_simulation(model, integ, n_steps=args.steps, dt=dt)
         comp = time.perf_counter() - t0
         t0 = time.perf_counter()
-        _, tr = jax.block_until_ready(c(model, integ, s0, args.steps))
+        _, tr = jax.block_until_ready(c(model, dt))
         run = time.perf_counter() - t0
         trajs[name] = tr
         rows[name] = {"compile_s": comp, "per_step_ms": run / args.steps * 1e3}
-    ref = trajs["jaxbelt exact (structured)"]
+    ref = trajs["jaxbelt exact (kept interior)"]
     for name, tr in trajs.items():
         rows[name]["tracer_rmse_vs_exact_mm"] = float(jnp.sqrt(jnp.mean(jnp.concatenate(
             [(tr.tracer_u - ref.tracer_u) ** 2, (tr.tracer_v - ref.tracer_v) ** 2])))) * 1e3
 
-    sc = ScipyBelt(model)
+    sc = ScipyBelt(model, dt)
     state = [np.asarray(s0.u), np.asarray(s0.u_dot), np.asarray(s0.chi), np.asarray(s0.chi_dot), np.asarray(s0.m_e)]
     us = []
     t0 = time.perf_counter()
@@ -53,7 +57,7 @@ def main():
         state = list(sc.step(*state))
         us.append(state[0])
     run = time.perf_counter() - t0
-    tu, tv = jax.vmap(lambda u: jb.timeloop.tracer_values(model, u))(jnp.asarray(np.stack(us)))
+    tu, tv = jax.vmap(lambda u: tracer_values(model, u))(jnp.asarray(np.stack(us)))
     diff = max(float(jnp.max(jnp.abs(tu - ref.tracer_u[: args.scipy_steps]))),
                float(jnp.max(jnp.abs(tv - ref.tracer_v[: args.scipy_steps]))))
     rows["numpy + scipy SuperLU"] = {"per_step_ms": run / args.scipy_steps * 1e3,
@@ -62,9 +66,9 @@ def main():
     for r in rows.values():
         r["speedup_vs_scipy"] = base / r["per_step_ms"]
     for k, r in rows.items():
-        print(f"{k:28s} {r['per_step_ms']:8.2f} ms/step  ×{r['speedup_vs_scipy']:.2f} vs scipy", 
+        print(f"{k:34s} {r['per_step_ms']:8.2f} ms/step  ×{r['speedup_vs_scipy']:.2f} vs scipy",
               {kk: v for kk, v in r.items() if "rmse" in kk or "diff" in kk})
-    reuse = rows["jaxbelt reuse (refine=2)"]["per_step_ms"]
+    reuse = rows["jaxbelt reuse (refine=0)"]["per_step_ms"]
     write("solver_2d", {"scene": args.scene, "n_unknowns": model.n_unknowns, "steps": args.steps,
                         "projected_100s_reuse_s": reuse * 5000 / 1e3, "rows": rows})
 

@@ -16,18 +16,16 @@ Writes ``results/step_profile.json``.
 import argparse
 import time
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 import jaxbelt as jb
-from _common import write
-import equinox as eqx
-
+from _common import clock, write
 from jaxbelt.assembly import dae_apply, dae_rhs, roller_R, static_surface_offset
-from jaxbelt.bench._common import clock
-from jaxbelt.integrators import DirectBackwardEuler, ReusedFactorisationBackwardEuler
+from jaxbelt.integrators.linear import lever_columns
 from jaxbelt.linalg.bordered import factor_solve, refactorise_border
-from jaxbelt.timeloop import make_step, tracer_values
+from jaxbelt.timeloop import compile_simulation, edge_margin, make_step, nonfinite_code, tracer_values
 from jaxbelt.transport import transport_step_with_weights
 
 
@@ -47,41 +45,46 @@ def main():
     ap.add_argument("--steps", type=int, default=500)
     ap.add_argument("--repeat", type=int, default=5)
     a = ap.parse_args()
-    model = jb.compile_scene(jb.load_scene("three-roller-t72"))
+    scene = jb.load_scene("three-roller-t72")
+    model, dt = jb.build_model(scene), jb.RunOptions.from_scene(scene).dt
     st = jb.initial_state(model)
-    reuse = ReusedFactorisationBackwardEuler.for_model(model).prepare(model)
-    exact = DirectBackwardEuler.for_model(model).prepare(model)  # the kept interior, as a run uses it
-    exact_full = DirectBackwardEuler("structured", keep_interior=False)
+    reuse = jb.DirectBackwardEuler(jb.Reuse())
+    exact = jb.DirectBackwardEuler(jb.KeptInterior())
+    exact_full = jb.DirectBackwardEuler(jb.Structured())
+    # each solver's data for the run (the frozen factors; the kept interior), as a run computes it once
+    data = {"reuse": reuse.init(model, st, dt), "exact": exact.init(model, st, dt),
+            "exact_full": exact_full.init(model, st, dt)}
+    stencil = data["reuse"].stencil
     offset = static_surface_offset(model)
-    dt = model.dt
     eps = 1e-30  # feeds an output back into the input without changing it numerically
 
     def assembly(u):
         R = roller_R(model, u)
-        F_b, F_r = dae_rhs(model, u, st.chi, R)
-        (Kp_b, Kp_r), _ = dae_apply(model, st.m_e, R, u + dt * st.u_dot, st.chi + dt * st.chi_dot, reuse.stencil)
+        F_b, F_r = dae_rhs(model, u, st.chi, dt, R)
+        (Kp_b, Kp_r), _ = dae_apply(model, st.m_e, R, u + dt * st.u_dot, st.chi + dt * st.chi_dot, stencil)
         return u + eps * (F_b - Kp_b)
 
-    rb0, rr0 = dae_rhs(model, st.u, st.chi, roller_R(model, st.u))
+    rb0, rr0 = dae_rhs(model, st.u, st.chi, dt, roller_R(model, st.u))
 
     def solve(c):
-        x_b, x_r = factor_solve(reuse.factors, *c)
+        x_b, x_r = factor_solve(data["reuse"].linear.F, *c)
         return rb0 + eps * x_b, rr0 + eps * x_r
 
-    def solve_step_of(integ):
+    def solve_step_of(integ, run_data):
         def go(s):
-            new = integ.solve_step(model, s)
+            new = integ.step(model, s, dt, run_data)
             return jax.tree.map(lambda x, y: x + eps * y if jnp.issubdtype(x.dtype, jnp.floating) else x, s, new)
         return go
 
-    ref = exact.reference
+    ref = data["exact"].linear
+    cols, rows_ = lever_columns(model)
 
     def border(u):  # the exact mode's per-step refactorisation (tilt columns, Schur complement)
         R = roller_R(model, u)
-        cols = jnp.asarray(exact.lever_columns)
-        C = ref.A.C.at[:, :, cols].set(jnp.where(model.is_constraint[:, :, None], -dt**2 * R[:, :, cols], 0.0))
+        c = jnp.asarray(cols)
+        C = ref.A.C.at[:, :, c].set(jnp.where(model.is_constraint[:, :, None], -dt**2 * R[:, :, c], 0.0))
         A = eqx.tree_at(lambda a: a.C, ref.A, C)
-        F = refactorise_border(A, ref.F, ref.S, exact.lever_columns, exact.lever_rows)
+        F = refactorise_border(A, ref.F, ref.S, cols, rows_)
         return u + eps * jnp.sum(F.S_lu)
 
     def transport(u):
@@ -90,8 +93,6 @@ def main():
 
     def outputs(u):
         tu, tv = tracer_values(model, u)
-        from jaxbelt.timeloop import edge_margin, nonfinite_code
-
         m = edge_margin(model, u, st.chi)
         bad = nonfinite_code(u, st.u_dot, st.chi, st.chi_dot)
         return u + eps * (jnp.sum(tu) + jnp.sum(tv) + jnp.sum(jnp.where(jnp.isfinite(m), m, 0.0)) + bad)
@@ -101,23 +102,21 @@ def main():
     rows["solve (reuse: frozen-factor structured solve)"] = timed_scan(solve, (rb0, rr0), a.steps, a.repeat)
     rows["transport"] = timed_scan(transport, st.u, a.steps, a.repeat)
     rows["outputs (tracers, margins, NaN guard)"] = timed_scan(outputs, st.u, a.steps, a.repeat)
-    step_reuse = make_step(model, reuse)
+    step_reuse = make_step(model, reuse, dt, data["reuse"])
     rows["whole step, reuse"] = timed_scan(lambda s: step_reuse(s)[0], st, a.steps, a.repeat)
     rows["exact: border refactorisation (tilt columns' sweep, Schur complement)"] = timed_scan(
         border, st.u, a.steps, a.repeat)
-    rows["exact solve step (kept interior: border + solve)"] = timed_scan(solve_step_of(exact), st, a.steps, a.repeat)
-    rows["exact solve step, full factorisation every step"] = timed_scan(solve_step_of(exact_full), st,
-                                                                         a.steps // 5, a.repeat)
-    step_exact = make_step(model, exact)
+    rows["exact solve step (kept interior: border + solve)"] = timed_scan(
+        solve_step_of(exact, data["exact"]), st, a.steps, a.repeat)
+    rows["exact solve step, full factorisation every step"] = timed_scan(
+        solve_step_of(exact_full, data["exact_full"]), st, a.steps // 5, a.repeat)
+    step_exact = make_step(model, exact, dt, data["exact"])
     rows["whole step, exact"] = timed_scan(lambda s: step_exact(s)[0], st, a.steps, a.repeat)
     # a run as jaxbelt.simulate compiles it: the model and the solver are arguments of the program
     # (not constants folded into it) and every step's outputs are recorded
-    from jaxbelt.timeloop import _run_jit
-
-    integ_reuse = ReusedFactorisationBackwardEuler.for_model(model)
-    run = _run_jit.lower(model, integ_reuse, st, a.steps).compile()
+    run = compile_simulation(model, reuse, n_steps=a.steps, dt=dt)
     rows["whole run per step, reuse (outputs recorded, as simulate runs it)"] = 1e3 / a.steps * min(
-        clock(lambda: run(model, integ_reuse, st, a.steps)[0].u)[0] for _ in range(a.repeat + 1))
+        clock(lambda: run(model, dt)[0].u)[0] for _ in range(a.repeat + 1))
     for k, v in rows.items():
         print(f"{k:72s} {v:7.3f} ms", flush=True)
     write("step_profile", {"scene": "three-roller-t72", "n_unknowns": model.n_unknowns,

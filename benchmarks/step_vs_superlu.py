@@ -2,11 +2,11 @@
 per-step comparison against SciPy SuperLU (interleaved rounds, best of 6:
 :func:`jaxbelt.bench.baselines.per_step`) and the whole 100 s reuse run
 (:func:`jaxbelt.bench.baselines.whole_run`, best of 3) on ``three-roller-t72``. For tracking the
-machine's state between full bench runs. Writes ``results/step_vs_superlu[_TAG].json``.
-Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/step_vs_superlu.py [TAG]``.
+machine's state between full bench runs. Writes ``results/step_vs_superlu.json``.
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/step_vs_superlu.py [--rounds 6]``.
 """
 
-import sys
+import argparse
 import time
 
 import jaxbelt as jb
@@ -15,17 +15,21 @@ from jaxbelt.bench.baselines import SCENE, per_step, whole_run
 
 
 def main():
-    tag = sys.argv[1] if len(sys.argv) > 1 else ""
-    model = jb.load_model(SCENE)
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rounds", type=int, default=6)
+    a = ap.parse_args()
+    scene = jb.load_scene(SCENE)
+    model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
     t0 = time.perf_counter()
-    out = dict(scene=SCENE, n_unknowns=int(model.n_unknowns), per_step=per_step(model, rounds=6),
-               whole_run=whole_run(model, repeat=3))
+    out = dict(scene=SCENE, n_unknowns=int(model.n_unknowns), per_step=per_step(model, opts.dt, rounds=a.rounds),
+               whole_run=whole_run(model, opts.n_steps, opts.dt, repeat=3))
     out["wall_s"] = time.perf_counter() - t0
     for k, v in out["per_step"]["ms_per_step"].items():
         print(f"{k:50s} {v:8.3f} ms")
-    print("reuse step in SuperLU kept-factor solves", round(out["per_step"]["ratios"]["reuse step in SuperLU kept-factor solves"], 2))
-    print("whole 100 s run", round(out["whole_run"]["run_s"], 2), "s")
-    write("step_vs_superlu" + (f"_{tag}" if tag else ""), out)
+    for k, v in out["per_step"]["ratios"].items():
+        print(f"{k:90s} {v:6.2f}")
+    print(f"whole {out['whole_run']['t_end_s']:g} s run (reuse): {out['whole_run']['run_s']:.2f} s")
+    write("step_vs_superlu", out)
 
 
 if __name__ == "__main__":

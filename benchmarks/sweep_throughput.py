@@ -2,7 +2,7 @@
 
 The design scene ``three-roller-tolerance`` (N = 3762) evaluated through the sweep's own path
 (:func:`jaxbelt.design.evaluate_configs`: ``vmap`` over configurations, sharded over the local
-devices) for batch sizes 1–256, with the exact structured solver and the factorisation-reuse
+devices) for batch sizes 1–256, with the exact solver (kept interior) and the factorisation-reuse
 solver. Compilation is timed apart; each batch is the best of ``--repeat`` runs. Writes
 ``results/sweep_throughput[_quick].json`` and ``.png``.
 """
@@ -13,8 +13,10 @@ import time
 import numpy as np
 
 import jaxbelt as jb
-from _common import RESULTS, write
+from _common import RESULTS, load, write
 from jaxbelt import design
+
+SOLVERS = {"exact": jb.DirectBackwardEuler(jb.KeptInterior()), "reuse": jb.DirectBackwardEuler(jb.Reuse())}
 
 
 def main():
@@ -28,11 +30,10 @@ def main():
         scene = scene.replace(mesh=scene.mesh.__class__(n_eta=6, n_xi=104))
     steps = a.steps or (20 if a.quick else 50)
     batches = [1, 4, 16, 64] if a.quick else [1, 4, 16, 64, 256]
+    model, opts = load(scene)
     rows = {}
-    for solver in ("structured", "reuse"):
-        model = jb.compile_scene(scene)
-        study = design.make_study(model, "lateral_max", t_eval=steps * model.dt,
-                                  integrator=jb.make_integrator("direct", model, solver))
+    for solver, integ in SOLVERS.items():
+        study = design.make_study(model, "lateral_max", dt=opts.dt, n_steps=steps, integrator=integ)
         rng = np.random.default_rng(0)
         for b in batches:
             thetas = 0.01 * rng.standard_normal((b, study.space.size))
@@ -50,7 +51,7 @@ def main():
             print(f"{solver:10s} batch {b:4d}: {1e3 * best / (b * steps):7.3f} ms per configuration-step, "
                   f"compile {max(first - best, 0.0):.1f} s")
     name = "sweep_throughput" + ("_quick" if a.quick else "")
-    write(name, {"scene": "three-roller-tolerance", "n_unknowns": int(jb.compile_scene(scene).n_unknowns),
+    write(name, {"scene": "three-roller-tolerance", "n_unknowns": int(model.n_unknowns),
                  "steps": steps, "rows": rows})
 
     import matplotlib
@@ -59,12 +60,12 @@ def main():
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.5, 4), constrained_layout=True)
-    for solver in ("structured", "reuse"):
+    for solver in SOLVERS:
         r = [rows[f"{solver}/{b}"] for b in batches]
         ax.loglog(batches, [x["config_steps_per_s"] for x in r], "o-", label=solver)
     ax.set_xlabel("configurations per batch")
     ax.set_ylabel("configuration-steps per second")
-    ax.set_title(f"sweep throughput, N = {rows and jb.compile_scene(scene).n_unknowns}, CPU")
+    ax.set_title(f"sweep throughput, N = {model.n_unknowns}, CPU")
     ax.grid(alpha=0.3, which="both")
     ax.legend()
     fig.savefig(RESULTS / f"{name}.png", dpi=120)

@@ -24,8 +24,8 @@ def run(name, stiffening, steps=None):
     sc = jb.load_scene(name)
     sc = dataclasses.replace(sc, solver=dataclasses.replace(sc.solver, tension_stiffening=stiffening,
                                                              linear_solver="reuse"))
-    m = jb.compile_scene(sc)
-    _, tr = jb.simulate(m, n_steps=steps)
+    m, opts = jb.build_model(sc), jb.RunOptions.from_scene(sc)
+    _, tr = jb.simulate(m, **opts.replace(n_steps=steps or opts.n_steps))
     return m, np.asarray(tr.tracer_u), np.asarray(tr.tracer_v)
 
 

@@ -12,7 +12,6 @@ import dataclasses
 import numpy as np
 
 import jaxbelt as jb
-from jaxbelt.integrators import make_integrator
 from _common import RESULTS, write
 
 
@@ -22,10 +21,10 @@ def steady(transport, dt, refine=1, seconds=6.0):
         mesh=dataclasses.replace(sc.mesh, roller_elements=(40 * refine,) * 2, free_elements=(70 * refine,) * 2),
         time=dataclasses.replace(sc.time, dt=dt), solver=dataclasses.replace(sc.solver, transport=transport))
     mesh = jb.build_mesh(sc)
-    model = jb.compile_scene(sc, mesh)
-    integ = make_integrator("direct", model)
-    s, tr = jb.simulate(model, integ, n_steps=int(round(seconds / dt)))
-    u = np.asarray(integ.solve_step(model, s).u)[:, 0]
+    model = jb.build_model(sc, mesh)
+    integ = jb.make_solver("direct", transport=transport)
+    s, tr = jb.simulate(model, integ, n_steps=int(round(seconds / dt)), dt=dt)
+    u = np.asarray(integ.step(model, s, dt, integ.init(model, s, dt)).u)[:, 0]  # the solved state, before transport
     first = mesh.segment_starts[1] - 1
     ids = np.arange(first, first + mesh.free_elements[0] + 1)
     eps = float(np.mean(np.diff(u[ids]) / np.asarray(model.ell)[ids[:-1]]))
@@ -44,8 +43,9 @@ def main():
                   f"(rel. err {r['strain_rel_error']:+.2e})  idle/drive {r['speed_ratio']:.6f}")
     weights = {}
     for rule in ("shift", "source"):
-        model = jb.load_model("two-roller-1d-train1").replace(transport=rule)
-        _, tr = jb.simulate(model, n_steps=200)
+        scene = jb.load_scene("two-roller-1d-train1")
+        model, dt = jb.build_model(scene), jb.RunOptions.from_scene(scene).dt
+        _, tr = jb.simulate(model, jb.make_solver("direct", transport=rule), n_steps=200, dt=dt)
         tw = np.asarray(tr.transport_weights)
         weights[rule] = {"min": float(np.nanmin(tw[:, 0])), "max": float(np.nanmax(tw[:, 1])),
                          "final_belt_mass_rel_change": float(tr.belt_mass[-1] / tr.belt_mass[0] - 1)}

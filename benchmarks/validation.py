@@ -1,4 +1,4 @@
-"""The validation set of ``tests/test_validation.py`` at finer resolution.
+"""The validation set of ``tests/integration/test_validation.py`` at finer resolution.
 
 The checks, their theory and the test's numbers are in that module's docstring; this script
 imports its measurement functions and runs them where the tests cannot afford to:
@@ -25,7 +25,8 @@ import numpy as np
 
 from _common import RESULTS, write
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+TESTS = Path(__file__).resolve().parents[1] / "tests"
+sys.path[:0] = [str(TESTS / "integration"), str(TESTS)]  # the test module and its helpers
 import test_validation as tv  # noqa: E402  (the checks and their theory live with the tests)
 
 
@@ -33,21 +34,21 @@ def wave():
     rows = []
     for h in (10.0, 5.0, 2.5, 1.25):
         for c_dt in (4.0, 2.0, 1.0, 0.5):
-            model, mesh = tv.compiled(tv.wave_scene("1d", h_mm=h, c_dt_mm=c_dt))
-            down, up, _ = tv.wave_speeds(model, mesh, tv.REST)
+            model, mesh, opts = tv.compiled(tv.wave_scene("1d", h_mm=h, c_dt_mm=c_dt))
+            down, up, _ = tv.wave_speeds(model, mesh, opts, tv.REST)
             rows.append({"h_mm": h, "c_dt_mm": c_dt, "c_m_s": (down + up) / 2, "error": (down + up) / (2 * tv.C0) - 1})
             print(f"wave 1D h {h:5.2f} mm  c dt {c_dt:4.2f} mm  c/c0 - 1 = {rows[-1]['error']:+.4%}", flush=True)
     V = 100.0
-    model, mesh = tv.compiled(tv.wave_scene("1d", h_mm=1.25, c_dt_mm=0.5, speed=V))
-    down, up, _ = tv.wave_speeds(model, mesh, V)
+    model, mesh, opts = tv.compiled(tv.wave_scene("1d", h_mm=1.25, c_dt_mm=0.5, speed=V))
+    down, up, _ = tv.wave_speeds(model, mesh, opts, V)
     moving = {"V_m_s": V, "downstream_m_s": down, "upstream_m_s": up, "down_error": down / (tv.C0 + V) - 1,
               "up_error": up / (tv.C0 - V) - 1, "V_measured_m_s": (down - up) / 2}
     print(f"wave 1D V = 100 m/s: c+V {moving['down_error']:+.4%}, c-V {moving['up_error']:+.4%}, "
           f"V measured {moving['V_measured_m_s']:.2f} m/s", flush=True)
     widths = []
     for w, nu in [(50.0, 0.0)] + [(w, tv.NU) for w in (5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 400.0)]:
-        model, mesh = tv.compiled(tv.wave_scene("2d", width_mm=w, nu=nu, n_eta=9))
-        down, up, _ = tv.wave_speeds(model, mesh, tv.REST)
+        model, mesh, opts = tv.compiled(tv.wave_scene("2d", width_mm=w, nu=nu, n_eta=9))
+        down, up, _ = tv.wave_speeds(model, mesh, opts, tv.REST)
         widths.append({"width_mm": w, "nu": nu, "c_over_c0": (down + up) / (2 * tv.C0)})
         print(f"wave 2D w {w:5.0f} mm  nu {nu:.2f}  c/c0 = {widths[-1]['c_over_c0']:.4f}", flush=True)
     return {"c0_m_s": tv.C0, "plate_over_c0": 1 / np.sqrt(1 - tv.NU**2), "sigma_mm": tv.SIGMA_MM, "dispersion": rows,
@@ -126,8 +127,8 @@ def convergence():
 def damping():
     rows = []
     for c_dt, steps in ((2.0, 40), (20.0, 5)):
-        model, mesh = tv.compiled(tv.wave_scene("1d", c_dt_mm=c_dt))
-        theta, residual, amp_err, ratio = tv.be_damping(model, mesh, steps=steps)
+        model, mesh, opts = tv.compiled(tv.wave_scene("1d", c_dt_mm=c_dt))
+        theta, residual, amp_err, ratio = tv.be_damping(model, mesh, opts, steps=steps)
         for k, th in enumerate(theta):
             theory = 1 / (1 + th**2)
             rows.append({"theta": float(th), "energy_ratio_theory": theory, "energy_ratio_mean": float(ratio[k].mean()),
