@@ -1,4 +1,4 @@
-"""Shared test helpers: scene dictionaries and finite differences."""
+"""Shared test helpers: scenes and their run options, finite differences, random structured matrices."""
 
 import copy
 import tomllib
@@ -6,9 +6,11 @@ from importlib import resources
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
+from jaxbelt.linalg import BorderedBlockCyclic
 
 REPO = Path(__file__).resolve().parent.parent  # the repository's root
 
@@ -110,3 +112,17 @@ def solve_step(model, integrator, state, dt):
 @jax.jit
 def _solve_step(model, integrator, state, dt):
     return integrator.step(model, state, dt, integrator.init(model, state, dt))
+
+
+def random_bordered(n, b, q, seed=0):
+    """A diagonally dominant random bordered block-cyclic matrix ``A`` and a right-hand side
+    ``(r_b (n, b), r_r (q,))``: ``(A, r_b, r_r)``."""
+    rng = np.random.default_rng(seed)
+    return BorderedBlockCyclic(
+        diag=jnp.asarray(rng.normal(size=(n, b, b)) + 8 * np.eye(b)),
+        lower=jnp.asarray(rng.normal(size=(n, b, b))),
+        upper=jnp.asarray(rng.normal(size=(n, b, b))),
+        C=jnp.asarray(rng.normal(size=(n, b, q))),
+        D=jnp.asarray(rng.normal(size=(n, q, b))),
+        E=jnp.asarray(rng.normal(size=(q, q)) + 8 * np.eye(q)),
+    ), jnp.asarray(rng.normal(size=(n, b))), jnp.asarray(rng.normal(size=q))

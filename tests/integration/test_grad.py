@@ -13,8 +13,7 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.linalg import bordered_solve, join
 from jaxbelt.linalg.bordered import factor_solve_transposed, factorise
-from helpers import load, scene_with
-from test_linalg import _random
+from helpers import load, scene_with, random_bordered
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +97,7 @@ def _rel(x, ref):
 def test_adjoint_solve_equals_dense_transposed_solve(method):
     """The transposed solve with A's factors, and reverse mode through ``bordered_solve`` (its
     right-hand-side cotangent is ``A⁻ᵀ x̄``), equal a dense ``jnp.linalg`` solve with ``Aᵀ``."""
-    A, cb, cr = _random(9, 4, 6)
+    A, cb, cr = random_bordered(9, 4, 6)
     ref = jnp.linalg.solve(A.to_dense().T, join(cb, cr))
     # jit-compiled, as inside a run (one program each, not a few hundred op-by-op compilations)
     transposed = jax.jit(lambda A, cb, cr: join(*factor_solve_transposed(factorise(A, method), cb, cr)))
@@ -119,7 +118,7 @@ def test_reverse_mode_reuses_the_factors():
     matrix cotangent's products. Differentiating ``factor_solve(factorise(A))`` has them all."""
     from jaxbelt.linalg.bordered import factor_solve
 
-    A, rb, rr = _random(9, 4, 6)
+    A, rb, rr = random_bordered(9, 4, 6)
 
     def pullback_jaxpr(f):
         """The pullback's jaxpr, traced abstractly (nothing is compiled or run)."""

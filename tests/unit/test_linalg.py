@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import load
+from helpers import load, random_bordered
 from jaxbelt.assembly import dae_matrices
 from jaxbelt.linalg import BorderedBlockCyclic, bordered_solve, dense_solve, join
 
@@ -16,29 +16,17 @@ from jaxbelt.linalg import BorderedBlockCyclic, bordered_solve, dense_solve, joi
 solve = jax.jit(bordered_solve, static_argnums=3)
 
 
-def _random(n, b, q, seed=0):
-    rng = np.random.default_rng(seed)
-    return BorderedBlockCyclic(
-        diag=jnp.asarray(rng.normal(size=(n, b, b)) + 8 * np.eye(b)),
-        lower=jnp.asarray(rng.normal(size=(n, b, b))),
-        upper=jnp.asarray(rng.normal(size=(n, b, b))),
-        C=jnp.asarray(rng.normal(size=(n, b, q))),
-        D=jnp.asarray(rng.normal(size=(n, q, b))),
-        E=jnp.asarray(rng.normal(size=(q, q)) + 8 * np.eye(q)),
-    ), jnp.asarray(rng.normal(size=(n, b))), jnp.asarray(rng.normal(size=q))
-
-
 @pytest.mark.parametrize("method", ["thomas", "cyclic-reduction"])
 @pytest.mark.parametrize("n,b,q", [(3, 1, 2), (12, 1, 4), (9, 4, 6), (20, 6, 18)])
 def test_structured_equals_dense(n, b, q, method):
-    A, rb, rr = _random(n, b, q)
+    A, rb, rr = random_bordered(n, b, q)
     xb, xr = solve(A, rb, rr, method)
     x_ref = jnp.linalg.solve(A.to_dense(), join(rb, rr))
     np.testing.assert_allclose(np.asarray(join(xb, xr)), np.asarray(x_ref), rtol=1e-10, atol=1e-12)
 
 
 def test_matvec_and_transpose():
-    A, rb, rr = _random(7, 3, 5, seed=1)
+    A, rb, rr = random_bordered(7, 3, 5, seed=1)
     y = join(*A.matvec(rb, rr))
     np.testing.assert_allclose(np.asarray(y), np.asarray(A.to_dense() @ join(rb, rr)), rtol=1e-12)
     np.testing.assert_array_equal(np.asarray(A.transpose().to_dense()), np.asarray(A.to_dense().T))
@@ -75,7 +63,7 @@ def test_belt_matrix_structured_equals_dense():
 
 
 def test_gradient_through_structured_solve_matches_dense():
-    A, rb, rr = _random(8, 2, 3, seed=3)
+    A, rb, rr = random_bordered(8, 2, 3, seed=3)
 
     def loss(scale, solve):
         A2 = A + A.scale(scale)
