@@ -60,17 +60,18 @@ def pytest_addoption(parser):
 
 # xdist's loadfile scheduling hands whole modules to the two workers in collection order; heaviest
 # first, so that the run ends on small modules and both workers finish together (pyproject.toml
-# turns off xdist's own reordering by test count). Rough seconds per module (CPU, plus the
-# subprocesses' for test_sharding); a stale or missing entry (default 5) only costs balance.
+# turns off xdist's own reordering by test count). Seconds per module from a --durations run (a
+# stale or missing entry, default 5, only costs balance).
 MODULE_SECONDS = {
-    "test_grad": 40, "test_design": 35, "test_validation": 25, "test_rom_indicator": 25,
-    "test_cli_reduce": 25, "test_model2d": 20, "test_sharding": 20, "test_stability": 20, "test_kept_interior": 20,
-    "test_rom_dmdc": 15, "test_rom_reduced": 15, "test_design_surrogate": 15, "test_cli_design": 15,
-    "test_linalg": 12, "test_reuse": 12, "test_lateral_theory": 12, "test_integrators": 10, "test_plot_fields": 10,
-    "test_transport": 10, "test_rom_training": 8, "test_bench": 8, "test_readme": 8, "test_invariants": 8,
-    "test_rom_snapshots": 7, "test_scene": 7, "test_cli": 7, "test_rom_modal": 6, "test_vmap": 6,
-    "test_rom_ranks": 6, "test_rom_dmd": 6, "test_rom_pod": 5, "test_pymor_reference": 5, "test_elements": 3,
-    "test_reference": 3, "test_prestress": 2, "test_docs": 1, "test_geometry": 1, "test_notebooks": 1, "test_timeloop": 4,
+    "test_design": 37, "test_validation": 36, "test_grad": 36, "test_model2d": 28, "test_simulate_api": 26,
+    "test_kept_interior": 26, "test_stability": 25, "test_cli_reduce": 22, "test_sharding": 20,
+    "test_cli_design": 20, "test_design_surrogate": 18, "test_rom_reduced": 18, "test_linalg": 17,
+    "test_rom_indicator": 15, "test_linear_solvers": 13, "test_cli": 11, "test_bench": 10, "test_rom_dmdc": 10,
+    "test_transport": 9, "test_reuse": 8, "test_plot_fields": 8, "test_rom_modal": 8, "test_lateral_theory": 8,
+    "test_integrators": 6, "test_rom_ranks": 6, "test_rom_pod": 6, "test_vmap": 6, "test_rom_training": 6,
+    "test_readme": 5, "test_invariants": 4, "test_scene": 4, "test_rom_snapshots": 4,
+    "test_pymor_reference": 3, "test_timeloop": 2, "test_elements": 2, "test_reference": 2, "test_rom_dmd": 2,
+    "test_prestress": 1, "test_notebooks": 1, "test_docs": 1, "test_layers": 1, "test_geometry": 1,
 }
 
 
