@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import time
 
-import jax
 import numpy as np
 
 from ..build import build_model
@@ -71,19 +69,6 @@ def finite_or_none(v):
 
 def fmt(v, unit=""):
     return "nan" if v is None else f"{v:.4g}{unit}"
-
-
-def timed(f, *args, repeat: int = 5, budget_s: float = 0.5):
-    """``(result, seconds)`` of ``f(*args)`` with its outputs ready, after one untimed warm-up
-    call (compilation): the fastest of up to ``repeat`` calls, fewer once ``budget_s`` is spent
-    (so a long run is timed once; short ones are not at the mercy of one scheduler hiccup)."""
-    jax.block_until_ready(f(*args))
-    times = []
-    while len(times) < repeat and sum(times) < budget_s:
-        t0 = time.perf_counter()
-        out = jax.block_until_ready(f(*args))
-        times.append(time.perf_counter() - t0)
-    return out, min(times)
 
 
 def print_json(data):
