@@ -113,7 +113,11 @@ class _Factors(eqx.Module):
     transposed: bool = eqx.field(static=True, default=False)
 
 
-def _factor_compute(state: _Factors, r_b, r_r):
+def _factored_compute(state, r_b, r_r):
+    """Solve with bordered factors, or densely where the belt was too short to factor
+    (:class:`_DenseLU`, see :class:`Structured`)."""
+    if isinstance(state, _DenseLU):
+        return _dense_compute(state, r_b, r_r)
     return (factor_solve_transposed if state.transposed else factor_solve)(state.F, r_b, r_r)
 
 
@@ -138,9 +142,7 @@ class Structured(AbstractLinearSolver):
         return _Factors(factorise(lax.stop_gradient(operator.matrix()), self.interior))
 
     def compute(self, state, r_b, r_r):
-        if isinstance(state, _DenseLU):
-            return Dense().compute(state, r_b, r_r)
-        return _factor_compute(state, r_b, r_r)
+        return _factored_compute(state, r_b, r_r)
 
     def transpose(self, state):
         return _flip(state)
@@ -209,7 +211,7 @@ class KeptInterior(AbstractLinearSolver):
         return _Factors(refactorise_border(lax.stop_gradient(A), reference.F, reference.S, cols, rows))
 
     def compute(self, state, r_b, r_r):
-        return Structured.compute(self, state, r_b, r_r)
+        return _factored_compute(state, r_b, r_r)
 
     def transpose(self, state):
         return _flip(state)
@@ -326,8 +328,17 @@ def _refined(solve0, matvec, r_b, r_r, refine: int):
 
 
 class _DenseLU(eqx.Module):
+    """The assembled matrix and which way it solves."""
+
     A: BorderedBlockCyclic
     transposed: bool = eqx.field(static=True, default=False)
+
+
+def _dense_compute(state: _DenseLU, r_b, r_r):
+    if not state.transposed:
+        return dense_solve(state.A, r_b, r_r)
+    n, b = r_b.shape
+    return split(jnp.linalg.solve(state.A.to_dense().T, join(r_b, r_r)), n, b)
 
 
 class Dense(AbstractLinearSolver):
@@ -338,11 +349,7 @@ class Dense(AbstractLinearSolver):
         return _DenseLU(operator.matrix())
 
     def compute(self, state, r_b, r_r):
-        if not state.transposed:
-            return dense_solve(state.A, r_b, r_r)
-        n, b = r_b.shape
-        x = jnp.linalg.solve(state.A.to_dense().T, join(r_b, r_r))
-        return split(x, n, b)
+        return _dense_compute(state, r_b, r_r)
 
     def transpose(self, state):
         return _flip(state)
