@@ -115,7 +115,24 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace("<!-- reexports -->", reexports_markdown())
     if "<!-- solver-registry -->" in markdown:
         markdown = markdown.replace("<!-- solver-registry -->", registry_markdown())
+    if "<!-- lateral-skew-table -->" in markdown:
+        markdown = markdown.replace("<!-- lateral-skew-table -->", lateral_skew_markdown())
     return markdown
+
+
+def lateral_skew_markdown(results: Path | None = None) -> str:
+    """The skew-walk table of ``lateral.md`` from ``results/lateral_theory.json``: per belt, the
+    walk rate of the 2D model and of the two beam loops in units of the string rate."""
+    import json
+
+    rows = json.loads(((results or RESULTS) / "lateral_theory.json").read_text())["skew"]
+    out = ["| w (mm) | ε₀ | K L | jaxbelt 2D | Timoshenko loop | Euler–Bernoulli loop | 2D vs Timoshenko |",
+           "|---|---|---|---|---|---|---|"]
+    for r in sorted((r for r in rows if r.get("tension_stiffening", True)), key=lambda r: r["KL"]):
+        out.append(f"| {r['width_mm']:g} | {r['eps0']:g} | {r['KL']:.3g} | {r['model_per_string']:.4f} | "
+                   f"{r['timoshenko_per_string']:.4f} | {r['euler_bernoulli_per_string']:.4f} | "
+                   f"{100 * r['error_vs_timoshenko']:+.2f} % |")
+    return "\n".join(out)
 
 
 def registry_markdown() -> str:
@@ -251,7 +268,7 @@ BENCHMARKS = {
                         "the Timoshenko beam: the bilinear quad locks when its elements are long and few across, "
                         "the incompatible-modes element (QM6, the default) does not."),
     "float32": ("float32 against float64", "Tracer error and belt-mass drift of whole runs in single precision "
-                "(`JAXBELT_X64=0`) against double precision."),
+                "(JAX's default, without `jaxbelt.enable_x64()`) against double precision."),
     "full_run_2d": ("The whole default run", "The 100 s run of `three-roller-t72` (5000 steps) with the reuse solver, "
                     "compilation timed apart, with the process's peak memory."),
     "gpu_2d": ("On a GPU", "Per-step times of the exact solver (block Thomas and block cyclic reduction) and the reuse "
