@@ -12,13 +12,12 @@ The run is pure: ``jax.grad`` differentiates through it (e.g. a tracer metric w.
 step's linear solve carries its own adjoint, which reuses the step's factors
 (:mod:`jaxbelt.integrators.linear`), and the scan is checkpointed in chunks of ``~√n`` steps,
 so memory grows as ``√n``, not ``n``, for one extra forward pass. The step is traced and compiled
-once per run, whatever its length and record interval (:func:`loop_plan`).
+once per run, whatever its length and record interval (:func:`jaxbelt.loop_plan.loop_plan`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 
 import equinox as eqx
@@ -31,6 +30,7 @@ from .assembly import (free_belt_matvec, free_belt_stencil, generalised_belt_for
                        static_surface_offset, stencil_matvec)
 from .integrators import AbstractIntegrator, make_solver
 from .linalg import join
+from .loop_plan import checkpointed, loop_plan, scan_or_inline
 from .model import BeltModel
 from .scene import Scene
 from .state import BeltState, initial_state
@@ -59,7 +59,7 @@ class SaveAt(eqx.Module):
 class Checkpointed(eqx.Module):
     """Reverse mode through the run in checkpointed chunks (the forward result is the same).
 
-    ``steps``: steps per chunk; ``None`` takes ``⌈√n⌉`` (:func:`default_checkpoint_chunk`, moved to
+    ``steps``: steps per chunk; ``None`` takes ``⌈√n⌉`` (:func:`jaxbelt.loop_plan.default_checkpoint_chunk`, moved to
     a divisor of the record count where there is one), so memory grows as ``√n`` for one extra
     forward pass; ``0``: no checkpointing (memory grows as ``n``)."""
 
@@ -232,98 +232,12 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, dt, run_data=Non
     return step
 
 
-def _checkpointed(f, on: bool):
-    """``f`` under ``jax.checkpoint`` where ``on`` (a chunk of a longer loop); inside a scan XLA
-    cannot CSE the recomputation away, so ``prevent_cse`` stays off."""
-    return jax.checkpoint(f, prevent_cse=False) if on else f
-
-
-def default_checkpoint_chunk(n_steps: int) -> int:
-    """Steps per checkpointed chunk of :func:`run`: ``⌈√n⌉``, so reverse-mode memory grows as
-    ``√n`` (``√n`` carries and ``√n`` steps' residuals), at the price of one extra forward pass.
-    :func:`run` takes a divisor of the run's record count near it where there is one."""
-    return max(1, math.isqrt(max(n_steps - 1, 0)) + 1)
-
-
-def _near_divisor(n: int, target: int) -> int:
-    """The divisor of ``n`` closest to ``target`` within ``[target/2, 2 target]``, else
-    ``target``: a whole number of chunks needs no masked padding steps."""
-    candidates = [d for d in range(max(1, (target + 1) // 2), 2 * target + 1) if n % d == 0]
-    return min(candidates, key=lambda d: (abs(d - target), d)) if candidates else target
-
-
-@dataclasses.dataclass(frozen=True)
-class LoopPlan:
-    """How :func:`run` lays ``n_steps`` steps out as nested scans (all static).
-
-    ``n_chunks`` checkpointed chunks × ``records_per_chunk`` record groups × ``n_sub`` sub-chunks
-    (checkpointed too where ``n_sub > 1``: a record interval longer than a chunk) × ``sub_steps``
-    steps; ``active`` (same nested shape, bool) marks the slots that take a step — ``None`` when
-    every slot does — the others pass the state through unchanged. The first ``n_out`` groups'
-    records are the run's."""
-
-    n_chunks: int
-    records_per_chunk: int
-    n_sub: int
-    sub_steps: int
-    n_out: int
-    active: np.ndarray | None
-
-    @property
-    def slots(self) -> int:
-        return self.n_chunks * self.records_per_chunk * self.n_sub * self.sub_steps
-
-
-def loop_plan(n_steps: int, every: int, checkpoint: int | None = None) -> LoopPlan:
-    """The nested-scan layout of a run of ``n_steps`` steps recording every ``every``-th.
-
-    The step appears **once** in the compiled program, whatever ``n_steps``: instead of a
-    remainder chunk and a tail loop (each a further copy of the step to compile), the last chunk
-    is padded with slots that skip the step (``lax.cond``: at run time a skipped slot costs a
-    branch; under ``vmap`` too, its predicate is not batched). With the default ``checkpoint``,
-    the records per chunk are a divisor of the number of record groups near ``⌈√n⌉ / every`` where
-    there is one (5000 steps: chunks of 50, none padded) — then nothing is padded and no slot
-    branches. An explicit ``checkpoint`` is kept as given (rounded to whole record intervals where
-    it is at least one)."""
-    n_steps, every = int(n_steps), max(1, int(every))
-    n_out = n_steps // every
-    groups = -(-n_steps // every)  # the last one partial (a tail without a record) where every ∤ n
-    chunk = default_checkpoint_chunk(n_steps) if checkpoint is None else (int(checkpoint) or max(n_steps, 1))
-    if every <= chunk:
-        n_sub, sub_steps = 1, every
-        per = max(1, groups) if checkpoint == 0 else max(1, chunk // every)
-        if checkpoint is None:
-            per = _near_divisor(groups, per)
-    else:  # a record interval longer than a chunk: the interval itself in checkpointed sub-chunks
-        per = 1
-        span = every if n_out else n_steps  # a run shorter than one interval: its steps only
-        sub_steps = _near_divisor(span, chunk) if checkpoint is None else chunk
-        n_sub = -(-span // sub_steps)
-    n_chunks = -(-groups // per) if groups else 0
-    shape = (n_chunks, per, n_sub, sub_steps)
-    i_local = np.arange(n_sub * sub_steps).reshape(n_sub, sub_steps)
-    g = np.arange(n_chunks * per).reshape(n_chunks, per)
-    k = g[:, :, None, None] * every + i_local[None, None]
-    active = (i_local[None, None] < every) & (k < n_steps)
-    return LoopPlan(n_chunks=n_chunks, records_per_chunk=per, n_sub=n_sub, sub_steps=sub_steps, n_out=n_out,
-                    active=None if bool(np.all(active)) else np.broadcast_to(active, shape).copy())
-
-
-def _scan(body, carry, xs, length: int):
-    """``lax.scan(body, carry, xs, length=length)``; a loop of one iteration is the body itself
-    (no while loop to compile: the plan's levels are often one iteration long)."""
-    if length != 1:
-        return lax.scan(body, carry, xs, length=length)
-    carry, y = body(carry, None if xs is None else xs[0])
-    return carry, jax.tree.map(lambda a: a[None], y)
-
-
 def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, dt, n_steps: int,
         saveat: SaveAt = SaveAt(), checkpoint: int | None = None, run_data=None):
     """``n_steps`` steps from ``state``; records every ``saveat.every``-th (traceable; no checks).
 
-    The loop is nested scans (:func:`loop_plan`): chunks of about ``checkpoint`` steps (default
-    ``⌈√n⌉``, :func:`default_checkpoint_chunk`; ``0``: none) under ``jax.checkpoint``, so reverse
+    The loop is nested scans (:func:`jaxbelt.loop_plan.loop_plan`): chunks of about ``checkpoint`` steps (default
+    ``⌈√n⌉``, :func:`jaxbelt.loop_plan.default_checkpoint_chunk`; ``0``: none) under ``jax.checkpoint``, so reverse
     mode through a long run stays in bounded memory (the forward result is the same), each chunk a
     scan over record intervals, each interval a scan over its steps. The step is traced and
     compiled once whatever ``n_steps`` and ``saveat.every`` are; a run whose length is no whole
@@ -348,18 +262,18 @@ def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, dt, 
             return lax.cond(on, lambda c: step(c[0]), lambda c: c, carry), None
 
         def sub_chunk(carry, on):
-            return _scan(slot, carry, on, plan.sub_steps)[0], None
+            return scan_or_inline(slot, carry, on, plan.sub_steps)[0], None
 
         def record(s, on):
-            body = _checkpointed(sub_chunk, plan.n_sub > 1)
-            return _scan(body, (s, rec0), on, plan.n_sub)[0]
+            body = checkpointed(sub_chunk, plan.n_sub > 1)
+            return scan_or_inline(body, (s, rec0), on, plan.n_sub)[0]
 
     active = None if plan.active is None else jnp.asarray(plan.active)
 
     def chunk(s, on):
-        return _scan(record, s, on, plan.records_per_chunk)
+        return scan_or_inline(record, s, on, plan.records_per_chunk)
 
-    state, rec = _scan(_checkpointed(chunk, plan.n_chunks > 1), state, active, plan.n_chunks)
+    state, rec = scan_or_inline(checkpointed(chunk, plan.n_chunks > 1), state, active, plan.n_chunks)
     rec = jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:])[:plan.n_out], rec)
     return state, Trajectory(u=rec.pop("u", None), **rec)
 

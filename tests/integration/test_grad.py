@@ -2,7 +2,7 @@
 
 Run lengths are whole numbers of the scan's checkpoint chunks (``⌈√n⌉`` steps: 9, 30, 56, 400)
 wherever the test does not need padding, so that no slot of the loop branches around the step
-(``jaxbelt.timeloop.loop_plan``; the compiled gradient holds one copy of the step's forward,
+(``jaxbelt.loop_plan.loop_plan``; the compiled gradient holds one copy of the step's forward,
 recomputation and adjoint either way)."""
 
 import jax

@@ -1,4 +1,4 @@
-"""The time loop's layout (``jaxbelt.timeloop.loop_plan``): every step taken once, the step traced
+"""The time loop's layout (``jaxbelt.loop_plan.loop_plan``): every step taken once, the step traced
 once whatever the run length and record interval, the records those of a plain step-by-step loop."""
 
 import jax
@@ -7,8 +7,8 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt import timeloop
-from jaxbelt.timeloop import loop_plan
-from helpers import load
+from jaxbelt.loop_plan import loop_plan
+from helpers import scene_fixtures
 
 
 @pytest.mark.parametrize("n,every,checkpoint", [(5000, 1, None), (57, 1, None), (17, 3, None), (17, 3, 1),
@@ -34,19 +34,7 @@ def test_default_plan_of_the_100_s_run_pads_nothing():
     assert p.active is None and (p.n_chunks, p.records_per_chunk) == (100, 50)
 
 
-@pytest.fixture(scope="module")
-def loaded():
-    return load("two-roller-1d-idle-translated")
-
-
-@pytest.fixture(scope="module")
-def model(loaded):
-    return loaded[0]
-
-
-@pytest.fixture(scope="module")
-def dt(loaded):
-    return loaded[1].dt
+loaded, model, dt = scene_fixtures("two-roller-1d-idle-translated")
 
 
 @pytest.mark.parametrize("n,every,traces", [(56, 1, 1), (7, 1, 2), (17, 3, 2), (57, 1, 2), (40, 7, 2)])
