@@ -8,6 +8,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxbelt as jb
 from jaxbelt.linalg import BorderedBlockCyclic
@@ -62,9 +63,9 @@ def central_difference(f, x, h):
 
 def whole_chunks(n_steps: int) -> int:
     """The smallest run length ``≥ n_steps`` that is a whole number of ``⌈√n⌉``-step checkpoint
-    chunks (``jaxbelt.timeloop.default_checkpoint_chunk``): its loop has no padded slots that
-    branch around the step (``jaxbelt.timeloop.loop_plan``; the step is compiled once either way)."""
-    from jaxbelt.timeloop import default_checkpoint_chunk
+    chunks (``jaxbelt.loop_plan.default_checkpoint_chunk``): its loop has no padded slots that
+    branch around the step (``jaxbelt.loop_plan.loop_plan``; the step is compiled once either way)."""
+    from jaxbelt.loop_plan import default_checkpoint_chunk
 
     n = n_steps
     while n > default_checkpoint_chunk(n) and n % default_checkpoint_chunk(n):
@@ -77,6 +78,26 @@ def load(source, **changes):
     its own run settings (:class:`jaxbelt.RunOptions`), ``changes`` applied to the latter."""
     scene = jb.load_scene(source) if isinstance(source, str) else source
     return jb.build_model(scene), jb.RunOptions.from_scene(scene).replace(**changes)
+
+
+def scene_fixtures(source):
+    """Module-scoped fixtures ``loaded`` (``(model, options)`` of :func:`load`), ``model`` and
+    ``dt`` for a test module: ``loaded, model, dt = scene_fixtures(name)``. ``source``: what
+    :func:`load` takes, or a function returning it (built when the first test needs it)."""
+
+    @pytest.fixture(scope="module")
+    def loaded():
+        return load(source() if callable(source) else source)
+
+    @pytest.fixture(scope="module")
+    def model(loaded):
+        return loaded[0]
+
+    @pytest.fixture(scope="module")
+    def dt(loaded):
+        return loaded[1].dt
+
+    return loaded, model, dt
 
 
 def trajectory(model, options, **changes):

@@ -5,22 +5,10 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
-from helpers import load, solve_step
+from helpers import scene_fixtures, solve_step
 
 
-@pytest.fixture(scope="module")
-def loaded():
-    return load("two-roller-1d-train1")
-
-
-@pytest.fixture(scope="module")
-def model(loaded):
-    return loaded[0]
-
-
-@pytest.fixture(scope="module")
-def dt(loaded):
-    return loaded[1].dt
+loaded, model, dt = scene_fixtures("two-roller-1d-train1")
 
 
 @pytest.fixture(scope="module")
