@@ -8,14 +8,19 @@ solve — the reason construction sits above the model, the assembly and the ini
 
 from __future__ import annotations
 
+import dataclasses
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import elements, rollers
+from .control import SteeringLoops
+from .lateral_theory import scene_walk_rate
 from .mesh import Mesh, build_mesh
 from .model import BeltModel
 from .prestress import with_tension_stiffening
-from .scene import Scene
+from .scene import Scene, SceneError
 
 
 def build_model(scene: Scene, mesh: Mesh | None = None) -> BeltModel:
@@ -106,7 +111,63 @@ def _compile_2d(scene: Scene, mesh: Mesh) -> BeltModel:
     )
     if scene.solver.tension_stiffening:
         model = with_tension_stiffening(model, free, E, nu, t, eps0)
+    if scene.control:
+        model = model.replace(control=steering_loops(scene, mesh))
     return model
+
+
+def steering_sign(scene: Scene, actuator: str, axis: str) -> float:
+    """The sign (±1) of the steady walk rate per unit rotation of ``actuator`` about ``axis``
+    (the loop's sign, :mod:`jaxbelt.control`), from the moving-beam reference
+    (:func:`jaxbelt.lateral_theory.scene_walk_rate`; the sign does not depend on the tension).
+    ``SceneError`` if that rotation does not steer the belt at all."""
+    names = [r.name for r in scene.rollers]
+    alpha = np.zeros((len(names), 3))
+    alpha[names.index(actuator), "xy".index(axis)] = 1e-3
+    tension = scene.belt.youngs_modulus * scene.belt.area * 1e-3  # any positive tension gives the sign
+    rate = scene_walk_rate(scene, alpha, tension=tension)
+    speed = max(r.speed for r in scene.rollers)
+    if not abs(rate) > 1e-9 * speed:
+        raise SceneError(f"control.axis = {axis!r}: a rotation of {actuator!r} about {axis} does not steer the belt "
+                         "(no skew and no twist on this path); choose the other axis")
+    return float(np.sign(rate))
+
+
+def steering_loops(scene: Scene, mesh: Mesh) -> SteeringLoops:
+    """The :class:`~jaxbelt.control.SteeringLoops` of a scene's ``[[control]]`` tables on its grid."""
+    specs = scene.control
+    names = [r.name for r in scene.rollers]
+    d = len(rollers.DOFS_2D)
+    for i, c in enumerate(specs):
+        if not c.sensor[0] < mesh.length:
+            raise SceneError(f"control[{i}].sensor_mm = {[c.sensor[0] * 1e3, c.sensor[1] * 1e3]}: s is off the belt "
+                             f"(the path is {mesh.length * 1e3:.3f} mm long)")
+    points = dataclasses.replace(mesh, tracer_x=np.array([c.sensor[0] for c in specs]),
+                                 tracer_z=np.array([c.sensor[1] for c in specs]))
+    loc = _tracers(points)
+    n_h = max([len(c.edge_profile) for c in specs] + [1])
+    prof = np.zeros((len(specs), n_h, 3))
+    prof[:, :, 0] = 1.0
+    for i, c in enumerate(specs):
+        if c.edge_profile:
+            prof[i, :len(c.edge_profile)] = np.asarray(c.edge_profile)
+    arr = lambda xs: jnp.asarray(np.asarray(xs, float))  # noqa: E731
+    keys = np.stack([np.asarray(jax.random.key_data(jax.random.key(c.seed))) for c in specs])
+    return SteeringLoops(
+        sensor_col=loc["tracer_col"], sensor_xi=loc["tracer_xi"], sensor_row=loc["tracer_row"],
+        sensor_eta=loc["tracer_eta"], sensor_s=arr([c.sensor[0] for c in specs]),
+        kp=arr([c.kp for c in specs]), ki=arr([c.ki for c in specs]), kd=arr([c.kd for c in specs]),
+        sign=arr([steering_sign(scene, c.actuator, c.axis) for c in specs]),
+        sample=arr([scene.time.dt if c.sample is None else c.sample for c in specs]),
+        limit=arr([c.limit for c in specs]),
+        rate_limit=arr([np.inf if c.rate_limit is None else c.rate_limit for c in specs]),
+        lag=arr([c.lag for c in specs]), setpoint=arr([c.setpoint for c in specs]),
+        noise=arr([c.noise for c in specs]), key=jnp.asarray(keys),
+        profile_harmonic=arr(prof[:, :, 0]), profile_amplitude=arr(prof[:, :, 1]), profile_phase=arr(prof[:, :, 2]),
+        loop_length=jnp.asarray(float(mesh.length)),
+        actuator_dof=tuple(names.index(c.actuator) * d + rollers.DOFS_2D.index("a" + c.axis) for c in specs),
+        labels=tuple(f"{c.actuator}/{c.axis}" for c in specs),
+    )
 
 
 def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:

@@ -21,6 +21,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
+from .control import SteeringLoops
 
 
 class BeltModel(eqx.Module):
@@ -59,6 +60,7 @@ class BeltModel(eqx.Module):
     lateral_transport: bool = eqx.field(static=True, default=False)
     contact_columns: tuple | None = eqx.field(static=True, default=None)  # node columns on rollers (None: unknown)
     algebraic_index: tuple | None = eqx.field(static=True, default=None)  # flat unknowns with algebraic rows
+    control: SteeringLoops | None = None  # steering loops ([[control]]; 2D with lateral transport)
 
     @property
     def n_eta(self) -> int:

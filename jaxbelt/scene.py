@@ -101,6 +101,27 @@ class SolverSpec:
 
 
 @dataclasses.dataclass(frozen=True)
+class ControlSpec:
+    """One steering loop (``[[control]]``), SI units: an edge sensor feeding a PID controller
+    that tilts one roller (:mod:`jaxbelt.control`)."""
+
+    actuator: str  # roller name
+    axis: str  # "x" | "y": the rotation component it drives
+    sensor: tuple[float, float]  # (s along the path from roller 1's incoming contact line, z across), m
+    kp: float  # rad/m (= mrad/mm)
+    ki: float = 0.0  # rad/(m s)
+    kd: float = 0.0  # rad s/m
+    sample: float | None = None  # s; None: every step
+    limit: float = 5e-3  # rad, symmetric range
+    rate_limit: float | None = None  # rad/s
+    lag: float = 0.0  # s, actuator first-order lag
+    setpoint: float = 0.0  # m
+    noise: float = 0.0  # m, sensor noise σ
+    seed: int = 0
+    edge_profile: tuple[tuple[float, float, float], ...] = ()  # (harmonic per loop, amplitude m, phase rad)
+
+
+@dataclasses.dataclass(frozen=True)
 class Scene:
     name: str
     kind: str  # "1d" | "2d"
@@ -112,6 +133,7 @@ class Scene:
     solver: SolverSpec
     direction: int | None = None  # +1 ccw / -1 cw loop; None: from the layout
     description: str = ""
+    control: tuple[ControlSpec, ...] = ()  # steering loops ([[control]] tables)
 
     def replace(self, **kw) -> "Scene":
         return dataclasses.replace(self, **kw)
@@ -134,6 +156,9 @@ _TABLES = {
     "time": {"dt_s", "t_end_s"},
     "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
     "solver": {"integrator", "linear_solver", "transport", "lateral_transport", "tension_stiffening"},
+    "control": {"actuator", "axis", "sensor_mm", "kp_mrad_per_mm", "ki_mrad_per_mm_s", "kd_mrad_s_per_mm",
+                "sample_s", "limit_mrad", "rate_limit_mrad_s", "lag_s", "setpoint_mm", "noise_um", "seed",
+                "edge_profile_um"},
 }
 
 
@@ -332,10 +357,83 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
     )
     if solver_spec.lateral_transport and kind == "1d":
         raise _err("solver.lateral_transport", True, "the 1D model has no lateral displacement")
+    raw_control = data.get("control", [])
+    if isinstance(raw_control, dict):
+        raw_control = [raw_control]
+    if not isinstance(raw_control, list):
+        raise _err("control", raw_control, "must be [[control]] tables")
+    control = tuple(_control(c, i, rollers, belt_spec, time_spec) for i, c in enumerate(raw_control))
+    if control and not solver_spec.lateral_transport:
+        raise _err("solver.lateral_transport", False,
+                   "a [[control]] steering loop needs lateral_transport = true (without it the belt cannot walk)")
     return Scene(
         name=str(model.get("name", name)), kind=kind, belt=belt_spec, rollers=rollers, mesh=mesh_spec,
         time=time_spec, output=out_spec, solver=solver_spec, direction=direction,
-        description=str(model.get("description", "")),
+        description=str(model.get("description", "")), control=control,
+    )
+
+
+def _control(c: dict, i: int, rollers, belt: BeltSpec, time: TimeSpec) -> ControlSpec:
+    """One ``[[control]]`` table, checked key by key (module :mod:`jaxbelt.control` for the law)."""
+    where = f"control[{i}]"
+    if not isinstance(c, dict):
+        raise _err(where, c, "must be a table")
+    _check_keys(c, _TABLES["control"], where)
+    names = [r.name for r in rollers]
+    if "actuator" not in c:
+        raise _err(f"{where}.actuator", None, f"required key is missing (a roller name: {', '.join(names)})")
+    actuator = c["actuator"]
+    if actuator not in names:
+        raise _err(f"{where}.actuator", actuator, f"no roller of that name ({', '.join(names)})")
+    axis = _choice(c, "axis", where, ("x", "y"))
+    roller = rollers[names.index(actuator)]
+    k = "xy".index(axis)
+    if roller.torque[k] != 0.0:
+        raise _err(f"{where}.axis", axis, f"the {axis} rotation of {actuator!r} is torque-loaded (torque_nm[{k}] != 0), "
+                   "not a prescribed DOF an actuator can drive")
+    sensor = _vector(c, "sensor_mm", where, 2)
+    if abs(sensor[1]) * 1e-3 > belt.width / 2 * (1 + 1e-12):
+        raise _err(f"{where}.sensor_mm", list(sensor),
+                   f"z = {sensor[1]:g} mm is off the belt (|z| <= width/2 = {belt.width / 2 * 1e3:g} mm)")
+    if sensor[0] < 0:
+        raise _err(f"{where}.sensor_mm", list(sensor), "s must not be negative (mm along the path from roller 1)")
+    sample = _number(c, "sample_s", where, required=False, positive=True)
+    if sample is not None:
+        ratio = sample / time.dt
+        if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio):
+            raise _err(f"{where}.sample_s", sample, f"must be a whole multiple of time.dt_s = {time.dt:g}")
+    rate = _number(c, "rate_limit_mrad_s", where, required=False, positive=True)
+    limit = _number(c, "limit_mrad", where, required=False, default=5.0, positive=True) * 1e-3
+    if abs(roller.rotation[k]) + limit > ROTATION_REFUSE:
+        raise _err(f"{where}.limit_mrad", limit * 1e3,
+                   f"static rotation + range beyond the model's range of {ROTATION_REFUSE * 1e3:g} mrad")
+    profile = ()
+    if "edge_profile_um" in c:
+        v = c["edge_profile_um"]
+        ok = isinstance(v, list) and all(
+            isinstance(t, list) and len(t) == 3 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                         and math.isfinite(x) for x in t) for t in v)
+        if not ok:
+            raise _err(f"{where}.edge_profile_um", v, "must be a list of [harmonic, amplitude_um, phase_rad] triples")
+        for t in v:
+            if not (float(t[0]).is_integer() and t[0] >= 1):
+                raise _err(f"{where}.edge_profile_um", v, f"harmonic {t[0]!r} must be a whole number >= 1 (per loop)")
+        profile = tuple((float(t[0]), float(t[1]) * 1e-6, float(t[2])) for t in v)
+    seed = c.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise _err(f"{where}.seed", seed, "must be a non-negative integer")
+    return ControlSpec(
+        actuator=actuator, axis=axis, sensor=(sensor[0] * 1e-3, sensor[1] * 1e-3),
+        kp=float(_number(c, "kp_mrad_per_mm", where, nonneg=True)),
+        ki=float(_number(c, "ki_mrad_per_mm_s", where, required=False, default=0.0, nonneg=True)),
+        kd=float(_number(c, "kd_mrad_s_per_mm", where, required=False, default=0.0, nonneg=True)),
+        sample=None if sample is None else float(sample),
+        limit=float(limit),
+        rate_limit=None if rate is None else float(rate) * 1e-3,
+        lag=float(_number(c, "lag_s", where, required=False, default=0.0, nonneg=True)),
+        setpoint=float(_number(c, "setpoint_mm", where, required=False, default=0.0)) * 1e-3,
+        noise=float(_number(c, "noise_um", where, required=False, default=0.0, nonneg=True)) * 1e-6,
+        seed=int(seed), edge_profile=profile,
     )
 
 
@@ -473,6 +571,9 @@ def _extend(data: dict, source: str) -> dict:
         base = _extend(base, base_name)
     variant = data.pop("variant", {})
     for table, values in data.items():
+        if table == "control":  # steering loops replace the base's as a whole
+            base["control"] = values
+            continue
         if table == "roller":
             raise _err("roller", "…", "a variant changes rollers through [variant.\"name\"] tables")
         if not isinstance(values, dict):

@@ -28,6 +28,7 @@ from jax import lax
 
 from .assembly import (free_belt_matvec, free_belt_stencil, generalised_belt_force, nodal_masses, roller_R,
                        static_surface_offset, stencil_matvec)
+from .control import controller_update, measure, sensor_displacement
 from .integrators import AbstractIntegrator, make_solver
 from .linalg import join
 from .loop_plan import checkpointed, loop_plan, scan_or_inline
@@ -83,7 +84,11 @@ class Trajectory(eqx.Module):
     it that is not (:data:`NONFINITE_CAUSES`: 1 belt displacement, 2 belt velocity, 3 roller
     state) — evaluated inside the scan, read once at the end (:func:`check_finite`), no host sync
     per step;
-    ``u`` (k, n_xi, b) or ``None``.
+    ``u`` (k, n_xi, b) or ``None``;
+    ``control_u`` (k, n_c) the steering actuators' angles during each step, rad (added to the
+    actuated rotations' static values; ``None`` without ``[[control]]``);
+    ``sensor_v`` (k, n_c) the belt's lateral displacement at the sensors after each step, m
+    (without the edge profile and the noise the sensors add; ``None`` without ``[[control]]``).
     """
 
     t: jax.Array
@@ -98,6 +103,8 @@ class Trajectory(eqx.Module):
     edge_margin: jax.Array | None
     nonfinite: jax.Array
     u: jax.Array | None
+    control_u: jax.Array | None = None
+    sensor_v: jax.Array | None = None
 
 
 NONFINITE_CAUSES = {1: "belt displacement", 2: "belt velocity", 3: "roller state"}
@@ -201,11 +208,26 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, dt, run_data=Non
         return model.M_roller * a_chi + generalised_belt_force(roller_R(model, state.u, on_rollers=True), f) \
             - model.Q_ext
 
+    loops = model.control
+
+    def steer(state: BeltState):
+        """The steering loops' update before a step (:mod:`jaxbelt.control`): the model the step
+        runs with (actuated rotations at static value + angle), the controller state, the angles."""
+        if loops is None:
+            return model, None, None
+        reading = measure(loops, state.u, state.control.travel, state.step)
+        ctrl, angle = controller_update(loops, state.control, reading, state.step, dt)
+        dofs = jnp.asarray(loops.actuator_dof)
+        return eqx.tree_at(lambda m: m.chi_static, model, model.chi_static.at[dofs].add(angle)), ctrl, angle
+
     def step(state: BeltState):
-        solved = integrator.step(model, state, dt, run_data)
+        step_model, ctrl, angle = steer(state)
+        solved = integrator.step(step_model, state, dt, run_data)
         u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e,
                                                                static_offset=offset, rule=integrator.transport)
-        new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=state.step + 1)
+        if ctrl is not None:  # the material's travel: the transport step's shift (mean longitudinal motion)
+            ctrl = eqx.tree_at(lambda c: c.travel, ctrl, ctrl.travel + jnp.mean(solved.u[:, 0::2]))
+        new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=state.step + 1, control=ctrl)
         tu, tv = tracer_values(model, u)
         rec = dict(
             t=(state.step + 1) * dt,
@@ -219,6 +241,8 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, dt, run_data=Non
             transport_weights=weights,
             edge_margin=edge_margin(model, u, new.chi) if model.kind == "2d" else None,
             nonfinite=nonfinite_code(u, ud, new.chi, new.chi_dot),
+            control_u=angle,
+            sensor_v=None if loops is None else sensor_displacement(loops, u),
         )
         if saveat.fields:
             rec["u"] = u
