@@ -17,8 +17,9 @@ One step of the closed loop, from the state at ``t_k`` (step ``k``):
 2. **Controller** (:func:`controller_update`), at the sample instants ``k ≡ 0 (mod n_s)``,
    ``n_s = sample_s / Δt``, ``T_s = n_s Δt``, zero-order hold between them. With the error
    ``e = y − setpoint``: ``I ← I + k_i T_s e``, ``w = k_p e + I + k_d (e − e_prev) / T_s``, clipped
-   to the range ``±limit``; the integral is clamped with it (anti-windup: ``I ← I + (w_sat − w)``),
-   so a saturated loop recovers as soon as the error turns. The command is
+   to the range ``±limit``. Anti-windup by conditional integration: the integral does not grow
+   while ``w`` is beyond the range in the direction it would grow, and ``|I| ≤ limit``, so a
+   saturated loop recovers as soon as the error turns. The command is
    ``u_c = −sign · w_sat``: gains are magnitudes and ``sign`` is the sign of the machine's steering
    coefficient (walk rate per actuator rotation, :func:`jaxbelt.lateral_theory.scene_walk_rate`
    at build time), so positive gains always act against the error.
@@ -150,10 +151,12 @@ def controller_update(loops: SteeringLoops, state: ControllerState, reading, ste
     Ts = n_s * dt
     sample_now = jnp.mod(step, n_s) == 0
     e = reading - loops.setpoint
-    integral = state.integral + loops.ki * Ts * e
-    w = loops.kp * e + integral + loops.kd * (e - state.error) / Ts
-    w_sat = jnp.clip(w, -loops.limit, loops.limit)
-    integral = jnp.where(loops.ki > 0, integral + (w_sat - w), integral)
+    pd = loops.kp * e + loops.kd * (e - state.error) / Ts
+    step_i = loops.ki * Ts * e
+    w_try = pd + state.integral + step_i
+    winding = (jnp.abs(w_try) > loops.limit) & (step_i * w_try > 0)  # integrating would push further out
+    integral = jnp.clip(jnp.where(winding, state.integral, state.integral + step_i), -loops.limit, loops.limit)
+    w_sat = jnp.clip(pd + integral, -loops.limit, loops.limit)
     command = -loops.sign * w_sat
     integral = jnp.where(sample_now, integral, state.integral)
     error = jnp.where(sample_now, e, state.error)
@@ -162,3 +165,33 @@ def controller_update(loops: SteeringLoops, state: ControllerState, reading, ste
     angle = state.angle + jnp.clip(lagged - state.angle, -loops.rate_limit * dt, loops.rate_limit * dt)
     new = ControllerState(integral=integral, error=error, command=command, angle=angle, travel=state.travel)
     return new, angle
+
+
+SATURATION_FRACTION = 0.999  # an actuator at this fraction of its range counts as saturated
+
+
+def loop_summary(loops: SteeringLoops, control_u, sensor_v, t=None) -> list[dict]:
+    """Per loop, from a run's records (``Trajectory.control_u``/``sensor_v``, (k, n_c)):
+    ``actuator``, ``axis``, ``sensor_um_final`` (the belt's lateral displacement at the sensor at
+    the end, µm), ``u_mrad_final``, ``u_mrad_max`` (largest |angle|), ``limit_mrad``,
+    ``saturated`` (the actuator reached ``SATURATION_FRACTION`` of its range at some step) and
+    ``saturated_fraction`` (of the recorded steps). With ``t`` (k,) also ``sensor_walk_um_s``: the
+    least-squares slope of the sensor signal over the last quarter of the run (a saturated loop
+    cannot stop the walk)."""
+    import numpy as np
+
+    u, y = np.asarray(control_u), np.asarray(sensor_v)
+    limit = np.asarray(loops.limit)
+    out = []
+    for i, label in enumerate(loops.labels):
+        actuator, axis = label.rsplit("/", 1)
+        at_limit = np.abs(u[:, i]) >= SATURATION_FRACTION * limit[i]
+        row = dict(actuator=actuator, axis=axis, sensor_um_final=float(y[-1, i] * 1e6),
+                   u_mrad_final=float(u[-1, i] * 1e3), u_mrad_max=float(np.max(np.abs(u[:, i])) * 1e3),
+                   limit_mrad=float(limit[i] * 1e3), saturated=bool(at_limit.any()),
+                   saturated_fraction=float(at_limit.mean()))
+        if t is not None and len(t) >= 8:
+            tt = np.asarray(t)[-(len(t) // 4):]
+            row["sensor_walk_um_s"] = float(np.polyfit(tt, y[-len(tt):, i], 1)[0] * 1e6)
+        out.append(row)
+    return out

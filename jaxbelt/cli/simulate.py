@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from .. import plot
+from ..control import loop_summary
 from ..prestress import slack_message, slack_spans
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, TRANSPORT_RULES
 from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
@@ -65,6 +66,8 @@ def _summary(scene, options, model, traj, timing):
         transport=options.solver.transport,
         transport_weight_range=[float(np.min(tw[:, 0])), float(np.max(tw[:, 1]))],
         belt_off_roller=belt_off_roller(model, traj, options.dt),
+        **({} if model.control is None else
+           {"control": loop_summary(model.control, traj.control_u, traj.sensor_v, np.asarray(traj.t))}),
     )
 
 
@@ -171,7 +174,15 @@ def _plot_tracers(args, scene, mesh, traj):
 
 
 def _warn(s):
-    """Warnings on stderr after the run: the belt leaving a roller, an extrapolating transport."""
+    """Warnings on stderr after the run: the belt leaving a roller, an extrapolating transport, a
+    steering actuator at the end of its range."""
+    for c in s.get("control", []):
+        if c["saturated"]:
+            walk = c.get("sensor_walk_um_s")
+            print(f"jaxbelt: warning: steering loop {c['actuator']}/{c['axis']} saturated: the actuator sat at its "
+                  f"±{c['limit_mrad']:g} mrad range for {100 * c['saturated_fraction']:.0f} % of the run"
+                  + (f", the belt still walks {walk:.3g} µm/s at the sensor" if walk is not None else "")
+                  + "; the disturbance needs more steering range", file=sys.stderr)
     off = s["belt_off_roller"]
     if off:
         print(f"jaxbelt: warning: the belt runs off {off['roller']!r} at step {off['step']} (t = {off['t_s']:g} s): "
@@ -192,6 +203,10 @@ def _text(s, scene, model, demo):
         print(f"  max |tracer u| = {s['tracer_u_max_abs_mm']:.6g} mm; roller surface speeds "
               + ", ".join(f"{k}: {v:.6g} m/s" for k, v in s["roller_speed_m_s"].items()))
         print(f"  belt mass {s['belt_mass_kg']:.9g} kg, max relative drift {s['belt_mass_rel_drift']:.2e}")
+        for c in s.get("control", []):
+            print(f"  steering {c['actuator']}/{c['axis']}: sensor {c['sensor_um_final']:.4g} µm at the end, angle "
+                  f"{c['u_mrad_final']:.4g} mrad (max {c['u_mrad_max']:.4g} of ±{c['limit_mrad']:g})"
+                  + (" SATURATED" if c["saturated"] else ""))
 
     return print_text
 

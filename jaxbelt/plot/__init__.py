@@ -14,7 +14,7 @@ The functions live in submodules by what they draw (:mod:`~jaxbelt.plot.fields`,
 """
 
 from .fields import tracer_styles, belt_segments, tracer_positions, tracer_labels, select_times, field_values, plot_fields
-from .runs import plot_run, plot_scene
+from .runs import plot_run, plot_scene, plot_steering
 from .reduction import plot_singular_values, plot_dmd_eigenvalues, plot_rmse_over_time, plot_reduction
 from .design import plot_sensitivity, plot_tolerance_box, plot_yield
 from .belt3d import belt_geometry_3d, belt_surface_3d, plot_belt_3d
@@ -22,6 +22,7 @@ from .belt3d import belt_geometry_3d, belt_surface_3d, plot_belt_3d
 __all__ = [
     "tracer_styles",
     "plot_run",
+    "plot_steering",
     "plot_scene",
     "plot_singular_values",
     "plot_dmd_eigenvalues",

@@ -21,9 +21,13 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     t = np.asarray(traj.t)
     tu = np.asarray(traj.tracer_u) * 1e3
     lateral = traj.tracer_v is not None
+    steered = getattr(traj, "control_u", None) is not None
     labels, styles = tracer_labels(mesh), tracer_styles(mesh)
-    fig, axes = plt.subplots(3 if lateral else 2, 1, figsize=(11, 10 if lateral else 7.5), constrained_layout=True)
+    n_ax = 2 + lateral + steered
+    fig, axes = plt.subplots(n_ax, 1, figsize=(11, 2.5 + 2.5 * n_ax), constrained_layout=True)
     ax1, ax2 = axes[0], axes[-1]
+    if steered:
+        plot_steering(axes[2], t, traj.sensor_v, traj.control_u)
     for k in range(tu.shape[1]):
         ax1.plot(t, tu[:, k], lw=0.8, label=labels[k], **styles[k])
     ax1.set_xlabel("t [s]")
@@ -65,6 +69,23 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     ax2.legend(fontsize=8)
     ax2.grid(alpha=0.3)
     return finish_figure(fig, path)
+
+
+def plot_steering(ax, t, sensor_v, control_u, labels=None):
+    """Steering loops over time on ``ax``: the belt's lateral displacement at each sensor (µm,
+    left axis, solid) and each actuator angle (mrad, right axis, dashed)."""
+    y, u = np.asarray(sensor_v) * 1e6, np.asarray(control_u) * 1e3
+    right = ax.twinx()
+    for i in range(y.shape[1]):
+        name = f" {labels[i]}" if labels else ""
+        ax.plot(t, y[:, i], lw=1, color=f"C{i}", label=f"sensor{name}")
+        right.plot(t, u[:, i], lw=1, ls="--", color=f"C{i}", label=f"actuator{name}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("belt at the sensor v [µm] (solid)")
+    right.set_ylabel("actuator angle [mrad] (dashed)")
+    ax.axhline(0, color="0.6", lw=0.6)
+    ax.grid(alpha=0.3)
+    return ax
 
 
 def plot_scene(scene, mesh, path=None):
