@@ -155,6 +155,8 @@ def _write_npz(path, traj, mesh, model, request, fields):
         roller_reaction=np.asarray(traj.roller_reaction), belt_mass=np.asarray(traj.belt_mass),
         tracer_x=mesh.tracer_x, tracer_z=mesh.tracer_z, roller_names=np.array(model.roller_names),
         roller_dofs=np.array(model.dofs), **({"u": np.asarray(traj.u)} if traj.u is not None else {}),
+        **({"control_u": np.asarray(traj.control_u), "sensor_v": np.asarray(traj.sensor_v)}
+           if traj.control_u is not None else {}),
         **({"field_t": request["t"], "field_u": fields} if fields is not None else {}),
     )
 
