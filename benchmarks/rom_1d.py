@@ -40,10 +40,10 @@ def held_out(n_train=150, n_test=400):
     for r in (10, 20, 30):
         rom = fit_reduced_pod(m0, Z, dt, n_modes=r)
         out = rom.run(rom.project(new_speed, jb.initial_state(new_speed)), parameters(new_speed), n_test)
-        res[f"reduced_pod_{r}_mm"] = err("new", out["tracer_u"])
+        res[f"reduced_pod_{r}_mm"] = err("new", out.tracer_u)
         if r == 20:
             xi0 = rom.project(new_speed, jb.initial_state(new_speed))
-            ind = residual_indicator(new_speed, rom.fields(jnp.concatenate([xi0[None], out["xi"]])), dt, stride=10)
+            ind = residual_indicator(new_speed, rom.fields(jnp.concatenate([xi0[None], out.xi])), dt, stride=10)
             res["reduced_pod_20_indicator_mm"] = float(ind.estimate_mm[-1])
     # DMDc at the nominal speed: nominal + run 1 (same speed), tested on -6 mm
     post = [r[2] for r in runs[:2]]

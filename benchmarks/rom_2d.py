@@ -66,7 +66,7 @@ def main():
         run = jax.jit(lambda x: rom.run(x, parameters(m), n_full))
         run(xi0)
         t_on, pr = clock(run, xi0)
-        pod[r] = dict(rmse_x_mm=err_mm(ref.tracer_u, pr["tracer_u"]), rmse_z_mm=err_mm(ref.tracer_v, pr["tracer_v"]),
+        pod[r] = dict(rmse_x_mm=err_mm(ref.tracer_u, pr.tracer_u), rmse_z_mm=err_mm(ref.tracer_v, pr.tracer_v),
                       offline_s=t_snap + t_fit, online_s=t_on, speedup_online=t_full / t_on,
                       speedup_total=t_full / (t_snap + t_fit + t_on))
         print(f"POD r={r}: {pod[r]}")
@@ -137,7 +137,7 @@ def main():
         xi0 = rom.project(mt, st)
         pod_run(xi0, mu)
         t_on, pr = clock(pod_run, xi0, mu)
-        row["pod"] = dict(rmse_x_mm=err_mm(rf.tracer_u, pr["tracer_u"]), rmse_z_mm=err_mm(rf.tracer_v, pr["tracer_v"]),
+        row["pod"] = dict(rmse_x_mm=err_mm(rf.tracer_u, pr.tracer_u), rmse_z_mm=err_mm(rf.tracer_v, pr.tracer_v),
                           online_s=t_on)
         dmdc_run(z0, mu)
         t_on, pr = clock(dmdc_run, z0, mu)

@@ -71,8 +71,8 @@ def main():
         row = {}
         for r, rom in pods.items():
             out = rom.run(rom.project(mt, st), mu, STEPS)
-            row[f"POD r={r}"] = {"rmse_u_um": float(rmse(ref.tracer_u, out["tracer_u"])) * 1e6,
-                                 "rmse_v_um": float(rmse(ref.tracer_v, out["tracer_v"])) * 1e6}
+            row[f"POD r={r}"] = {"rmse_u_um": float(rmse(ref.tracer_u, out.tracer_u)) * 1e6,
+                                 "rmse_v_um": float(rmse(ref.tracer_v, out.tracer_v)) * 1e6}
         pred = dmdc.predict(state_to_z(mt, st, dt), belt_inputs(mu, 1)[:, 0], STEPS // STRIDE, observe=obs)
         ntr = C.shape[0]
         sel = slice(STRIDE - 1, STEPS, STRIDE)

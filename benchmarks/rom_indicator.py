@@ -160,7 +160,7 @@ def ablation(paths):
     for r, rom in roms.items():
         xi0 = rom.project(slow, jb.initial_state(slow))
         o = rom.run(xi0, parameters(slow), n)
-        tests.append((f"POD r={r}", slow, rom.basis, jnp.concatenate([xi0[None], o["xi"]]), Zs, o["tracer_u"]))
+        tests.append((f"POD r={r}", slow, rom.basis, jnp.concatenate([xi0[None], o.xi]), Zs, o.tracer_u))
     post = [r[2] for r in runs[:2]]
     X, Y, U = stack_controlled(post, [belt_inputs(parameters(m), z.shape[1] - 1) for m, z in zip(ms[:2], post)])
     Zd = collect_first_order(same, n, dt)[2]

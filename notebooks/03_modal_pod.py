@@ -193,7 +193,7 @@ run_rom = jax.jit(lambda f, x: f.run(x, mu2, STEPS_2D))
 pod2 = {}
 for r, f in roms.items():
     out = run_rom(f, f.project(m2, xi0_state))
-    pod2[r] = (err_mm(ref_u, out["tracer_u"]), err_mm(ref_v, out["tracer_v"]), out)
+    pod2[r] = (err_mm(ref_u, out.tracer_u), err_mm(ref_v, out.tracer_v), out)
     print(f"fully reduced POD, {r:3d} modes: RMSE x {pod2[r][0]:.2g} mm, z {pod2[r][1]:.2g} mm"
           + ("  ✓ within 0.02 mm" if max(pod2[r][:2]) < TOL else ""))
 
@@ -210,7 +210,7 @@ axs[1].set(xlabel="modes r", ylabel="tracer RMSE over the run [mm]", title="erro
 axs[1].legend(fontsize=8)
 axs[1].grid(alpha=0.3, which="both")
 r_show = min([r for r in rs if max(pod2[r][:2]) < TOL] or [rs[-1]])
-e_t = np.sqrt(np.mean((np.asarray(ref_u) - np.asarray(pod2[r_show][2]["tracer_u"])) ** 2, axis=1)) * 1e3
+e_t = np.sqrt(np.mean((np.asarray(ref_u) - np.asarray(pod2[r_show][2].tracer_u)) ** 2, axis=1)) * 1e3
 plot.plot_rmse_over_time(t2, e_t, TOL, ax=axs[2])
 axs[2].set_title(f"RMSE (x) over time, {r_show} modes (Fig. 7.5)")
 show(fig)

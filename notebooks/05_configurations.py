@@ -175,7 +175,7 @@ def reduced_tracers(m0, models, obs, chis):
         m = m0.replace(chi_static=chi)
         st, mu = jb.initial_state(m), rom.parameters(m)
         out = pod.run(pod.project(m, st), mu, TEST)
-        p_pod = jnp.concatenate([out["tracer_u"], out["tracer_v"]], 1)
+        p_pod = jnp.concatenate([out.tracer_u, out.tracer_v], 1)
         p_dmdc = dmdc.predict(rom.state_to_z(m, st, dt=DT), rom.belt_inputs(mu, 1)[:, 0], TEST // STRIDE, observe=obs)
         p_pdmd = pdmd.predict(mu, TEST // STRIDE, observe=obs)  # k = 0 is step STRIDE
         p_pdmd_z0 = pdmd_z0.predict(mu, TEST // STRIDE + 1, observe=obs)[1:]  # k = 0 is the initial state
@@ -293,10 +293,10 @@ for ax, i in zip(axs, picks):
     st = jb.initial_state(m)
     xi0 = pod.project(m, st)
     out = pod.run(xi0, rom.parameters(m), TEST)
-    coords = jnp.concatenate([xi0[None], out["xi"]])
+    coords = jnp.concatenate([xi0[None], out.xi])
     est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, integrator=reuse)
     ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, integrator=reuse)
-    e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out["tracer_u"])) ** 2, 1)) * 1e3
+    e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out.tracer_u)) ** 2, 1)) * 1e3
     plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est.error_mm), ax=ax,
                              estimate_label="error ROM estimate")
     ax.semilogy((np.asarray(ind.step) + 1) * DT, np.asarray(ind.estimate_mm), "x:", ms=3, lw=1,

@@ -172,7 +172,7 @@ def _reduced_models(model, n_steps, dt, n_train, dmd_ranks, pod_ranks, repeat, t
         run(xi0)
         t_on = min(clock(run, xi0)[0] for _ in range(repeat))
         out = run(xi0)
-        u, v = np.asarray(out["tracer_u"])[k - 1::k], np.asarray(out["tracer_v"])[k - 1::k]
+        u, v = np.asarray(out.tracer_u)[k - 1::k], np.asarray(out.tracer_v)[k - 1::k]
         rows[f"POD r={r}"] = dict(family="reduced: POD", rank=r, time_s=t_snap + t_fit + t_on,
                                   offline_s=t_snap + t_fit, online_s=t_on, fit_all_ranks_s=t_fit,
                                   bytes=max(x for x in (snap_bytes, compiled_bytes(comp)) if x is not None),

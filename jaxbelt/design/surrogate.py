@@ -162,7 +162,7 @@ def _reduced_tracers(study: Study, rom: ReducedStep, theta):
     """Reduced-run tracers ``(u, v)`` (n_steps, n_tr) at ``theta``, m (``v`` ``None`` in 1D)."""
     model = study.configured(theta)
     run = rom.run(rom.project(model, initial_state(model)), parameters(model), study.n_steps)
-    return run["tracer_u"], None if study.ref_v is None else run["tracer_v"]
+    return run.tracer_u, None if study.ref_v is None else run.tracer_v
 
 
 def _predict_one(study: Study, rom, anchor, theta):

@@ -35,6 +35,7 @@ from .pod import choose_modes as choose_modes
 from .pod import fit_pod as fit_pod
 from .pod import pod_basis as pod_basis
 from .reduced import ReducedStep as ReducedStep
+from .reduced import ReducedTrajectory as ReducedTrajectory
 from .reduced import fit_reduced_pod as fit_reduced_pod
 from .reduced import fit_reduced_pod_ranks as fit_reduced_pod_ranks
 from .reduced import parameters as parameters

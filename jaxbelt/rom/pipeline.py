@@ -475,12 +475,12 @@ def _fit_pod(ctx: _Context) -> _Fit:
         for m, s, (_, Zpost) in ctx.calibration_subset(zip(ctx.train, ctx.snapshot_solvers, snaps)):
             x0 = cfit.project(m, initial_state(m))
             o = cfit.run(x0, parameters(m), m_train)
-            yield m, (C @ Zpost[:N, 1:]).T, o["tracer_u"], dict(
-                basis=cfit.basis, coords=jnp.concatenate([x0[None], o["xi"]]), z_true0=Zpost[:, 0], integrator=s)
+            yield m, (C @ Zpost[:N, 1:]).T, o.tracer_u, dict(
+                basis=cfit.basis, coords=jnp.concatenate([x0[None], o.xi]), z_true0=Zpost[:, 0], integrator=s)
 
-    return _Fit(prediction=out["tracer_u"], start=0, compared="tracer_u", order="post", modes=fit.n_modes,
+    return _Fit(prediction=out.tracer_u, start=0, compared="tracer_u", order="post", modes=fit.n_modes,
                 offline_s=offline_s, offline_first_s=first_s, online_s=online_s,
-                estimate_input=lambda: dict(basis=fit.basis, coords=jnp.concatenate([xi0[None], out["xi"]]),
+                estimate_input=lambda: dict(basis=fit.basis, coords=jnp.concatenate([xi0[None], out.xi]),
                                             z_true0=z0),
                 calibration_cases=calibration_cases,
                 spectra=lambda: Spectra(singular_values=np.asarray(fit.singular_values)))

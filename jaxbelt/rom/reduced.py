@@ -97,6 +97,21 @@ def shift_functional(model):
     return jnp.asarray(c)
 
 
+class ReducedTrajectory(eqx.Module):
+    """What :meth:`ReducedStep.run` records, one row per step, as :class:`~jaxbelt.Trajectory`
+    does for a full run. Units: m.
+
+    **Fields:** ``xi`` (n, r) the reduced coordinates after each step's transport;
+    ``tracer_u`` (n, n_tr) longitudinal tracer displacement after the transport; ``tracer_v``
+    (n, n_tr) lateral (zero in 1D); ``tracer_u_solved`` (n, n_tr) longitudinal before the
+    transport (the solve's result)."""
+
+    xi: jax.Array
+    tracer_u: jax.Array
+    tracer_v: jax.Array
+    tracer_u_solved: jax.Array
+
+
 class ReducedStep(eqx.Module):
     """Fully reduced POD model (offline operators; see the module docstring). ``basis`` (2N, r) is
     kept only to lift and to reconstruct fields; the online loop touches r-sized arrays only.
@@ -132,17 +147,16 @@ class ReducedStep(eqx.Module):
         s = self.c @ xt
         return xt, self.Z @ xt + s * (self.G @ xt + self.H @ mu + self.h)
 
-    def run(self, xi0, mu, n_steps: int):
-        """``n_steps`` reduced steps: ``dict(xi (n, r), tracer_u (n, n_tr), tracer_v, tracer_u_solved)``
-        — tracers after (longitudinal, lateral) and before each transport, as
-        :class:`~jaxbelt.timeloop.Trajectory` (``tracer_v`` is zero in 1D)."""
+    def run(self, xi0, mu, n_steps: int) -> ReducedTrajectory:
+        """``n_steps`` reduced steps from the coordinates ``xi0`` (r,) with the parameters ``mu``
+        (:func:`parameters`): the :class:`ReducedTrajectory`."""
 
         def body(xi, _):
             xt, xn = self.step(xi, mu)
             return xn, (xn, self.C_tracer @ xn, self.C_lateral @ xn, self.C_tracer @ xt)
 
         _, (xis, tu, tv, tus) = lax.scan(body, xi0, None, length=n_steps)
-        return dict(xi=xis, tracer_u=tu, tracer_v=tv, tracer_u_solved=tus)
+        return ReducedTrajectory(xi=xis, tracer_u=tu, tracer_v=tv, tracer_u_solved=tus)
 
     def fields(self, xis):
         """Full scaled first-order states ``V ξ`` (n, 2N) — offline/diagnostic use only."""

@@ -57,14 +57,14 @@ def pod(setup):
         for mc, run in zip(ms, runs):
             x0 = cal_roms[r].project(mc, jb.initial_state(mc))
             o = cal_roms[r].run(x0, parameters(mc), N_TRAIN)
-            cases.append((mc, (C @ run[2][: mc.n_unknowns, 1:]).T, o["tracer_u"],
-                          dict(basis=cal_roms[r].basis, coords=jnp.concatenate([x0[None], o["xi"]]), z_true0=run[2][:, 0])))
+            cases.append((mc, (C @ run[2][: mc.n_unknowns, 1:]).T, o.tracer_u,
+                          dict(basis=cal_roms[r].basis, coords=jnp.concatenate([x0[None], o.xi]), z_true0=run[2][:, 0])))
         cal = calibrate(cases, DT)
         xi0 = roms[r].project(m, jb.initial_state(m))
         o = roms[r].run(xi0, parameters(m), N_TEST)
-        coords = jnp.concatenate([xi0[None], o["xi"]])
+        coords = jnp.concatenate([xi0[None], o.xi])
         est = error_rom(m, roms[r].basis, coords, DT, z_true0=Z[:, 0])
-        true = jnp.sqrt(jnp.mean((o["tracer_u"] - (C @ Z[: m.n_unknowns, 1:]).T) ** 2, axis=1)) * 1e3
+        true = jnp.sqrt(jnp.mean((o.tracer_u - (C @ Z[: m.n_unknowns, 1:]).T) ** 2, axis=1)) * 1e3
         out[r] = dict(cal=cal, est=est, true_mm=float(jnp.sqrt(jnp.mean(true**2))), true_max_mm=float(jnp.max(true)),
                       states=coords @ roms[r].basis.T)
     return out

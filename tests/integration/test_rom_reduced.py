@@ -34,8 +34,8 @@ def test_full_basis_reproduces_the_full_model_exactly():
     rom = reduced_operators(m, V, DT)
     _, ref = jb.simulate(m, n_steps=100, dt=DT)
     out = _predict(rom, m, 100)
-    assert float(jnp.max(jnp.abs(out["tracer_u"] - ref.tracer_u))) < 1e-12
-    assert float(jnp.max(jnp.abs(out["tracer_u_solved"] - ref.tracer_u_solved))) < 1e-12
+    assert float(jnp.max(jnp.abs(out.tracer_u - ref.tracer_u))) < 1e-12
+    assert float(jnp.max(jnp.abs(out.tracer_u_solved - ref.tracer_u_solved))) < 1e-12
 
 
 def test_single_configuration_error_falls_with_modes_and_meets_tolerance(runs):
@@ -43,7 +43,7 @@ def test_single_configuration_error_falls_with_modes_and_meets_tolerance(runs):
     _, ref = jb.simulate(m, n_steps=N_TEST, dt=DT)  # 250 steps beyond the training window
     # one projection at r = 20, truncated (= a fit at each rank: test_rom_ranks)
     roms = fit_reduced_pod_ranks(m, Z, (5, 10, 20), DT)
-    errs = [float(rmse(ref.tracer_u, _predict(roms[r], m)["tracer_u"])) * 1e3 for r in (5, 10, 20)]
+    errs = [float(rmse(ref.tracer_u, _predict(roms[r], m).tracer_u)) * 1e3 for r in (5, 10, 20)]
     assert errs[0] > errs[1] > errs[2]
     assert errs[2] < 0.02  # mm
 
@@ -56,7 +56,7 @@ def test_held_out_configuration_from_multi_configuration_training(runs):
     rom = fit_reduced_pod(m0, Z, DT, n_modes=30)
     test = jb.with_misalignment(m0, translation=jnp.array([-6e-3, 0.0])).replace(omega=0.9 * m0.omega)
     _, ref = jb.simulate(test, n_steps=N_TEST, dt=DT)
-    err = float(rmse(ref.tracer_u, _predict(rom, test)["tracer_u"])) * 1e3
+    err = float(rmse(ref.tracer_u, _predict(rom, test).tracer_u)) * 1e3
     assert err < 0.02
     # the online loop only sees r-sized operators
     assert rom.A.shape == (30, 30) and rom.C_tracer.shape == (m0.n_tracers, 30)
@@ -86,7 +86,7 @@ def test_gradient_through_the_whole_chain_wrt_a_misalignment():
         _, Zp, Zq = collect_first_order(mm, 40, DT)
         rom = fit_reduced_pod(mm, jnp.concatenate([Zp, Zq], axis=1), DT, n_modes=8)
         out = _predict(rom, mm, 60)
-        return jnp.mean(out["tracer_u"] ** 2) * 1e6
+        return jnp.mean(out.tracer_u ** 2) * 1e6
 
     x0 = jnp.asarray(-10e-3)
     g = jax.jit(jax.grad(metric))(x0)  # compiled whole: cheaper than op by op
