@@ -172,7 +172,6 @@ def steering_loops(scene: Scene, mesh: Mesh) -> SteeringLoops:
 
 def _compile_1d(scene: Scene, mesh: Mesh) -> BeltModel:
     belt, rl = scene.belt, scene.rollers
-    p = len(rl)
     EA = belt.youngs_modulus * belt.area
     rhoA = belt.density * belt.area
     ell = jnp.asarray(mesh.ell)

@@ -181,7 +181,7 @@ show(fig)
 # growing at ~26, the number of modes the (exactly affine) step has in these data. Ten modes of
 # largest |λ| give the same error as all of them: the others have |λ| ≪ 1 and have decayed by the
 # end of the training window. The count can also be chosen from the data
-# (`jaxbelt.rom.indicator.snapshot_count`) instead of by eye.
+# (`jaxbelt.rom.calibration.snapshot_count`) instead of by eye.
 #
 # ## The leading modes as fields (Appendix B)
 #

@@ -13,8 +13,8 @@ import numpy as np
 from .. import plot, rom
 from ..build import build_model
 from ..design.sampling import distribution_from_dict
-from ..rom.pipeline import METHODS as REDUCE_METHODS
-from ..rom.pipeline import FullRunDivergedError, ReducedRunDivergedError
+from ..rom.results import METHODS as REDUCE_METHODS
+from ..rom.results import FullRunDivergedError, ReducedRunDivergedError
 from ..timeloop import RunOptions
 from ._common import (SCENE_HELP, SimulationError, UsageError, check_at_least, emit, finite_or_none, fmt,
                       scene_from_args)

@@ -111,3 +111,17 @@ def stack_trajectories(trajectories):
     X = jnp.concatenate([t[:, :-1] for t in trajectories], axis=1)
     Y = jnp.concatenate([t[:, 1:] for t in trajectories], axis=1)
     return X, Y
+
+
+def dmd_coordinates(Z, fit, x_start, k: int) -> dict:
+    """:func:`~jaxbelt.rom.indicator.error_rom`'s inputs for an exact-DMD prediction (:class:`~jaxbelt.rom.DMDModel`)
+    from ``x_start`` over ``k`` steps: ``x_start`` and ``Re(Φ Λʲ b)``, j = 1 … k, as coordinates in
+    an orthonormal basis of the training snapshots ``Z`` (exact DMD modes lie in their span), so
+    the full states are never formed. ``x_start`` is a full-order state: no initial error."""
+    U, s, _ = jnp.linalg.svd(jnp.asarray(Z), full_matrices=False)
+    sv = np.asarray(s)
+    Q = U[:, : int(np.sum(sv > sv[0] * max(Z.shape) * np.finfo(sv.dtype).eps))]
+    b = fit.amplitudes(x_start)
+    powers = fit.eigs[None, :] ** jnp.arange(1, k + 1)[:, None]
+    coords = jnp.real((powers * b[None, :]) @ (Q.T.astype(fit.modes.dtype) @ fit.modes).T)
+    return dict(basis=Q, coords=jnp.concatenate([(Q.T @ x_start)[None], coords]), z_true0=x_start)

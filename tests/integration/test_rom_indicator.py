@@ -14,8 +14,8 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, tracer_operator)
-from jaxbelt.rom.indicator import (_quasi_static_response, _split_changing_windows, calibrate, error_rom,
-                                   residual_indicator, safety_factor, snapshot_count)
+from jaxbelt.rom.calibration import calibrate, safety_factor, snapshot_count
+from jaxbelt.rom.indicator import _quasi_static_response, _split_changing_windows, error_rom, residual_indicator
 
 N_TRAIN, N_TEST = 100, 200
 DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene

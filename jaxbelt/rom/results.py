@@ -1,0 +1,193 @@
+"""The request and the report of :func:`jaxbelt.rom.reduce_and_compare`: :class:`ReduceConfig`
+(which reduced model, how many modes, what to estimate) and :class:`ReductionResult` (its error
+against the full model, the estimate of that error, and what it cost)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..integrators import AbstractIntegrator, make_solver
+from .calibration import CalibrationCase
+from .indicator import ErrorRomOptions, EstimateCost
+
+METHODS = ("pod", "dmd", "dmdc", "pdmd")
+DEFAULT_MODES = {"pod": 20, "dmd": None, "dmdc": 30, "pdmd": 30}
+CALIBRATION_RUNS = 3  # training runs the error estimate's safety factor is calibrated on
+
+
+class FullRunDivergedError(FloatingPointError):
+    """The full-order run of the predicted configuration diverged: nothing to compare with."""
+
+
+class ReducedRunDivergedError(FloatingPointError):
+    """The reduced model's prediction is not finite (its projected step is unstable)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ReduceConfig:
+    """Options of :func:`reduce_and_compare`.
+
+    **Fields:** ``method`` one of :data:`METHODS`; ``n_steps`` steps to predict and compare;
+    ``dt`` the time step, s; ``solver`` the full model's integrator (default
+    :func:`jaxbelt.make_solver`'s); ``every`` the full run's record interval (the comparison is at
+    its recorded steps); ``train_steps`` full-order steps per training configuration (default
+    ``min(200, n_steps // 2)``); ``modes`` the reduced dimension (default
+    :data:`DEFAULT_MODES`; dmd: all non-negligible); ``stride`` the error estimate's residual
+    windows (0: no estimate); ``estimate`` the error ROM's tuning; ``calibration_runs`` training
+    runs the safety factor is calibrated on; ``spectra`` whether to keep the singular values and
+    eigenvalues of the fit (:class:`Spectra`, for a plot).
+    """
+
+    method: str
+    n_steps: int
+    dt: float
+    solver: AbstractIntegrator | None = None
+    every: int = 1
+    train_steps: int | None = None
+    modes: int | None = None
+    stride: int = 10
+    estimate: ErrorRomOptions = ErrorRomOptions()
+    calibration_runs: int = CALIBRATION_RUNS
+    spectra: bool = False
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"method = {self.method!r}: one of {', '.join(METHODS)}")
+        for name, low in (("n_steps", 1), ("every", 1), ("stride", 0), ("calibration_runs", 0)):
+            if int(getattr(self, name)) < low:
+                raise ValueError(f"{name} = {getattr(self, name)}: must be at least {low}")
+        if self.modes is not None and self.modes < 1:
+            raise ValueError(f"modes = {self.modes}: must be at least 1")
+        low = 2 if self.method == "dmd" else 1
+        if self.train_window < low:
+            raise ValueError(f"n_steps = {self.n_steps}, train_steps = {self.train_window}: too few steps to train on "
+                             f"(at least {low})")
+        if self.method == "dmd" and self.train_window >= self.n_steps:
+            raise ValueError(f"train_steps = {self.train_window} with n_steps = {self.n_steps}: dmd predicts the steps "
+                             "after the training window, so train_steps must be smaller than n_steps")
+
+    @property
+    def train_window(self) -> int:
+        """Full-order steps per training configuration."""
+        return int(self.train_steps or min(200, self.n_steps // 2))
+
+    @property
+    def n_modes(self) -> int | None:
+        """The reduced dimension asked for (``None``: dmd's every non-negligible one)."""
+        return DEFAULT_MODES[self.method] if self.modes is None else int(self.modes)
+
+    @property
+    def full_solver(self) -> AbstractIntegrator:
+        return make_solver() if self.solver is None else self.solver
+
+
+@dataclasses.dataclass(frozen=True)
+class Timings:
+    """Seconds, compilation excluded (``offline_first_call_s`` includes it), and the speedups
+    (module docstring). ``full_runs_s``: every full mode timed, by solver name; ``full_mode`` the
+    fastest one that reproduces the given solver's; ``scene_mode_run_s`` the given solver's."""
+
+    full_run_s: float
+    full_mode: str
+    full_runs_s: dict
+    scene_mode_run_s: float
+    offline_s: float
+    offline_first_call_s: float
+    online_s: float
+    speedup_online: float
+    speedup_total: float
+    speedup_total_vs_scene_mode: float
+    speedup_per_step_online: float
+    speedup_eq_7_5: float
+    note: str = ("compilation excluded on both sides; speedups against the fastest full mode reproducing the "
+                 "scene's own to 1e-6 mm; eq. 7.5 is the source's step-count formula")
+
+
+@dataclasses.dataclass(frozen=True)
+class ReductionEstimate:
+    """The calibrated error estimate of a prediction.
+
+    **Fields:** ``error_mm`` (k,) the estimated tracer RMSE at each compared step, mm;
+    ``rmse_mm`` / ``max_mm`` its rms and maximum over them (``None`` without compared steps);
+    ``raw_rmse_mm`` the same before the safety factor; ``safety_factor`` and the
+    ``calibration`` cases it came from; ``subspace_dim``, ``projected_spectral_radius`` and
+    ``cost`` of the error ROM; ``full_steps_predicted`` the full steps the estimate replaces;
+    ``test_s`` the estimate's seconds, ``total_s`` with the calibration.
+    """
+
+    error_mm: np.ndarray
+    rmse_mm: float | None
+    max_mm: float | None
+    raw_rmse_mm: float | None
+    safety_factor: float
+    calibration: tuple[CalibrationCase, ...]
+    subspace_dim: int
+    projected_spectral_radius: float
+    cost: EstimateCost
+    full_steps_predicted: int
+    test_s: float
+    total_s: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Spectra:
+    """What a plot of the fit shows: ``singular_values`` of the training snapshots, ``marked`` the
+    number of modes to mark among them (``None``: the modes used), and for DMD-type methods the
+    ``eigs`` with their ``eig_weights`` (the scaled mode norms)."""
+
+    singular_values: np.ndarray
+    marked: int | None = None
+    eigs: np.ndarray | None = None
+    eig_weights: np.ndarray | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class ReductionResult:
+    """:func:`reduce_and_compare`'s result. Errors in mm, times in s.
+
+    **Fields:** ``method``; ``modes`` the reduced dimension used; ``modes_discarded`` (dmd: the
+    unstable modes dropped, else ``None``); ``training_starts_at_step`` (pdmd: the first snapshot
+    of its per-configuration trajectories, else ``None``); ``train_steps`` per training run;
+    ``n_train_runs``; ``n_steps``; ``predict_from_step`` (the prediction covers steps
+    ``predict_from_step + 1 … n_steps``); ``compared`` the trajectory field compared
+    (``"tracer_u"``, or ``"tracer_u_solved"`` for dmd's pre-transport states); ``n_unknowns``,
+    ``n_tracers``; ``rmse_mm``, ``rrmse`` and ``max_rmse_over_time_mm`` (``None`` without compared
+    steps) of the prediction; ``t`` (k,) the compared steps' times and ``error_mm`` (k,) the tracer
+    RMSE at each; ``estimate`` (:class:`ReductionEstimate`, ``None`` with ``stride = 0``);
+    ``timings`` (:class:`Timings`); ``spectra`` (:class:`Spectra`, where asked for).
+    """
+
+    method: str
+    modes: int
+    modes_discarded: int | None
+    training_starts_at_step: int | None
+    train_steps: int
+    n_train_runs: int
+    n_steps: int
+    predict_from_step: int
+    compared: str
+    n_unknowns: int
+    n_tracers: int
+    rmse_mm: float
+    rrmse: float
+    max_rmse_over_time_mm: float | None
+    t: np.ndarray
+    error_mm: np.ndarray
+    estimate: ReductionEstimate | None
+    timings: Timings
+    spectra: Spectra | None
+
+    @property
+    def predict_steps(self) -> int:
+        return self.n_steps - self.predict_from_step
+
+    @property
+    def effectivity(self) -> float | None:
+        """Estimated over true tracer RMSE (``None`` without an estimate)."""
+        if self.estimate is None or self.estimate.rmse_mm is None:
+            return None
+        return self.estimate.rmse_mm / self.rmse_mm
+
+
