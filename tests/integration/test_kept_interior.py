@@ -16,7 +16,7 @@ from jaxbelt.integrators.linear import lever_columns
 from jaxbelt.linalg import BorderedBlockCyclic, join
 from jaxbelt.linalg.bordered import dense_solve, factor_solve, factorise, refactorise_border, scaled_schur
 from jaxbelt.timeloop import run
-from helpers import load, scene_with, solve_step
+from helpers import scene_fixtures, scene_with, solve_step
 
 
 def FullFactorisation():
@@ -53,8 +53,7 @@ def test_refactorise_border_is_the_exact_factorisation(method):
     assert float(jnp.max(jnp.abs(x_ref_factors[0] - x_dense[0]))) > 1e-3
 
 
-@pytest.fixture(scope="module")
-def walking_loaded():
+def walking_scene():
     """A small three-roller belt whose lever arms keep moving: a skewed roller with lateral
     transport (the belt walks), and a tension roller whose x-tilt is a dynamic, torque-loaded DOF
     (its roller row moves with the lever arm too)."""
@@ -67,17 +66,10 @@ def walking_loaded():
                                                                     rotation_mrad=[0.0, 0.0, 0.0])
         d["variant"].setdefault("roller 3", {}).update(rotation_mrad=[0.0, 2.0, 0.0])
 
-    return load(scene_with(mutate, "three-roller-t72"))
+    return scene_with(mutate, "three-roller-t72")
 
 
-@pytest.fixture(scope="module")
-def walking(walking_loaded):
-    return walking_loaded[0]
-
-
-@pytest.fixture(scope="module")
-def dt(walking_loaded):
-    return walking_loaded[1].dt
+loaded, walking, dt = scene_fixtures(walking_scene)
 
 
 @pytest.fixture(scope="module")

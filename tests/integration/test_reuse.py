@@ -8,22 +8,10 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.assembly import dae_apply, dae_matrices, roller_R
 from jaxbelt.linalg.bordered import bordered_solve, factor_solve, factorise
-from helpers import load, scene_with
+from helpers import scene_fixtures, scene_with
 
-
-@pytest.fixture(scope="module")
-def loaded():
-    return load(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3), "three-roller-t72"))
-
-
-@pytest.fixture(scope="module")
-def m(loaded):
-    return loaded[0]
-
-
-@pytest.fixture(scope="module")
-def dt(loaded):
-    return loaded[1].dt
+loaded, m, dt = scene_fixtures(lambda: scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=3),
+                                                  "three-roller-t72"))
 
 
 @pytest.fixture(scope="module")
