@@ -1,0 +1,363 @@
+"""The steering plant from the model: coefficient, disturbance, hold angle, walk sensitivity,
+the identified transfer function, and the P loop's stability boundary from closed-loop runs.
+
+Everything is measured on the full model with the loop *open* (gains 0, so the actuator angle
+``u ≡ 0``) unless a run says otherwise. A *step of the actuator* is applied through the loop's
+own actuator path: the controller is saturated (``k_p = 1``, a setpoint 1 m away, the range set
+to the step), so the angle ``u = a`` is held from the first step on, through the actuator lag
+(the rate limit is lifted: the identified plant is the linear one).
+
+**Walk rates** are least-squares slopes of the sensor displacement over the second half of the
+run (``t ∈ [t_end / 2, t_end]``), after the transient: at least several belt transits. The
+response is linear in the angle, so the coefficient is the slope of the stepped run minus the
+unstepped one, per mrad.
+
+Library functions: :func:`steering_report` (``jaxbelt steering``), :func:`stability_boundary`,
+:func:`identify_plant`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..misalignment import TO_SI, TRANSLATIONS, parameter_space
+from ..timeloop import RunOptions, belt_speed, simulate
+from .plant import SteeringPlant, _params, plant_step_response
+
+STEP_MRAD = 0.1  # default actuator step, mrad (linear range)
+
+
+class SteeringWarning(UserWarning):
+    """A steering loop cannot hold the belt within its range."""
+
+
+def walk_slope(t, v, window=(0.5, 1.0)):
+    """Least-squares slope of ``v`` (…, n) over ``t`` (n,) on the fraction ``window`` of the run
+    (default the second half), in the units of ``v`` per s."""
+    t = np.asarray(t, float)
+    v = np.asarray(v, float)
+    t_end = t[-1]
+    sel = (t >= window[0] * t_end) & (t <= window[1] * t_end)
+    ts = t[sel] - t[sel].mean()
+    return (v[..., sel] - v[..., sel].mean(axis=-1, keepdims=True)) @ ts / (ts @ ts)
+
+
+def _open(model, loop=0):
+    """All loops open (gains 0)."""
+    return model.replace(control=model.control.with_gains(0.0, 0.0, 0.0))
+
+
+def _stepped(model, amplitude, loop=0):
+    """Loop ``loop`` saturated to a held angle ``amplitude`` rad (module docstring), the others open."""
+    c = model.control
+    one = jnp.zeros_like(c.kp).at[loop].set(1.0)
+    c = eqx.tree_at(lambda s: (s.kp, s.ki, s.kd, s.sign, s.setpoint, s.limit, s.rate_limit, s.noise, s.profile_amplitude),
+                    c, (one, 0 * c.ki, 0 * c.kd, -jnp.ones_like(c.sign), -one, jnp.full_like(c.kp, amplitude),
+                        jnp.full_like(c.kp, jnp.inf), 0 * c.noise, 0 * c.profile_amplitude))
+    return model.replace(control=c)
+
+
+@eqx.filter_jit
+def _batch_sensor(models, solver, n_steps, dt, loop):
+    """Sensor displacement and actuator angle of loop ``loop`` for a stacked batch of models."""
+    def one(m):
+        _, tr = simulate(m, solver, n_steps=n_steps, dt=dt, check=False)
+        return tr.t, tr.sensor_v[:, loop], tr.control_u[:, loop], tr.edge_margin
+    return jax.vmap(one, in_axes=(_axes(models),))(models)
+
+
+def _axes(models):
+    return jax.tree.map(lambda a: 0 if eqx.is_array(a) else None, models)
+
+
+def _stack(models):
+    arrays = [eqx.filter(m, eqx.is_array) for m in models]
+    static = eqx.filter(models[0], eqx.is_array, inverse=True)
+    stacked = jax.tree.map(lambda *xs: jnp.stack(xs), *arrays)
+    return eqx.combine(stacked, static)
+
+
+def run_batch(models, options: RunOptions, loop: int = 0):
+    """Closed- or open-loop runs of a list of models that differ in array values only (vmapped):
+    ``(t (n,), sensor_v (b, n) m, control_u (b, n) rad, edge_margin (b, n, p) m)``."""
+    t, v, u, em = _batch_sensor(_stack(models), options.solver, int(options.n_steps), float(options.dt), loop)
+    return np.asarray(t[0]), np.asarray(v), np.asarray(u), np.asarray(em)
+
+
+def _require_loop(model, loop):
+    if model.control is None or not model.control.n_loops:
+        raise ValueError("the scene has no [[control]] steering loop")
+    if not 0 <= loop < model.control.n_loops:
+        raise ValueError(f"loop = {loop}: the scene has {model.control.n_loops} steering loop(s)")
+
+
+# ------------------------------------------------------------------------------ identification
+
+
+def identify_plant(t, response, gain, loop_time, starts=None, iterations: int = 40) -> tuple[SteeringPlant, float]:
+    """Fit the full :class:`~jaxbelt.design.plant.SteeringPlant` form to a unit step response.
+
+    **Arguments:** ``t`` (n,) s, the times of ``response`` (n,) m per rad (the step is at
+    ``t = 0``); ``gain`` the steady coefficient ``k`` (fixed: the measured slope); ``loop_time``
+    the belt's transit time ``L_loop / V`` (the recirculation's initial guess).
+    **Returns:** ``(plant, error)``, ``error`` the largest deviation from ``response`` over the
+    run as a fraction of its range. Levenberg–Marquardt on ``(τ, τ₂, z, θ, D, θ_r, τ_r)`` with the
+    Jacobian by ``jax.jacfwd`` of the time-stepped response, from a few starts; time constants
+    are kept ≥ 0 and ``θ_r`` ≥ one grid step.
+    """
+    t = np.asarray(t, float)
+    y = np.asarray(response, float)
+    scale = float(np.ptp(y)) or 1.0
+    h = float(min(t[1] - t[0], loop_time / 100)) / 2
+    tj = jnp.asarray(t)
+
+    def full(q):
+        return jnp.concatenate([jnp.asarray([gain], float), q[:3], q[3:4], q[4:5], q[5:7]])
+
+    def resid(q):  # q = (τ, τ₂, z, θ, D, θ_r, τ_r)
+        return (plant_step_response(full(q), tj, h) - y) / scale
+
+    r_j = jax.jit(resid)
+    jac = jax.jit(jax.jacfwd(resid))
+    lo = np.array([0.0, 0.0, -10 * loop_time, 0.0, -np.inf, h, 0.0])
+    if starts is None:
+        starts = [[0.2 * loop_time, 0.1 * loop_time, z, 0.0, 0.0, f * loop_time, 0.1 * loop_time]
+                  for f in (0.7, 0.85) for z in (0.0, -0.5 * loop_time)]
+    best = None
+    for q0 in starts:
+        q = np.maximum(np.asarray(q0, float), lo)
+        r = np.asarray(r_j(q))
+        lam = 1e-3
+        for _ in range(iterations):
+            J = np.asarray(jac(q))
+            A, g = J.T @ J, J.T @ r
+            qn = np.maximum(q - np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), g), lo)
+            rn = np.asarray(r_j(qn))
+            if rn @ rn < r @ r:
+                small = (r @ r - rn @ rn) < 1e-12 * (r @ r)
+                q, r, lam = qn, rn, lam / 3
+                if small:
+                    break
+            else:
+                lam *= 10
+                if lam > 1e8:
+                    break
+        if best is None or r @ r < best[1] @ best[1]:
+            best = (q, r)
+    q, r = best
+    plant = SteeringPlant(gain=float(gain), lag=float(q[0]), delay=float(q[3]), lag2=float(q[1]), zero=float(q[2]),
+                          feedthrough=float(q[4]), loop_delay=float(q[5]), loop_lag=float(q[6]))
+    return plant, float(np.max(np.abs(r)))
+
+
+# ------------------------------------------------------------------------------ the report
+
+
+@dataclasses.dataclass(frozen=True)
+class SteeringReport:
+    """The plant of one steering loop, measured on the model with the loop open.
+
+    **Fields:** ``loop`` the loop's label ``"roller/axis"``; ``coefficient_mm_s_per_mrad`` the
+    steady walk rate at the sensor per mrad of actuator angle (stepped run minus unstepped);
+    ``disturbance_mm_s`` the walk rate the scene's own misalignments cause at the sensor, minus
+    the aligned machine's; ``hold_angle_mrad`` ``−disturbance / coefficient``, the angle that stops
+    the walk; ``limit_mrad`` the loop's range; ``saturated`` whether the hold angle is beyond it
+    (then a :class:`SteeringWarning` names the loop and the angle); ``walk_sensitivity``
+    ``{roller: {"translation_mm_s_per_mm": [x, y, z], "rotation_mm_s_per_mrad": [x, y, z]}}`` the
+    walk rate per unit of each misalignment component at the scene's misalignment (``jax.jacfwd``
+    of the open-loop walk rate; structurally zero components, such as the drive rotation about
+    z, are 0), or ``None`` when not asked for; ``plant`` the identified transfer function
+    (:class:`~jaxbelt.design.plant.SteeringPlant` as a dict: SI, m/s per rad, s, m per rad);
+    ``plant_fit_error`` its largest deviation from the model's step response as a fraction of
+    the response's range; ``plant_gain_margin`` the identified plant's P-loop gain margin (the
+    stability boundary ``k_p``, mrad/mm) and ``plant_crossover_period_s`` its oscillation period;
+    ``step_mrad`` the actuator step; ``t_end_s``, ``dt_s`` the runs; ``window_s`` the walk-rate
+    window; ``step_response`` ``{"t_s": […], "sensor_mm_per_mrad": […]}`` the model's open-loop
+    response to the step per mrad; ``belt_speed_m_s``, ``loop_time_s`` the transit time;
+    ``elapsed_s`` the wall time.
+    """
+
+    loop: str
+    coefficient_mm_s_per_mrad: float
+    disturbance_mm_s: float
+    hold_angle_mrad: float
+    limit_mrad: float
+    saturated: bool
+    walk_sensitivity: dict | None
+    plant: dict
+    plant_fit_error: float
+    plant_gain_margin: float
+    plant_crossover_period_s: float
+    step_mrad: float
+    t_end_s: float
+    dt_s: float
+    window_s: tuple
+    step_response: dict
+    belt_speed_m_s: float
+    loop_time_s: float
+    elapsed_s: float
+
+    def to_dict(self) -> dict:
+        """The report as JSON-able data (``jaxbelt steering --json``), keys as the fields."""
+        return dataclasses.asdict(self)
+
+    @property
+    def identified(self) -> SteeringPlant:
+        """The identified plant as a :class:`~jaxbelt.design.plant.SteeringPlant`."""
+        return SteeringPlant(**self.plant)
+
+
+def walk_sensitivity(model, options: RunOptions, loop: int = 0) -> dict:
+    """``{roller: {"translation_mm_s_per_mm": [x, y, z], "rotation_mm_s_per_mrad": [x, y, z]}}``:
+    ``jax.jacfwd`` of the open-loop walk rate at the sensor (the slope over the run's second half)
+    w.r.t. every misalignment component that can vary, at the model's own misalignment."""
+    _require_loop(model, loop)
+    space = parameter_space(model)
+    base = _open(model, loop)
+    n = int(options.n_steps)
+    t = np.arange(1, n + 1) * float(options.dt)
+    sel = t >= t[-1] / 2
+    ts = jnp.asarray(t[sel] - t[sel].mean())
+    idx = jnp.asarray(space.chi_index, dtype=jnp.int32)
+
+    @jax.jit
+    def rate(theta):
+        m = base.replace(chi_static=base.chi_static.at[idx].add(TO_SI * theta))
+        _, tr = simulate(m, options.solver, n_steps=n, dt=float(options.dt), check=False)
+        v = tr.sensor_v[:, loop][jnp.asarray(sel)]
+        return (v - v.mean()) @ ts / (ts @ ts) * 1e3  # mm/s
+
+    g = np.asarray(jax.jacfwd(rate)(jnp.zeros(space.size)))
+    per = space.per_roller(g)
+    return {name: {"translation_mm_s_per_mm": d["translation"], "rotation_mm_s_per_mrad": d["rotation"]}
+            for name, d in per.items()}
+
+
+def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: float = STEP_MRAD,
+                    sensitivity: bool = True) -> SteeringReport:
+    """The plant of loop ``loop`` (:class:`SteeringReport`; module docstring for the method).
+
+    Three open-loop runs in one vmapped batch (the scene's machine, the same with the actuator
+    stepped by ``step_mrad``, the aligned machine), ``options.n_steps`` steps of ``options.dt``;
+    the walk sensitivity (when asked) by forward-mode differentiation of the open-loop run; the
+    plant by :func:`identify_plant` on the step response. A hold angle beyond the loop's range
+    sets ``saturated`` and warns (:class:`SteeringWarning`).
+    """
+    _require_loop(model, loop)
+    start = time.perf_counter()
+    a = step_mrad * 1e-3
+    opened = _open(model, loop)
+    aligned = opened.replace(chi_static=jnp.zeros_like(model.chi_static))
+    t, v, _, _ = run_batch([opened, _stepped(opened, a, loop), aligned], options, loop)
+    slopes = walk_slope(t, v) * 1e3  # mm/s
+    coeff = float((slopes[1] - slopes[0]) / step_mrad)
+    disturbance = float(slopes[0] - slopes[2])
+    hold = -disturbance / coeff
+    limit = float(model.control.limit[loop]) * 1e3
+    label = model.control.labels[loop]
+    saturated = bool(abs(hold) > limit)
+    if saturated:
+        warnings.warn(f"steering loop {label}: holding the belt needs {hold:.4g} mrad, beyond the range "
+                      f"±{limit:.4g} mrad: the loop saturates and the belt walks", SteeringWarning, stacklevel=2)
+    resp = (v[1] - v[0]) / a  # m per rad
+    V = belt_speed(model)
+    loop_time = float(model.control.loop_length) / V
+    plant, err = identify_plant(t, resp, coeff, loop_time)  # mm/s per mrad = m/s per rad
+    gm, _, w_pc, _ = plant.margins(1.0)
+    sens = walk_sensitivity(model, options, loop) if sensitivity else None
+    return SteeringReport(
+        loop=label, coefficient_mm_s_per_mrad=coeff, disturbance_mm_s=disturbance, hold_angle_mrad=float(hold),
+        limit_mrad=limit, saturated=saturated, walk_sensitivity=sens, plant=plant.to_dict(), plant_fit_error=err,
+        plant_gain_margin=float(gm), plant_crossover_period_s=float(2 * np.pi / w_pc) if np.isfinite(w_pc) else float("nan"),
+        step_mrad=float(step_mrad), t_end_s=float(t[-1]), dt_s=float(options.dt),
+        window_s=(float(t[-1] / 2), float(t[-1])),
+        step_response={"t_s": [float(x) for x in t], "sensor_mm_per_mrad": [float(x) for x in resp]},
+        belt_speed_m_s=V, loop_time_s=loop_time, elapsed_s=time.perf_counter() - start)
+
+
+# ------------------------------------------------------------------------------ the P loop's boundary
+
+
+@dataclasses.dataclass(frozen=True)
+class StabilityBoundary:
+    """The P-only loop's stability boundary from closed-loop runs of the model.
+
+    **Fields:** ``loop`` the label; ``kp_mrad_per_mm`` the boundary (midpoint of the last
+    bracket); ``bracket`` ``(stable, unstable)`` k_p, mrad/mm; ``growth`` ``{k_p: ratio}`` of every
+    run, the sensor oscillation's envelope over the last third of the run against the middle third
+    (> 1: growing); ``period_s`` the oscillation period at the unstable end (zero crossings);
+    ``t_end_s``, ``dt_s`` the runs; ``runs`` how many; ``elapsed_s``."""
+
+    loop: str
+    kp_mrad_per_mm: float
+    bracket: tuple
+    growth: dict
+    period_s: float
+    t_end_s: float
+    dt_s: float
+    runs: int
+    elapsed_s: float
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def _growth(t, v):
+    """Envelope growth of the oscillation (detrended by a line over the second half): the RMS over
+    the last third against the middle third, per row of ``v``."""
+    n = v.shape[-1]
+    a, b = n // 3, 2 * n // 3
+    x = t[a:] - t[a:].mean()
+    seg = v[:, a:]
+    slope = (seg - seg.mean(axis=1, keepdims=True)) @ x / (x @ x)
+    r = seg - seg.mean(axis=1, keepdims=True) - slope[:, None] * x
+    mid, last = r[:, : b - a], r[:, b - a:]
+    return np.sqrt((last**2).mean(axis=1)) / np.maximum(np.sqrt((mid**2).mean(axis=1)), 1e-300)
+
+
+def _period(t, v):
+    r = v - np.polyval(np.polyfit(t, v, 1), t)
+    zc = t[1:][np.diff(np.sign(r)) != 0]
+    return float(2 * np.mean(np.diff(zc[len(zc) // 3:]))) if len(zc) > 3 else float("nan")
+
+
+def stability_boundary(model, options: RunOptions, kp_low: float, kp_high: float, *, loop: int = 0,
+                       batch: int = 5, rounds: int = 3) -> StabilityBoundary:
+    """The P-only stability boundary of loop ``loop`` (``k_i = k_d = 0``), in mrad/mm, by a batched
+    bisection: each round runs ``batch`` closed-loop runs (vmapped) on a grid inside the bracket
+    ``[kp_low, kp_high]`` (stable, unstable) and keeps the sub-interval where the oscillation
+    envelope starts to grow (:func:`_growth` > 1). The scene's own misalignment excites the loop;
+    its sensor noise and edge profile are removed. Runs ``options.n_steps`` steps each."""
+    _require_loop(model, loop)
+    start = time.perf_counter()
+    c = model.control
+    quiet = model.replace(control=eqx.tree_at(lambda s: (s.noise, s.profile_amplitude, s.limit, s.rate_limit), c,
+                                              (0 * c.noise, 0 * c.profile_amplitude, jnp.full_like(c.limit, 1.0),
+                                               jnp.full_like(c.rate_limit, jnp.inf))))
+    lo, hi = float(kp_low), float(kp_high)
+    growth, runs, period = {}, 0, float("nan")
+    for _ in range(rounds):
+        kps = np.linspace(lo, hi, batch + 2)[1:-1]
+        models = [quiet.replace(control=quiet.control.with_gains(jnp.zeros_like(c.kp).at[loop].set(k), 0.0, 0.0))
+                  for k in kps]
+        t, v, _, _ = run_batch(models, options, loop)
+        runs += len(kps)
+        g = _growth(t, v)
+        growth.update({float(k): float(x) for k, x in zip(kps, g)})
+        unstable = g > 1.0
+        for k, u, vv in zip(kps, unstable, v):
+            if u:
+                hi = float(k)
+                period = _period(t[len(t) // 2:], vv[len(t) // 2:])
+                break
+            lo = float(k)
+    return StabilityBoundary(loop=c.labels[loop], kp_mrad_per_mm=0.5 * (lo + hi), bracket=(lo, hi), growth=growth,
+                             period_s=period, t_end_s=float(options.n_steps * options.dt), dt_s=float(options.dt),
+                             runs=runs, elapsed_s=time.perf_counter() - start)
