@@ -267,6 +267,10 @@ BENCHMARKS = {
     "bending_locking": ("Bending locking of the 2D element", "In-plane bending of a clamped belt strip against "
                         "the Timoshenko beam: the bilinear quad locks when its elements are long and few across, "
                         "the incompatible-modes element (QM6, the default) does not."),
+    "design_steered": ("The 20 µm question on the steered machine", "The tolerance box of `three-roller-steered` "
+                       "(lateral and longitudinal deviation ≤ 20 µm and the actuator within its range over 16–20 s, "
+                       "verified by full closed-loop runs) beside the source's variant `three-roller-tolerance`, and "
+                       "the closed-loop gain scan behind the scene's PI gains ([tolerance design](tolerance.md))."),
     "float32": ("float32 against float64", "Tracer error and belt-mass drift of whole runs in single precision "
                 "(JAX's default, without `jaxbelt.enable_x64()`) against double precision."),
     "full_run_2d": ("The whole default run", "The 100 s run of `three-roller-t72` (5000 steps) with the reuse solver, "

@@ -3,11 +3,12 @@ yield 1) importance sampling, stored chunk by chunk in a resumable Zarr store.""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..design import distribution_from_dict, run_sweep
 from ..design.store import open_sweep
-from ..design.sweep import sweep_identity
+from ..design.sweep import ROM_STEERED, sweep_identity
 from ._common import UsageError
 from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
                       read_toml, stage)
@@ -54,6 +55,8 @@ def run(args):
             open_sweep(args.out, sweep_identity(study, dist, args.samples, args.limit_um, args.seed, args.scene))
         except ValueError as e:
             raise UsageError(str(e)) from None
+    if args.rom == "auto" and study.steered:
+        print(f"jaxbelt: --rom auto: {ROM_STEERED}", file=sys.stderr, flush=True)
     res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
                     rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
     return finish(args, res.to_dict(), _print, "plot_yield", res.metric_values, args.limit_um, res)
@@ -61,8 +64,13 @@ def run(args):
 
 def _print(r):
     lo, hi = r["ci95"]
+    steered = r.get("saturated") is not None
     print(f"yield {r['yield']:.4f} (95 % Wilson interval {lo:.4f}–{hi:.4f}): {r['passed']} of {r['samples']} "
-          f"configurations with {r['metric']} ≤ {r['limit_um']:g} µm")
+          f"configurations with {r['metric']} ≤ {r['limit_um']:g} µm" + (" and the steering within its range"
+                                                                          if steered else ""))
+    if steered:
+        print(f"{r['saturated']} configuration(s) saturated the steering actuator (±{r['range_mrad']:g} mrad) "
+              f"and count as failures; largest actuator angle {r['steering_max_mrad']:.4g} mrad")
     if "form_yield" in r:
         print(f"FORM: β = {r['form_beta']:.3f}, yield {r['form_yield']:.6f}; "
               f"linear RSS stack-up (3σ) {r['rss_3sigma_um']:.4g} µm")

@@ -3,7 +3,10 @@ verified by full runs."""
 
 from __future__ import annotations
 
+import math
+
 from ..design import parameter_space, tolerance_box
+from ..design.metrics import metric_unit
 from ..design.tolerance import weights_from_dict
 from ._common import UsageError
 from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
@@ -14,6 +17,9 @@ def add_parser(subparsers):
     p = subparsers.add_parser("tolerance", help="largest tolerance box keeping the metric within --limit-um, "
                                                 "verified by full runs")
     add_design_arguments(p, "lateral_max", limit=True)
+    p.add_argument("--steering-limit-mrad", type=float, default=None,
+                   help="steered machine: limit on the steering actuator's angle, mrad (default: its range, so the "
+                        "box never saturates it)")
     p.add_argument("--components", default=None,
                    help='which components get a tolerance, e.g. "roller 2:rotation,roller 3:dz,roller 1" '
                         "(default: every one that can vary)")
@@ -23,8 +29,32 @@ def add_parser(subparsers):
     return p
 
 
+OTHER_DIRECTION = {"lateral_max": "longitudinal_max", "lateral_peak": "longitudinal_max",
+                   "longitudinal_max": "lateral_max"}
+
+
+def limits_of(args, study):
+    """``(limit, limits)``: the study metric's limit and the further limits held at the same time.
+    On a steered machine a lateral (longitudinal) max-type metric is joined by the other direction
+    at ``--limit-um`` and by ``steering_max`` at ``--steering-limit-mrad`` (default: the range);
+    ``--metric steering_max`` takes ``--steering-limit-mrad`` as its limit. Otherwise one limit."""
+    if not study.steered:
+        if args.steering_limit_mrad is not None:
+            raise UsageError(f"--steering-limit-mrad = {args.steering_limit_mrad}: the scene has no steering loop")
+        return args.limit_um, {}
+    steer = study.range_mrad if args.steering_limit_mrad is None else args.steering_limit_mrad
+    if args.metric == "steering_max":
+        return steer, {}
+    if args.metric not in OTHER_DIRECTION:
+        return args.limit_um, {}
+    return args.limit_um, {OTHER_DIRECTION[args.metric]: args.limit_um, "steering_max": steer}
+
+
 def run(args):
     check_limit(args.limit_um)
+    if args.steering_limit_mrad is not None and not (math.isfinite(args.steering_limit_mrad)
+                                                     and args.steering_limit_mrad > 0):
+        raise UsageError(f"--steering-limit-mrad = {args.steering_limit_mrad}: must be a positive number")
     check_plot(args.plot)
     weights_data = read_toml(args.weights, "--weights") if args.weights else None
     model, options = load_design_model(args)
@@ -35,17 +65,29 @@ def run(args):
         raise UsageError(f"--components/--weights: {e}") from None
     stage(args, f"aligned reference run ({model.n_unknowns} unknowns)")
     study = make_design_study(args, model, options, args.components)
+    limit, limits = limits_of(args, study)
     stage(args, "Jacobian, box optimisation and verification runs")
     try:
-        res = tolerance_box(study, args.limit_um, weights)
+        res = tolerance_box(study, limit, weights, limits=limits)
     except ValueError as e:  # the scene's own misalignment already breaks the limit
         raise UsageError(str(e)) from None
-    return finish(args, res.to_dict(), _print, "plot_tolerance_box", res)
+    out = res.to_dict()
+    out["window_s"] = list(study.t_window) if study.steered else None
+    return finish(args, out, _print, "plot_tolerance_box", res)
+
+
+def _unit(metric):
+    return metric_unit(metric)
 
 
 def _print(r):
-    print(f"largest box with {r['metric']} ≤ {r['limit_um']:g} µm at t = {r['t_eval_s']:g} s "
-          f"(half-widths around the scene's misalignment):")
+    if r["limits"]:
+        held = ", ".join(f"{x['metric']} ≤ {x['limit']:g} {x['unit']}" for x in r["limits"])
+        print(f"largest box with {held} over {r['window_s'][0]:g}–{r['window_s'][1]:g} s "
+              f"(half-widths around the scene's misalignment):")
+    else:
+        print(f"largest box with {r['metric']} ≤ {r['limit_um']:g} {_unit(r['metric'])} at t = {r['t_eval_s']:g} s "
+              f"(half-widths around the scene's misalignment):")
     for row in r["half_widths"]:
         note = " (not felt: capped)" if row["component"] in r["unconstrained"] else (
             f"  {100 * row['share']:.0f} % of the worst case" if row["share"] > 0 else "")
@@ -53,6 +95,9 @@ def _print(r):
     print(f"verified worst case {r['worst_case_um']:.4g} µm by {len(r['verification'])} full runs "
           f"({'within' if r['verified'] else 'NOT within'} [0.97, 1] × limit, {r['iterations']} iteration(s)); "
           f"linear model {r['predicted_worst_um']:.4g} µm")
+    for x in r["limits"]:
+        print(f"  {x['metric']:17s} verified worst {x['worst_case']:.4g} {x['unit']} of {x['limit']:g} "
+              f"({100 * x['ratio']:.0f} %; linear model {x['predicted_worst']:.4g}){'  <- binds' if x['binds'] else ''}")
     print(f"binding: {', '.join(r['binding'][:5]) or '-'}; RSS stack-up with σ = h/3: {r['rss_um']:.4g} µm")
     if not r["verified"]:
         print("warning: the verified worst case is outside [0.97, 1] × limit (strongly nonlinear response)")

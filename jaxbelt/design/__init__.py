@@ -30,9 +30,12 @@ from .metrics import METRICS as METRICS
 from .metrics import Study as Study
 from .metrics import evaluate as evaluate
 from .metrics import make_study as make_study
+from .metrics import metric_unit as metric_unit
 from .metrics import metric_value as metric_value
 from .metrics import response as response
+from .metrics import run_deviation as run_deviation
 from .metrics import tracer_deviation as tracer_deviation
+from .metrics import with_limits as with_limits
 from .sampling import Distribution as Distribution
 from .sampling import FormResult as FormResult
 from .sampling import ImportanceSamplingResult as ImportanceSamplingResult

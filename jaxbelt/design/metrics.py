@@ -3,22 +3,41 @@
 Every metric compares a misaligned run with the *aligned* run of the same scene (every
 misalignment zero, :func:`jaxbelt.misalignment.aligned`), tracer by tracer and step by step,
 so the static stretching of the belt by its pre-tension and drive does not count. With
-``d_u``, ``d_v`` (steps, tracers) the longitudinal and lateral tracer deviations in µm and
-``k`` the evaluation step (``t_eval``):
+``d_u``, ``d_v`` (steps, tracers) the longitudinal and lateral tracer deviations in µm, ``k``
+the evaluation step (``t_eval``) and ``W`` the evaluation window, the last ``window`` steps of
+``[0, t_eval]`` (10 % of the run; 20 % on a steered machine):
 
-| metric | definition | response ``r`` | aggregate |
+| metric | open loop: response ``r`` | steered machine: response ``r`` | aggregate |
 |---|---|---|---|
-| ``lateral_rms`` | $\\sqrt{\\tfrac1n \\sum_i d_v[k, i]^2}$ | ``d_v[k]`` (n_tr,) | RMS |
-| ``lateral_max`` | $\\max_i \\lvert d_v[k, i]\\rvert$ | ``d_v[k]`` | max-abs |
-| ``longitudinal_rms`` | $\\sqrt{\\tfrac1n \\sum_i d_u[k, i]^2}$ | ``d_u[k]`` | RMS |
-| ``lateral_peak`` | $\\max_{i,\\,k' \\in W} \\lvert d_v[k', i]\\rvert$, ``W`` the last ``window`` fraction (10 %) of ``[0, t_eval]`` | ``d_v[W]`` flattened | max-abs |
-| ``walk_rate`` | µm/s: least-squares slope of $\\bar d_v(t) = \\tfrac1n\\sum_i d_v(t, i)$ over the second half of ``[0, t_eval]`` (meaningful with ``lateral_transport = true``) | the slope (1,) | max-abs |
+| ``lateral_rms`` | ``d_v[k]`` (n_tr,) | ``d_v[W]`` flattened | RMS |
+| ``lateral_max`` | ``d_v[k]`` | ``d_v[W]`` flattened | max-abs |
+| ``longitudinal_rms`` | ``d_u[k]`` | ``d_u[W]`` flattened | RMS |
+| ``longitudinal_max`` | ``d_u[k]`` | ``d_u[W]`` flattened | max-abs |
+| ``lateral_peak`` | ``d_v[W]`` flattened | the same | max-abs |
+| ``walk_rate`` | µm/s: least-squares slope of $\\bar d_v(t) = \\tfrac1n\\sum_i d_v(t, i)$ over the second half of ``[0, t_eval]`` (meaningful with ``lateral_transport = true``), (1,) | the same | max-abs |
+| ``steering_max`` | — (needs a steering loop) | mrad: the actuator angles ``u[W]`` (n_c per step) themselves, flattened | max-abs |
+
+*Steered machine* means a model with ``[[control]]`` steering loops (``model.control``): its
+belt is held by the loop, so its metrics read the whole window of steady operation instead of
+one instant, and the aligned reference is the aligned machine *with its loop closed*. The
+sensor's noise and the belt edge's own profile enter both runs alike (the same seed): they
+cancel in the deviations. ``steering_max`` is the only metric that is not a deviation: the
+actuator's range is an absolute, so it is the largest actuator angle in the window (noise and
+profile included), in mrad. :func:`evaluate` also reports whether the actuator *saturated*: an
+angle within 0.1 % of its range limit in the window (``SATURATION_FRACTION``), which is where the
+clipped command holds it (without an actuator lag it sits exactly on the limit).
 
 The *response* ``r(θ)`` is the vector whose aggregate is the metric; it is nearly linear in the
-misalignments, which is what the tolerance box and FORM use (``metric = agg(r)``).
-``lateral_peak`` has a smooth version for gradients, the log-sum-exp soft maximum
-$\\tau \\log \\sum e^{|r|/\\tau}$ (``smooth=True``, ``τ = 0.05`` µm by default: it exceeds the hard
-maximum by at most ``τ log(len r)``).
+misalignments — on a steered machine too, as long as its actuator does not saturate (the PI
+law is linear until it clips) — which is what the tolerance box and FORM use
+(``metric = agg(r)``). ``lateral_peak`` has a smooth version for gradients, the log-sum-exp soft
+maximum $\\tau \\log \\sum e^{|r|/\\tau}$ (``smooth=True``, ``τ = 0.05`` µm by default: it exceeds the
+hard maximum by at most ``τ log(len r)``).
+
+A study can carry *several limits* at once (``limits``: ``((metric, limit), ...)``, max-type
+metrics only; :func:`with_limits`): its response is then every metric's response divided by its
+limit, stacked, and its metric the largest ratio (dimensionless; ≤ 1 passes), so the tolerance
+box and the sweep see one constraint that holds all of them.
 """
 
 from __future__ import annotations
@@ -34,14 +53,30 @@ from ..model import BeltModel
 from ..timeloop import simulate
 
 M_TO_UM = 1e6
+RAD_TO_MRAD = 1e3
+# name: (aggregate, needs a 2D scene, needs a steering loop, description)
 METRICS = {
-    "lateral_rms": ("rms", True, "RMS over the tracers of the lateral deviation at t_eval, µm"),
-    "lateral_max": ("max", True, "largest |lateral deviation| over the tracers at t_eval, µm"),
-    "longitudinal_rms": ("rms", False, "RMS over the tracers of the longitudinal deviation at t_eval, µm"),
-    "lateral_peak": ("max", True, "largest |lateral deviation| over tracers and the last 10 % of the run, µm"),
-    "walk_rate": ("max", True, "|slope| of the mean lateral deviation over the second half of the run, µm/s"),
+    "lateral_rms": ("rms", True, False, "RMS over the tracers of the lateral deviation at t_eval "
+                                        "(steered: over tracers and the window), µm"),
+    "lateral_max": ("max", True, False, "largest |lateral deviation| over the tracers at t_eval "
+                                        "(steered: over tracers and the window), µm"),
+    "longitudinal_rms": ("rms", False, False, "RMS over the tracers of the longitudinal deviation at t_eval "
+                                              "(steered: over tracers and the window), µm"),
+    "longitudinal_max": ("max", False, False, "largest |longitudinal deviation| over the tracers at t_eval "
+                                              "(steered: over tracers and the window): registration, µm"),
+    "lateral_peak": ("max", True, False, "largest |lateral deviation| over tracers and the window, µm"),
+    "walk_rate": ("max", True, False, "|slope| of the mean lateral deviation over the second half of the run, µm/s"),
+    "steering_max": ("max", True, True, "largest |actuator angle| of the steering loops over the window, mrad"),
 }
 SMOOTH_TAU_UM = 0.05
+OPEN_LOOP_WINDOW = 0.1  # fraction of [0, t_eval]: lateral_peak's window
+CLOSED_LOOP_WINDOW = 0.2  # fraction of [0, t_eval]: the window of steady operation of a steered machine
+SATURATION_FRACTION = 0.999  # an actuator angle at or beyond this × its range limit is saturated
+
+
+def metric_unit(name: str) -> str:
+    """The unit of a metric's value: ``"mrad"``, ``"µm/s"`` or ``"µm"``."""
+    return {"steering_max": "mrad", "walk_rate": "µm/s"}.get(name, "µm")
 
 
 class Study(eqx.Module):
@@ -53,7 +88,10 @@ class Study(eqx.Module):
     (n_steps, n_tr) tracer displacements of the aligned run, m, every step recorded (``ref_v``
     ``None`` in 1D); ``base`` (q,) the scene's own misalignment around which ``theta`` is
     measured; ``space`` the varied components; ``metric``; ``n_steps`` the run length (the
-    evaluation step); ``window`` the steps of ``lateral_peak``'s window.
+    evaluation step); ``window`` the steps of the evaluation window (``lateral_peak``, and every
+    windowed metric of a steered machine); ``limit_names`` the metrics of a study with several
+    limits at once (module docstring), else ``()``, and ``limit_values`` (n_limits,) their limits
+    (an array: studies that differ in the limits only share compiled programs).
     """
 
     model: BeltModel
@@ -66,24 +104,58 @@ class Study(eqx.Module):
     metric: str = eqx.field(static=True)
     n_steps: int = eqx.field(static=True)
     window: int = eqx.field(static=True)
+    limit_names: tuple = eqx.field(static=True, default=())
+    limit_values: jax.Array | None = None
+
+    @property
+    def limits(self) -> tuple:
+        """``((metric, limit), ...)`` of a study with several limits, else ``()``."""
+        if not self.limit_names:
+            return ()
+        return tuple(zip(self.limit_names, (float(v) for v in np.asarray(self.limit_values))))
 
     @property
     def aggregate(self) -> str:
-        return METRICS[self.metric][0]
+        return "max" if self.limit_names else METRICS[self.metric][0]
+
+    @property
+    def steered(self) -> bool:
+        """Whether the machine has steering loops (its metrics read the window in closed loop)."""
+        return self.model.control is not None
 
     @property
     def t_eval(self) -> float:
         """The evaluation time ``n_steps × dt``, s (concrete studies only)."""
         return self.n_steps * float(self.dt)
 
+    @property
+    def t_window(self) -> tuple[float, float]:
+        """The evaluation window ``(start, end)``, s: the last ``window`` steps of the run."""
+        return (self.n_steps - self.window) * float(self.dt), self.t_eval
+
+    @property
+    def range_mrad(self) -> float | None:
+        """The steering actuators' range limit, mrad (the smallest over the loops); ``None``
+        without a loop."""
+        return None if self.model.control is None else float(jnp.min(self.model.control.limit)) * RAD_TO_MRAD
+
     def configured(self, theta) -> BeltModel:
         """The model at design vector ``theta`` (P,), mm / mrad around the scene's misalignment."""
         return apply(self.model, self.space, theta, self.base)
 
 
+def _check_metric(model: BeltModel, metric: str):
+    if metric not in METRICS:
+        raise ValueError(f"metric = {metric!r}: unknown (one of {', '.join(METRICS)})")
+    if METRICS[metric][1] and model.kind != "2d":
+        raise ValueError(f"metric = {metric!r}: a lateral metric needs a 2D scene (this one is {model.kind})")
+    if METRICS[metric][2] and model.control is None:
+        raise ValueError(f"metric = {metric!r}: needs a steering loop ([[control]]); this machine has none")
+
+
 def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | None = None, *, dt,
                n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
-               window_fraction: float = 0.1) -> Study:
+               window_fraction: float | None = None) -> Study:
     """Set up a study: validate the metric and time, select the components, run the aligned
     reference once.
 
@@ -92,16 +164,16 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
     ``t_eval`` is not given (a scene's ``RunOptions.n_steps``: its ``t_end``); ``components`` as
     in :func:`jaxbelt.misalignment.parameter_space`; ``integrator`` the solver (default
     :func:`jaxbelt.make_solver`'s; a scene's is ``RunOptions.solver``); ``window_fraction`` of
-    ``[0, t_eval]`` for ``lateral_peak``.
+    ``[0, t_eval]``, the evaluation window (default 0.1, ``lateral_peak``'s; 0.2 on a steered
+    machine, where every windowed metric reads it).
 
     ``jaxbelt.RunOptions`` holds a scene's ``dt``, ``n_steps`` and solver:
     ``make_study(model, metric, dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)``.
     """
-    if metric not in METRICS:
-        raise ValueError(f"metric = {metric!r}: unknown (one of {', '.join(METRICS)})")
-    if METRICS[metric][1] and model.kind != "2d":
-        raise ValueError(f"metric = {metric!r}: a lateral metric needs a 2D scene (this one is {model.kind})")
+    _check_metric(model, metric)
     n_steps = _evaluation_step(t_eval, dt, n_steps)
+    if window_fraction is None:
+        window_fraction = OPEN_LOOP_WINDOW if model.control is None else CLOSED_LOOP_WINDOW
     if not 0.0 < window_fraction <= 1.0:
         raise ValueError(f"window_fraction = {window_fraction}: must lie in (0, 1]")
     integrator = make_solver() if integrator is None else integrator
@@ -111,6 +183,27 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
     return Study(model=model, integrator=integrator, dt=dt, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
                  base=model.chi_static, space=space, metric=metric, n_steps=n_steps,
                  window=max(1, int(round(window_fraction * n_steps))))
+
+
+def with_limits(study: Study, limits) -> Study:
+    """The study with several limits at once: ``limits`` ``{metric: limit}`` (or pairs), max-type
+    metrics only, limits in each metric's unit (:func:`metric_unit`). Its response is every
+    metric's response over its limit, stacked; its metric the largest ratio (module docstring).
+    An empty ``limits`` gives back the single-metric study (``limit_names = ()``)."""
+    pairs = tuple((str(k), float(v)) for k, v in (limits.items() if isinstance(limits, dict) else limits))
+    for name, limit in pairs:
+        _check_metric(study.model, name)
+        if METRICS[name][0] != "max":
+            raise ValueError(f"limits: {name!r} is an RMS metric; several limits at once take max-type metrics "
+                             f"({', '.join(k for k, v in METRICS.items() if v[0] == 'max')})")
+        if not (np.isfinite(limit) and limit > 0):
+            raise ValueError(f"limits: {name} = {limit}: must be a positive number")
+    if len({n for n, _ in pairs}) != len(pairs):
+        raise ValueError(f"limits: {[n for n, _ in pairs]} names a metric twice")
+    return Study(model=study.model, integrator=study.integrator, dt=study.dt, ref_u=study.ref_u, ref_v=study.ref_v,
+                 base=study.base, space=study.space, metric=study.metric, n_steps=study.n_steps, window=study.window,
+                 limit_names=tuple(n for n, _ in pairs),
+                 limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None)
 
 
 def _evaluation_step(t_eval, dt, n_steps) -> int:
@@ -128,29 +221,50 @@ def _evaluation_step(t_eval, dt, n_steps) -> int:
     return steps
 
 
-def tracer_deviation(study: Study, theta):
-    """``(d_u, d_v)`` (n_steps, n_tr) in µm: tracer displacements at ``theta`` minus the aligned
-    run's (``d_v`` is ``None`` in 1D)."""
+def run_deviation(study: Study, theta):
+    """``(d_u, d_v, angle)``: the tracer displacements at ``theta`` minus the aligned run's,
+    (n_steps, n_tr) µm (``d_v`` ``None`` in 1D), and the steering actuators' angles (n_steps,
+    n_c), mrad (``None`` without a loop)."""
     _, tr = simulate(study.configured(theta), study.integrator, n_steps=study.n_steps, dt=study.dt)
     du = (tr.tracer_u - study.ref_u) * M_TO_UM
     dv = None if tr.tracer_v is None else (tr.tracer_v - study.ref_v) * M_TO_UM
-    return du, dv
+    angle = None if tr.control_u is None else tr.control_u * RAD_TO_MRAD
+    return du, dv, angle
 
 
-def response_from_deviation(study: Study, du, dv):
-    """The metric's response vector ``r`` (see the module table) from the deviations."""
-    name, k = study.metric, study.n_steps - 1
-    if name == "longitudinal_rms":
-        return du[k]
+def tracer_deviation(study: Study, theta):
+    """``(d_u, d_v)`` (n_steps, n_tr) in µm: tracer displacements at ``theta`` minus the aligned
+    run's (``d_v`` is ``None`` in 1D)."""
+    return run_deviation(study, theta)[:2]
+
+
+def _single_response(study: Study, name: str, du, dv, angle):
+    k, w = study.n_steps - 1, study.window
+    window = slice(k + 1 - w, k + 1)
+    if name == "steering_max":
+        if angle is None:
+            raise ValueError("steering_max: the run has no actuator angles (no steering loop)")
+        return angle[window].reshape(-1)
+    if name in ("longitudinal_rms", "longitudinal_max"):
+        return du[window].reshape(-1) if study.steered else du[k]
     if name in ("lateral_rms", "lateral_max"):
-        return dv[k]
+        return dv[window].reshape(-1) if study.steered else dv[k]
     if name == "lateral_peak":
-        return dv[k + 1 - study.window:k + 1].reshape(-1)
+        return dv[window].reshape(-1)
     t = (jnp.arange(study.n_steps) + 1.0) * study.dt  # walk_rate
     half = study.n_steps // 2
     t, y = t[half:], jnp.mean(dv[half:], axis=1)
     tc = t - jnp.mean(t)
     return (jnp.sum(tc * (y - jnp.mean(y))) / jnp.sum(tc**2))[None]
+
+
+def response_from_deviation(study: Study, du, dv, angle=None):
+    """The metric's response vector ``r`` (see the module table) from the deviations and (for
+    ``steering_max``) the actuator angles, mrad; with several limits the stacked ratios."""
+    if study.limit_names:
+        return jnp.concatenate([_single_response(study, n, du, dv, angle) / study.limit_values[i]
+                                for i, n in enumerate(study.limit_names)])
+    return _single_response(study, study.metric, du, dv, angle)
 
 
 def aggregate(kind: str, r, smooth: bool = False, tau: float = SMOOTH_TAU_UM):
@@ -165,20 +279,49 @@ def aggregate(kind: str, r, smooth: bool = False, tau: float = SMOOTH_TAU_UM):
 
 def response(study: Study, theta):
     """``r(θ)`` of the study's metric (see the module table)."""
-    return response_from_deviation(study, *tracer_deviation(study, theta))
+    return response_from_deviation(study, *run_deviation(study, theta))
 
 
 def metric_value(study: Study, theta, smooth: bool = False):
-    """The study's metric at ``theta`` (P,) in µm (µm/s for ``walk_rate``)."""
-    return aggregate(study.aggregate, response(study, theta), smooth and study.metric == "lateral_peak")
+    """The study's metric at ``theta`` (P,) in its unit (µm; µm/s for ``walk_rate``, mrad for
+    ``steering_max``, the largest ratio with several limits)."""
+    return aggregate(study.aggregate, response(study, theta), smooth and study.metric == "lateral_peak"
+                     and not study.limit_names)
+
+
+def limit_values(study: Study, theta):
+    """Every limited metric of a study with several limits (:func:`with_limits`) at ``theta``:
+    (n_limits,), each in its own unit, in the order of ``study.limits``."""
+    du, dv, angle = run_deviation(study, theta)
+    return jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, angle)) for n in study.limit_names])
+
+
+def response_sizes(study: Study) -> list[int]:
+    """The length of each limited metric's response block, in the order of ``study.limits``."""
+    du = jnp.zeros(study.ref_u.shape)
+    dv = None if study.ref_v is None else jnp.zeros(study.ref_v.shape)
+    angle = None if study.model.control is None else jnp.zeros((study.n_steps, study.model.control.n_loops))
+    return [int(_single_response(study, n, du, dv, angle).shape[0]) for n in study.limit_names]
+
+
+def saturation(study: Study, angle):
+    """``(steering_mrad, saturated)`` from the actuator angles (n_steps, n_c) mrad: the largest
+    |angle| in the window, and whether it reached ``SATURATION_FRACTION`` of its loop's range."""
+    w = angle[study.n_steps - study.window:]
+    limit = study.model.control.limit * RAD_TO_MRAD
+    return jnp.max(jnp.abs(w)), jnp.any(jnp.abs(w) >= SATURATION_FRACTION * limit)
 
 
 def evaluate(study: Study, theta):
     """Everything a sweep stores for one configuration: ``metric`` () and the tracer deviations
-    at ``t_eval``, ``longitudinal_um`` and (2D) ``lateral_um`` (n_tr,)."""
-    du, dv = tracer_deviation(study, theta)
-    out = {"metric": aggregate(study.aggregate, response_from_deviation(study, du, dv)),
+    at ``t_eval``, ``longitudinal_um`` and (2D) ``lateral_um`` (n_tr,); on a steered machine also
+    ``steering_mrad`` () the largest actuator angle in the window and ``saturated`` () whether
+    the actuator reached its range limit there (:func:`saturation`)."""
+    du, dv, angle = run_deviation(study, theta)
+    out = {"metric": aggregate(study.aggregate, response_from_deviation(study, du, dv, angle)),
            "longitudinal_um": du[-1]}
     if dv is not None:
         out["lateral_um"] = dv[-1]
+    if angle is not None:
+        out["steering_mrad"], out["saturated"] = saturation(study, angle)
     return out

@@ -8,6 +8,7 @@ Layout (dims ``config``, ``tracer``, ``param``):
 | ``metric`` | (config,) | µm (µm/s for ``walk_rate``) |
 | ``lateral_um``, ``longitudinal_um`` | (config, tracer) | µm, tracer deviation at ``t_eval`` |
 | ``model`` | (config,) | int8: 0 = full model, 1 = reduced model (``flag_meanings``) |
+| ``steering_mrad``, ``saturated`` | (config,) | steered machine only: largest actuator angle in the window, mrad; whether it reached the range (bool) |
 
 The attributes hold the component labels of ``param`` (``param_labels``, JSON) and the study's
 identity (``identity``, JSON: scene, metric, limit, seed, distribution, ``t_eval``); a rerun into
@@ -64,6 +65,9 @@ def append_chunk(path: str | Path, identity: dict, labels, theta, outputs: dict,
     for key in ("lateral_um", "longitudinal_um"):
         if key in outputs:
             data[key] = (("config", "tracer"), np.asarray(outputs[key], float))
+    if "saturated" in outputs:
+        data["steering_mrad"] = (("config",), np.asarray(outputs["steering_mrad"], float))
+        data["saturated"] = (("config",), np.asarray(outputs["saturated"], bool))
     ds = xr.Dataset(data, attrs={"identity": json.dumps(identity), "param_labels": json.dumps(list(labels))})
     ds["model"].attrs.update(flag_values=[0, 1], flag_meanings="full reduced")
     path = Path(path)

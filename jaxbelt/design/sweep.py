@@ -11,6 +11,14 @@ Per chunk of configurations (fixed by the seed, :func:`~jaxbelt.design.sampling.
    reduced sample is certain up to the bound). Otherwise the sweep falls back to full runs.
 
 Each finished chunk is appended to the Zarr store (``out``), so a rerun resumes.
+
+On a steered machine (``[[control]]``) a configuration *fails* when its metric exceeds the limit
+**or** its steering actuator saturates in the evaluation window (an angle within 0.1 % of its
+range: :func:`jaxbelt.design.metrics.saturation`): a loop at its range no longer holds the belt,
+and past it the response is no longer the linear one. ``saturated`` counts them. FORM and
+importance sampling see the metric only. ``rom="auto"`` is refused there (the reduced models do
+not carry the steering loop): the sweep says so in ``rom["reason"]`` and runs every configuration
+in full.
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from .surrogate import Surrogate, fit_surrogate
 from .tolerance import LinearResponse, rss_stackup
 
 ROM_TRUST_FRACTION = 0.10  # the surrogate's validated error bound must stay below this × limit
+ROM_STEERED = "the reduced models do not carry the steering loop yet; every configuration runs in full"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,13 +49,19 @@ class SweepResult:
     **Fields:**
 
     - ``metric``, ``limit_um``, ``samples``, ``seed``: the question.
-    - ``yield_``: the fraction of the ``samples`` configurations whose metric is ≤ the limit;
-      ``ci95`` its Wilson 95 % interval; ``passed`` their number.
+    - ``yield_``: the fraction of the ``samples`` configurations whose metric is ≤ the limit
+      (and, on a steered machine, whose actuator does not saturate); ``ci95`` its Wilson 95 %
+      interval; ``passed`` their number.
+    - ``saturated``: on a steered machine, the configurations whose steering actuator reached its
+      range limit in the evaluation window, each counted as a failure whatever its metric;
+      ``range_mrad`` that range; ``steering_max_mrad`` the largest actuator angle of any
+      configuration; all ``None`` without a loop.
     - ``full_runs``: configurations run with the full model, the surrogate's training and
       validation runs included (used or not); ``reduced_runs``: configurations the surrogate
       decided.
     - ``rom``: the surrogate's validation record (:attr:`Surrogate.validation`) with ``used``
-      (whether it stood in); ``{"used": False}`` without one.
+      (whether it stood in); ``{"used": False}`` without one; ``{"used": False, "reason": ...}``
+      where ``rom="auto"`` was refused (a steered machine).
     - ``metric_values`` (samples,): the metric of every configuration, µm.
     - ``speedup_estimate``: with a reduced model, the full model's time per configuration in the
       validation runs (compilation included) times the configurations run, over the wall time —
@@ -74,6 +89,9 @@ class SweepResult:
     wall_s: float
     configs_per_s: float
     speedup_estimate: float | None = None
+    saturated: int | None = None
+    range_mrad: float | None = None
+    steering_max_mrad: float | None = None
     rss_3sigma_um: float | None = None
     form_yield: float | None = None
     form_beta: float | None = None
@@ -140,11 +158,14 @@ def _chunk_outputs(study, surrogate, block, limit_um, chunk):
 def _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress):
     """The metric and model code of every configuration from ``done`` on, chunk by chunk, each
     chunk appended to the store ``out``; those before ``done`` are read from it."""
-    metrics, codes = [], []
+    metrics, codes, steer, sat = [], [], [], []
     if done:
         ds = load_sweep(out)
         metrics.append(np.asarray(ds["metric"].values)[:done])
         codes.append(np.asarray(ds["model"].values)[:done])
+        if "saturated" in ds:
+            sat.append(np.asarray(ds["saturated"].values)[:done].astype(bool))
+            steer.append(np.asarray(ds["steering_mrad"].values)[:done])
     bar = None
     if progress:
         from tqdm import tqdm
@@ -156,6 +177,9 @@ def _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate,
         res, model_codes = _chunk_outputs(study, surrogate, block, limit_um, chunk)
         metrics.append(np.asarray(res["metric"]))
         codes.append(model_codes)
+        if "saturated" in res:
+            sat.append(np.asarray(res["saturated"], bool))
+            steer.append(np.asarray(res["steering_mrad"], float))
         if out is not None:
             append_chunk(out, identity, labels, block, res, model_codes)
         if bar is not None:
@@ -163,7 +187,8 @@ def _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate,
     if bar is not None:
         bar.close()
     metric = np.concatenate(metrics) if metrics else np.zeros(0)
-    return metric, (np.concatenate(codes) if codes else np.zeros(0, np.int8))
+    steering = (np.concatenate(steer), np.concatenate(sat)) if sat else None
+    return metric, (np.concatenate(codes) if codes else np.zeros(0, np.int8)), steering
 
 
 def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples) -> dict:
@@ -202,11 +227,18 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     identity = sweep_identity(study, dist, n, limit_um, seed, scene)
     done = min(open_sweep(out, identity), n) if out is not None else 0
     surrogate, rom_info = None, {"used": False}
-    if rom == "auto" and done < n:
+    if rom == "auto" and study.steered:
+        rom_info = {"used": False, "reason": ROM_STEERED}
+    elif rom == "auto" and done < n:
         surrogate, rom_info = _surrogate(study, dist, limit_um, seed, rom_method)
-    metric, code = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
-    passed = int(np.sum(metric <= limit_um))
+    metric, code, steering = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
+    ok = metric <= limit_um
     extra = {}
+    if steering is not None:  # a saturated actuator fails whatever the metric says
+        ok &= ~steering[1]
+        extra.update(saturated=int(np.sum(steering[1])), range_mrad=study.range_mrad,
+                     steering_max_mrad=float(np.max(steering[0])) if len(steering[0]) else 0.0)
+    passed = int(np.sum(ok))
     if rom_info["used"] and rom_info.get("n_validation"):
         # indicative: the validation's full runs (their compilation included) per configuration
         per_full = rom_info["validation_s"] / rom_info["n_validation"]

@@ -23,6 +23,15 @@ onto the limit exactly. Components the metric does not feel are capped at ``h_ma
 *unconstrained*. Finally the box is **verified by full runs** at the worst corners and a few
 random ones; if the verified worst case is not within ``[0.97, 1.0] × limit`` the box is scaled
 (secant iteration on a uniform factor) and verified again.
+
+**Several limits at once** (``limits``, e.g. ``{"longitudinal_max": 20, "steering_max": 3}``
+beside a max-type study metric): every metric's response is divided by its limit and stacked
+(:func:`jaxbelt.design.metrics.with_limits`), so one max-type constraint holds all of them; it is
+carried on the scale of the study's own limit (``ratio × limit_um``), so ``worst_case_um``, the
+verification values and the plot read as before, and ``limits`` reports each metric in its own
+unit, its predicted and verified worst case, and which one *binds* (the largest verified ratio).
+On a steered machine the steering range is such a limit: a box within it never saturates the
+actuator (the PI law is linear until it clips, so the box machinery applies).
 """
 
 from __future__ import annotations
@@ -30,13 +39,14 @@ from __future__ import annotations
 import dataclasses
 import itertools
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
-from .metrics import Study, aggregate
+from .metrics import METRICS, Study, aggregate, limit_values, metric_unit, response_sizes, with_limits
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -232,7 +242,14 @@ class ToleranceBox:
     components by share, largest first; ``unconstrained`` those capped at ``h_max`` (not felt);
     ``verification`` one ``{"kind", "corner", "predicted_um", "full_um"}`` per verification run
     of the last iteration; ``iterations``; ``rss_um`` the RSS stack-up with ``σ = h/3``;
-    ``jacobian_um`` (n_r, P) and ``response0_um`` (n_r,) the linear response ``r0 + J θ``.
+    ``jacobian_um`` (n_r, P) and ``response0_um`` (n_r,) the linear response ``r0 + J θ``;
+    ``limits`` with several limits (module docstring) one ``{"metric", "limit", "unit",
+    "predicted_worst", "worst_case", "ratio", "binds"}`` per limit, each in the metric's own unit
+    (``ratio`` = verified worst / limit), else ``[]``; ``binding_limit`` the metric whose limit
+    binds (the study's metric with a single limit). With several limits ``worst_case_um``,
+    ``predicted_worst_um``, the verification values and the linear response are the largest ratio
+    to its limit times ``limit_um``, and every verification row has ``full_by_limit``
+    ``{metric: value}``.
     """
 
     metric: str
@@ -253,22 +270,25 @@ class ToleranceBox:
     rss_um: float
     jacobian_um: np.ndarray
     response0_um: np.ndarray
+    limits: list = dataclasses.field(default_factory=list)
+    binding_limit: str = ""
 
     def to_dict(self) -> dict:
         """The box as JSON-able data (``jaxbelt tolerance --json``): the scalar and table fields
         and ``half_widths`` as ``[{"component", "half_width", "unit", "share"}]``."""
         out = {k: getattr(self, k) for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um",
                                               "predicted_worst_um", "verified", "binding", "unconstrained",
-                                              "verification", "iterations", "rss_um")}
+                                              "verification", "iterations", "rss_um", "limits", "binding_limit")}
         out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
                               for lab, h, u, s in zip(self.labels, self.half_widths, self.units, self.share)]
         return out
 
 
-def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners, max_iter, space):
+def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners, max_iter, space, names=None):
     """Full runs at the worst and the random corners, the box scaled (uniform factor, secant)
-    until the verified worst case lies in ``[0.97, 1] × limit``. **Returns:** ``(h, worst,
-    table, iterations)``."""
+    until the verified worst case lies in ``[0.97, 1] × limit``. ``evaluate_many`` returns the
+    metric (m,), or with several limits (``names``: ``((metric, limit), ...)``) each limit's
+    value in its own unit (m, n_limits). **Returns:** ``(h, worst, table, iterations)``."""
     target, s, history, table = 0.985 * limit_um, 1.0, [], []
     floor = float(aggregate(lin.kind, jnp.asarray(lin.r0)))
     n_random = len(corners_random)
@@ -276,11 +296,18 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
         h = np.where(felt, s * h_lin, h_lin)
         signs, pred = worst_corners(lin, h, n_corners)
         corners = np.concatenate([signs, corners_random])
-        full = np.asarray(evaluate_many(corners * h))
+        values = np.asarray(evaluate_many(corners * h))
+        if names:  # each limit's value over its limit, on the scale of limit_um
+            full = limit_um * np.max(values / np.array([lim for _, lim in names]), axis=1)
+        else:
+            full = values
         pred_all = np.concatenate([pred, [lin.metric(c * h) for c in corners_random]])
         kinds = ["worst corner"] * len(signs) + ["random corner"] * n_random
         table = [{"kind": k, "corner": space.per_roller(c * h), "predicted_um": float(p), "full_um": float(f)}
                  for k, c, p, f in zip(kinds, corners, pred_all, full)]
+        if names:
+            for row, v in zip(table, values):
+                row["full_by_limit"] = {n: float(x) for (n, _), x in zip(names, v)}
         worst = float(np.max(full))
         history.append((s, worst))
         if 0.97 * limit_um <= worst <= limit_um:
@@ -294,33 +321,70 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
     return h, worst, table, len(history)
 
 
+@eqx.filter_jit
+def _limit_values_batch(study: Study, thetas):
+    return jax.vmap(lambda t: limit_values(study, t))(thetas)
+
+
+def _per_limit(lin, h, names, sizes, limit_um, table):
+    """The ``limits`` table of a box with several limits and the binding metric's name."""
+    rows, start = [], 0
+    for (name, lim), n in zip(names, sizes):
+        block = slice(start, start + n)
+        start += n
+        pred = float(np.max(np.abs(lin.r0[block]) + np.abs(lin.J[block]) @ h)) * lim / limit_um
+        full = max(row["full_by_limit"][name] for row in table)
+        rows.append({"metric": name, "limit": float(lim), "unit": metric_unit(name), "predicted_worst": pred,
+                     "worst_case": full, "ratio": full / lim, "binds": False})
+    binding = max(rows, key=lambda r: r["ratio"])
+    binding["binds"] = True
+    return rows, binding["metric"]
+
+
 def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: float = H_MAX,
                   n_random: int = 4, n_corners: int = 4, max_iter: int = 6, seed: int = 0,
-                  evaluate_many=None) -> ToleranceBox:
+                  evaluate_many=None, limits: dict | None = None) -> ToleranceBox:
     """The largest weighted tolerance box keeping ``study``'s metric ≤ ``limit_um``, verified by
     full runs (module docstring).
 
     **Arguments:** ``weights`` (P,) cost weights (default 1); ``h_max`` cap of a half-width
     (mm / mrad); ``n_corners`` worst corners and ``n_random`` random corners verified per
     iteration; ``evaluate_many(thetas (m, P)) -> metrics (m,)`` runs the full model (default: a
-    ``vmap`` of :func:`jaxbelt.design.metrics.metric_value`).
+    ``vmap`` of :func:`jaxbelt.design.metrics.metric_value`; with ``limits``, each limit's value
+    (m, n_limits)); ``limits`` further limits held at the same time, ``{metric: limit}`` in each
+    metric's unit (max-type metrics; the study's metric must be one too).
 
     **Returns:** a :class:`ToleranceBox`.
     """
     if not (np.isfinite(limit_um) and limit_um > 0):
         raise ValueError(f"limit_um = {limit_um}: must be a positive number")
+    names = None
+    if limits:
+        if METRICS[study.metric][0] != "max":
+            raise ValueError(f"limits: several limits at once need a max-type metric (not {study.metric})")
+        names = ((study.metric, float(limit_um)),) + tuple((k, float(v)) for k, v in limits.items())
+        work = with_limits(study, names)
+    else:
+        work = study
     if evaluate_many is None:
         def evaluate_many(thetas):
+            if names:
+                return np.asarray(_limit_values_batch(work, jnp.asarray(thetas, work.base.dtype)))
             return evaluate_metric(study, thetas)
 
     sp = study.space
-    r0, J = response_jacobian(study)
-    lin = LinearResponse(r0, J, study.aggregate)
+    r0, J = response_jacobian(work)
+    if names:  # the stacked ratios on the scale of limit_um
+        r0, J = r0 * limit_um, J * limit_um
+    lin = LinearResponse(r0, J, work.aggregate)
     h_lin = optimise_box(lin, limit_um, weights, h_max)
     felt = np.any(J != 0, axis=0) & (h_lin < h_max)
     rand = np.random.default_rng(seed).choice([-1.0, 1.0], size=(n_random, len(h_lin)))  # the same in every iteration
-    h, worst, table, iterations = _verify(lin, h_lin, felt, limit_um, evaluate_many, rand, n_corners, max_iter, sp)
+    h, worst, table, iterations = _verify(lin, h_lin, felt, limit_um, evaluate_many, rand, n_corners, max_iter, sp,
+                                          names)
     W = worst_case(lin, h)
+    per_limit, binding_limit = ([], study.metric) if not names else _per_limit(
+        lin, h, names, response_sizes(work), limit_um, table)
     share = _shares(lin, h, W)
     labels = sp.labels()
     binding = [labels[k] for k in np.argsort(-share) if felt[k] and share[k] > 0]
@@ -333,7 +397,8 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
         verified=bool(0.97 * limit_um <= worst <= limit_um),
         binding=binding, unconstrained=[labels[k] for k in range(len(h)) if not felt[k]],
         verification=table, iterations=iterations,
-        rss_um=rss_stackup(lin, h / 3.0).three_sigma_um, jacobian_um=J, response0_um=r0)
+        rss_um=rss_stackup(lin, h / 3.0).three_sigma_um, jacobian_um=J, response0_um=r0,
+        limits=per_limit, binding_limit=binding_limit)
 
 
 def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:

@@ -1,0 +1,105 @@
+"""Tolerance design on a steered machine: the closed-loop metrics over the evaluation window,
+their linearity below saturation, the tolerance box with several limits verified by full
+closed-loop runs, saturation counted as a failure by the sweep, and the design commands'
+default scene.
+
+One coarse copy of ``three-roller-steered`` (3 grid lines across, 5 elements per arc: N = 252;
+100 steps = 2 s, a whole number of the scan's checkpoint chunks; window the last 20 steps) and
+one study on two components; the tests reuse its compiled programs (the vmapped batch of 8, the
+forward Jacobian, the batch of limit values). The narrow-range copy differs only in the
+actuator's range (an array leaf), so it runs the same programs."""
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import load, scene_with
+
+from jaxbelt import design
+from jaxbelt.cli import build_parser
+from jaxbelt.design.sweep import ROM_STEERED
+
+COMPONENTS = "roller 1:ax,roller 3:dz"
+CHUNK = 8
+
+
+def _coarse(d):
+    d["mesh"] = {"n_eta": 3, "roller_elements": [5, 5, 5], "free_elements": [10, 7, 7]}
+    d["time"] = {"dt_s": 0.02, "t_end_s": 2.0}
+
+
+@pytest.fixture(scope="module")
+def study():
+    from jaxbelt import make_solver
+
+    model, opts = load(scene_with(_coarse, "three-roller-steered"))
+    return design.make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, components=COMPONENTS,
+                             integrator=make_solver("direct", "reuse"))
+
+
+def _batch(rows):
+    th = np.zeros((CHUNK, 2))
+    th[:len(rows)] = rows
+    return th
+
+
+def test_window_and_reference(study):
+    assert study.steered and study.window == 20 and study.t_window == pytest.approx((1.6, 2.0))
+    assert study.range_mrad == pytest.approx(3.0)
+    out = design.evaluate_configs(study, _batch([[0.0, 0.0]]), CHUNK)
+    # the aligned steered machine against itself: noise and edge profile cancel
+    assert abs(out["metric"][0]) < 1e-6 and not out["saturated"][0]
+    assert 0 < out["steering_mrad"][0] < 0.1  # the loop answers the sensor noise and the edge profile
+
+
+def test_closed_loop_metrics_are_linear_below_saturation(study):
+    rows = [[0.0, 0.0], [0.05, 0.0], [0.1, 0.0], [0.0, 0.02], [0.0, 0.04]]
+    out = design.evaluate_configs(study, _batch(rows), CHUNK)
+    m, lat = out["metric"], out["lateral_um"]
+    assert m[1] > 1.0 and m[3] > 1.0 and not np.any(out["saturated"][:5])
+    assert m[2] == pytest.approx(2 * m[1], rel=1e-3) and m[4] == pytest.approx(2 * m[3], rel=1e-3)
+    np.testing.assert_allclose(lat[2], 2 * lat[1], atol=1e-3 * np.abs(lat[2]).max())
+    # the steering angle is affine: its change from the aligned run doubles too
+    s = out["steering_mrad"]
+    assert s[2] - s[0] == pytest.approx(2 * (s[1] - s[0]), rel=0.05)
+
+
+def test_box_with_several_limits_verified_by_closed_loop_runs(study):
+    box = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 3.0})
+    assert box.verified and 0.97 * 20 <= box.worst_case_um <= 20
+    assert [x["metric"] for x in box.limits] == ["lateral_max", "longitudinal_max", "steering_max"]
+    assert box.binding_limit == "lateral_max" and [x["binds"] for x in box.limits] == [True, False, False]
+    for row in box.verification:  # every full closed-loop run within every limit
+        assert row["full_by_limit"]["lateral_max"] <= 20.0 and row["full_by_limit"]["steering_max"] <= 3.0
+    lat = box.limits[0]
+    assert lat["worst_case"] == pytest.approx(lat["predicted_worst"], rel=0.01)  # linear in closed loop
+    # a tight steering range binds instead, and the box shrinks
+    tight = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 0.02})
+    assert tight.verified and tight.binding_limit == "steering_max"
+    assert tight.limits[2]["worst_case"] <= 0.02 and tight.limits[0]["worst_case"] < 20.0
+    assert np.all(tight.half_widths <= box.half_widths * (1 + 1e-9))
+    assert tight.to_dict()["binding_limit"] == "steering_max"
+
+
+def test_sweep_counts_saturation_as_failure(study):
+    narrow = eqx.tree_at(lambda m: m.control.limit, study.model, jnp.asarray([0.05e-3]))
+    st = design.make_study(narrow, "lateral_max", dt=study.dt, n_steps=study.n_steps, components=COMPONENTS,
+                           integrator=study.integrator)
+    dist = design.Distribution(("roller 1:ax", "roller 3:dz"), ("normal", "normal"), (0.08, 0.001))
+    res = design.run_sweep(st, dist, CHUNK, limit_um=1e4, chunk=CHUNK, with_form=False, rom="auto")
+    mc = design.monte_carlo(st, dist, CHUNK, 1e4, chunk=CHUNK)
+    sat = np.asarray(mc.outputs["saturated"])
+    assert 0 < sat.sum() < CHUNK and np.all(mc.metric <= 1e4)  # only saturation fails here
+    assert res.saturated == int(sat.sum()) and res.passed == CHUNK - res.saturated
+    assert res.range_mrad == pytest.approx(0.05) and res.steering_max_mrad >= 0.999 * 0.05
+    assert res.rom == {"used": False, "reason": ROM_STEERED} and res.full_runs == CHUNK
+    # the saturated ones are exactly those whose actuator reached its range
+    assert np.array_equal(sat, np.asarray(mc.outputs["steering_mrad"]) >= 0.999 * 0.05)
+
+
+def test_design_commands_default_to_the_steered_machine():
+    parser = build_parser()
+    for argv in (["tolerance"], ["sensitivity"], ["sweep", "--dist", "d.toml"]):
+        assert parser.parse_args(argv).scene == "three-roller-steered"
+    args = parser.parse_args(["tolerance"])
+    assert args.limit_um == 20.0 and args.steering_limit_mrad is None
