@@ -324,6 +324,10 @@ BENCHMARKS = {
                               "scene."),
     "transport_rules": ("The two transport rules", "The source's relabelling rule and the shift rule against the "
                         "analytic steady strain of a translated idle roller, and their interpolation weights."),
+    "tuning": ("Steering-loop tuning against SIMC and Ziegler–Nichols", "PI gains fitted by Adam through the "
+               "whole closed-loop run of `two-roller-steered` (GM ≥ 6 dB, PM ≥ 45°), for the ISE and the peak "
+               "objective, beside SIMC and Ziegler–Nichols run through the same model, and the gradient in the "
+               "gains against central differences ([tuning](tuning.md))."),
     "validation": ("Validation set at fine resolution", "The checks of `tests/integration/test_validation.py` (wave speed, "
                    "statics, lateral translation, convergence, Backward Euler's damping) at resolutions the tests "
                    "cannot afford ([validation](validation.md))."),

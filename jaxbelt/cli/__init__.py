@@ -1,4 +1,4 @@
-"""Command line: ``jaxbelt demo | scenes | info | simulate | plot-scene | reduce | sensitivity | tolerance | sweep | steering | bench``.
+"""Command line: ``jaxbelt demo | scenes | info | simulate | plot-scene | reduce | sensitivity | tolerance | sweep | tune | steering | bench``.
 
 One module per command. A command module provides ``add_parser(subparsers)``, which registers its
 sub-parser and sets its handler as ``func`` (``p.set_defaults(func=run)``, ``run(args) -> int``);
@@ -22,11 +22,11 @@ import jax
 
 from .. import enable_x64
 from ..scene import MisalignmentWarning, SceneError
-from . import bench, demo, info, plot_scene, reduce, scenes, sensitivity, simulate, steering, sweep, tolerance
+from . import bench, demo, info, plot_scene, reduce, scenes, sensitivity, simulate, steering, sweep, tolerance, tune
 from ._common import SimulationError, UsageError
 from .reduce import print_reduce
 
-COMMANDS = (tolerance, sweep, sensitivity, steering, demo, scenes, info, plot_scene, simulate, reduce, bench)  # in the order of ``jaxbelt --help``
+COMMANDS = (tolerance, sweep, sensitivity, tune, steering, demo, scenes, info, plot_scene, simulate, reduce, bench)  # in the order of ``jaxbelt --help``
 
 __all__ = ["COMMANDS", "SimulationError", "UsageError", "print_reduce", "build_parser", "main"]
 
