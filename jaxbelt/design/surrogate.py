@@ -34,6 +34,15 @@ serial runs).
   for the initial state, then O(r²) per step; the nominal offset (full minus reduced tracers at
   ``theta = 0``) is added, so it is exact at the nominal configuration.
 
+**Steered machines** (``[[control]]``, ``method="response"`` only). The steering loop is part
+of every full run, so the training runs' deviations are closed-loop ones, and the surface also
+carries the actuators' angles in the evaluation window: the PI loop is linear in the
+misalignments until its actuator clips, so angles and deviations are alike near-affine. The
+validation bounds the largest angle as it bounds the metric (``steering_error_mrad``), and the
+sweep re-runs in full every configuration whose predicted angle comes within that bound of the
+actuator's range: the surface cannot see the clipping, the full run can. The POD step does not
+carry the loop (its operators are projected with the loop open) and is refused there.
+
 The tracers minus the study's aligned reference are the deviations in µm; the metric is formed
 from them by the study's own :func:`~jaxbelt.design.metrics.response_from_deviation` and
 :func:`~jaxbelt.design.metrics.aggregate`, so the full and the reduced metric share one
@@ -92,7 +101,7 @@ from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, trace
 from ..rom.reduced import reduced_operators
 from ..state import initial_state
 from ..timeloop import simulate
-from .metrics import M_TO_UM, Study, aggregate, response_from_deviation
+from .metrics import M_TO_UM, RAD_TO_MRAD, Study, aggregate, response_from_deviation, saturation
 from .sampling import Distribution, check_distribution, standard_normal_samples
 
 ROUNDOFF_UM = 1e-9
@@ -107,12 +116,18 @@ class ResponseSurface(eqx.Module):
 
     **Fields:** ``d0`` (c, m, n_tr), ``linear`` and ``curvature`` (P, c, m, n_tr): ``c`` = 1 in
     1D (longitudinal) or 2 (longitudinal, lateral); the last ``m`` steps of the run, the ones the
-    study's metric reads (:func:`steps_needed`); ``n_steps`` the whole run."""
+    study's metric reads (:func:`steps_needed`); ``n_steps`` the whole run; on a steered machine
+    ``angle0`` (m, n_c), ``angle_linear`` and ``angle_curvature`` (P, m, n_c): the same surface
+    for the steering actuators' angles (mrad), which the closed loop makes as linear in the
+    misalignments as the tracers while no actuator saturates (``None`` without a loop)."""
 
     d0: jax.Array
     linear: jax.Array
     curvature: jax.Array
     n_steps: int = eqx.field(static=True)
+    angle0: jax.Array | None = None
+    angle_linear: jax.Array | None = None
+    angle_curvature: jax.Array | None = None
 
     def deviations(self, theta):
         """``(d_u, d_v)`` (n_steps, n_tr) µm at ``theta`` (P,) (``d_v`` ``None`` in 1D); steps
@@ -122,14 +137,23 @@ class ResponseSurface(eqx.Module):
         d = jnp.concatenate([jnp.zeros((d.shape[0], self.n_steps - d.shape[1], d.shape[2]), d.dtype), d], axis=1)
         return d[0], (d[1] if d.shape[0] > 1 else None)
 
+    def angles(self, theta):
+        """The steering actuators' angles (n_steps, n_c), mrad, at ``theta`` (``None`` without a
+        loop); steps before the kept ones are zero."""
+        if self.angle0 is None:
+            return None
+        theta = jnp.asarray(theta, self.angle0.dtype)
+        a = self.angle0 + jnp.tensordot(theta, self.angle_linear, 1) + jnp.tensordot(theta**2, self.angle_curvature, 1)
+        return jnp.concatenate([jnp.zeros((self.n_steps - a.shape[0], a.shape[1]), a.dtype), a], axis=0)
+
 
 def steps_needed(study: Study) -> int:
     """How many of the last steps of a run the study's metric and the stored outputs read: the
-    last one (``*_rms``, ``lateral_max``), the window (``lateral_peak``), the second half
-    (``walk_rate``)."""
-    if study.metric == "walk_rate":
+    last one (``*_rms``, ``lateral_max``), the window (``lateral_peak``, and every metric of a
+    steered machine), the second half (``walk_rate``)."""
+    if study.metric == "walk_rate" or "walk_rate" in study.limit_names:
         return study.n_steps - study.n_steps // 2
-    if study.metric == "lateral_peak":
+    if study.metric == "lateral_peak" or study.steered:
         return study.window
     return 1
 
@@ -140,22 +164,28 @@ def _configured(study: Study, theta):
 
 
 def full_deviations(study: Study, theta):
-    """``(d_u, d_v)`` (n_steps, n_tr) µm (numpy) of the full model at ``theta``, one run through
-    :func:`~jaxbelt.simulate` — the program the study compiled for its aligned reference run
-    (the same shapes), so no new compilation; a non-finite run comes back non-finite."""
+    """``(d_u, d_v, angle)`` of the full model at ``theta`` (numpy): the tracer deviations
+    (n_steps, n_tr) µm (``d_v`` ``None`` in 1D) and the steering actuators' angles (n_steps,
+    n_c) mrad (``None`` without a loop), one run through :func:`~jaxbelt.simulate` — the program
+    the study compiled for its aligned reference run (the same shapes), so no new compilation; a
+    non-finite run comes back non-finite."""
     model = _configured(study, jnp.asarray(theta, study.base.dtype))
     _, tr = simulate(model, study.integrator, n_steps=study.n_steps, dt=study.dt, check=False)
     du = (np.asarray(tr.tracer_u) - np.asarray(study.ref_u)) * M_TO_UM
-    return du, None if tr.tracer_v is None else (np.asarray(tr.tracer_v) - np.asarray(study.ref_v)) * M_TO_UM
+    dv = None if tr.tracer_v is None else (np.asarray(tr.tracer_v) - np.asarray(study.ref_v)) * M_TO_UM
+    return du, dv, None if tr.control_u is None else np.asarray(tr.control_u) * RAD_TO_MRAD
 
 
-def _metric(study: Study, du, dv):
-    return aggregate(study.aggregate, response_from_deviation(study, du, dv))
+def _metric(study: Study, du, dv, angle=None):
+    return aggregate(study.aggregate, response_from_deviation(study, du, dv, angle))
 
 
 @eqx.filter_jit
-def _metric_jit(study: Study, du, dv):
-    return _metric(study, du, dv)
+def _metric_jit(study: Study, du, dv, angle):
+    out = {"metric": _metric(study, du, dv, angle)}
+    if angle is not None:
+        out["steering_mrad"] = saturation(study, angle)[0]
+    return out
 
 
 def _reduced_tracers(study: Study, rom: ReducedStep, theta):
@@ -169,15 +199,19 @@ def _predict_one(study: Study, rom, anchor, theta):
     """Reduced metric and tracer deviations at t_eval. ``rom`` a :class:`ResponseSurface` or a
     :class:`~jaxbelt.rom.ReducedStep` with ``anchor`` the nominal offsets (full minus reduced
     tracers at ``theta = 0``)."""
+    angle = None
     if isinstance(rom, ResponseSurface):
         du, dv = rom.deviations(theta)
+        angle = rom.angles(theta)
     else:
         tu, tv = _reduced_tracers(study, rom, theta)
         du = (tu + anchor[0] - study.ref_u) * M_TO_UM
         dv = None if tv is None else (tv + anchor[1] - study.ref_v) * M_TO_UM
-    out = {"metric": _metric(study, du, dv), "longitudinal_um": du[-1]}
+    out = {"metric": _metric(study, du, dv, angle), "longitudinal_um": du[-1]}
     if dv is not None:
         out["lateral_um"] = dv[-1]
+    if angle is not None:
+        out["steering_mrad"], out["saturated"] = saturation(study, angle)
     return out
 
 
@@ -198,7 +232,9 @@ class Surrogate:
     **Attributes:** ``study``; ``rom`` the reduced model (:class:`ResponseSurface`, or
     :class:`~jaxbelt.rom.ReducedStep` with ``anchor`` its nominal offsets); ``widths`` (P,) the
     training widths ``w``; ``error_um`` (``safety · E``); ``rho_max``; ``bound_um`` (the bound
-    on the validation samples, µm); ``limit_um``; ``validation`` (dict, JSON-able).
+    on the validation samples, µm); ``limit_um``; ``validation`` (dict, JSON-able); on a steered
+    machine ``steering_error_mrad``, the same bound for the largest actuator angle (``safety``
+    times its largest validation error, growing alike beyond the validated range).
     """
 
     def __init__(self, study: Study, rom, anchor, widths, limit_um: float, batch: int = 64):
@@ -206,6 +242,7 @@ class Surrogate:
         self.widths = np.asarray(widths, float)
         self.limit_um, self.batch = float(limit_um), int(batch)
         self.error_um = float("inf")
+        self.steering_error_mrad = float("inf")
         self.rho_max = 0.0
         self.bound_um = float("inf")
         self.validation: dict = {}
@@ -229,10 +266,11 @@ class Surrogate:
         """``ρ(θ) = ‖θ / w‖`` (n,): distance from the nominal in training widths."""
         return np.linalg.norm(np.asarray(thetas, float).reshape(-1, len(self.widths)) / self.widths, axis=1)
 
-    def bound(self, thetas) -> np.ndarray:
-        """Per-sample error bound (µm) on the metric (module docstring)."""
+    def bound(self, thetas, error=None) -> np.ndarray:
+        """Per-sample error bound (µm) on the metric (module docstring); with ``error`` the same
+        growth of another validated error (the steering angle's)."""
         grow = np.maximum(1.0, (self.distance(thetas) / max(self.rho_max, 1e-300)) ** 2)
-        return self.error_um * grow + ROUNDOFF_UM
+        return (self.error_um if error is None else error) * grow + ROUNDOFF_UM
 
     def evaluate(self, thetas) -> dict:
         """Surrogate outputs for ``thetas`` (n, P): ``metric`` (n,), ``bound`` (n,) µm, and
@@ -245,6 +283,8 @@ class Surrogate:
             bad |= ~np.all(np.isfinite(value.reshape(len(bad), -1)), axis=1)
         out["metric"] = np.where(bad, self.limit_um, out["metric"])
         out["bound"] = np.where(bad, np.inf, bound)
+        if "steering_mrad" in out:
+            out["steering_bound"] = np.where(bad, np.inf, self.bound(thetas, self.steering_error_mrad))
         return out
 
 
@@ -265,15 +305,23 @@ def training_configurations(dist: Distribution, spread: float = 3.0) -> np.ndarr
 def _fit_response(study: Study, train, widths) -> ResponseSurface:
     """:class:`ResponseSurface` from one full run per row of ``train`` (nominal, then ``±w_k``)."""
     m = steps_needed(study)
-    runs = []
+    runs, angles = [], []
     for theta in train:
-        du, dv = full_deviations(study, theta)
+        du, dv, angle = full_deviations(study, theta)
         runs.append(np.stack([np.asarray(du)] + ([] if dv is None else [np.asarray(dv)]))[:, -m:])
-    runs = np.array(runs)
-    d0, plus, minus = runs[0], runs[1::2], runs[2::2]
-    w = np.asarray(widths, float)[:, None, None, None]
-    return ResponseSurface(d0=jnp.asarray(d0), linear=jnp.asarray((plus - minus) / (2 * w)),
-                           curvature=jnp.asarray((plus + minus - 2 * d0) / (2 * w**2)), n_steps=study.n_steps)
+        if angle is not None:
+            angles.append(angle[-m:])
+
+    def surface(a, axes):  # nominal, slope and curvature of the ±w pairs
+        a = np.array(a)
+        w = np.asarray(widths, float).reshape((-1,) + (1,) * axes)
+        return jnp.asarray(a[0]), jnp.asarray((a[1::2] - a[2::2]) / (2 * w)), \
+            jnp.asarray((a[1::2] + a[2::2] - 2 * a[0]) / (2 * w**2))
+
+    d0, linear, curvature = surface(runs, 3)
+    a0, a1, a2 = surface(angles, 2) if angles else (None, None, None)
+    return ResponseSurface(d0=d0, linear=linear, curvature=curvature, n_steps=study.n_steps,
+                           angle0=a0, angle_linear=a1, angle_curvature=a2)
 
 
 def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
@@ -307,10 +355,19 @@ def _calibrate(surrogate: Surrogate, dist: Distribution, seed: int, n_validation
     study = surrogate.study
     u = standard_normal_samples(n_validation, study.space.size, seed)
     thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(u)))  # one small program, not op by op
-    full = np.array([float(_metric_jit(study, *full_deviations(study, th))) for th in thetas])
-    err = np.abs(surrogate.predict(thetas)["metric"] - full)
+    runs = [_metric_jit(study, *full_deviations(study, th)) for th in thetas]
+    full = np.array([float(r["metric"]) for r in runs])
+    predicted = surrogate.predict(thetas)
+    err = np.abs(predicted["metric"] - full)
     err = np.where(np.isfinite(err), err, np.inf)
     surrogate.error_um = float(safety * np.max(err))
+    steering = {}
+    if "steering_mrad" in predicted:
+        s_err = np.abs(predicted["steering_mrad"] - np.array([float(r["steering_mrad"]) for r in runs]))
+        s_err = np.where(np.isfinite(s_err), s_err, np.inf)
+        surrogate.steering_error_mrad = float(safety * np.max(s_err))
+        steering = {"max_true_steering_error_mrad": float(np.max(s_err)),
+                    "steering_bound_mrad": surrogate.steering_error_mrad}
     surrogate.rho_max = float(np.max(surrogate.distance(thetas)))
     bound = surrogate.bound(thetas)
     surrogate.bound_um = float(np.max(bound))
@@ -326,6 +383,7 @@ def _calibrate(surrogate: Surrogate, dist: Distribution, seed: int, n_validation
         "effectivity_median": float(np.median(finite)) if finite.size else float("inf"),
         "loo_effectivity_min": float(np.min(loo)),
         "metric_range_um": [float(np.min(full)), float(np.max(full))],
+        **steering,
     }
 
 
@@ -352,6 +410,9 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     check_distribution(dist, study)
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: one of {', '.join(METHODS)}")
+    if method == "pod" and study.steered:
+        raise ValueError("method = 'pod': the fully reduced POD step does not carry the steering loop; "
+                         "use method = 'response' on a steered machine")
     if n_validation < 2:
         raise ValueError(f"n_validation = {n_validation}: need at least 2 validation runs")
     if safety < 1.0:

@@ -16,9 +16,12 @@ On a steered machine (``[[control]]``) a configuration *fails* when its metric e
 **or** its steering actuator saturates in the evaluation window (an angle within 0.1 % of its
 range: :func:`jaxbelt.design.metrics.saturation`): a loop at its range no longer holds the belt,
 and past it the response is no longer the linear one. ``saturated`` counts them. FORM and
-importance sampling see the metric only. ``rom="auto"`` is refused there (the reduced models do
-not carry the steering loop): the sweep says so in ``rom["reason"]`` and runs every configuration
-in full.
+importance sampling see the metric only. With ``rom="auto"`` the response-surface surrogate
+carries the loop (its training runs are closed-loop runs, and it predicts the actuator angles
+too); a configuration whose predicted angle comes within the surrogate's steering bound of the
+range is re-run in full, so a saturation is never left to the reduced model. The POD surrogate
+does not carry the loop: with ``rom_method="pod"`` the sweep says so in ``rom["reason"]`` and
+runs every configuration in full.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import Study
+from .metrics import SATURATION_FRACTION, Study
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
@@ -39,7 +42,8 @@ from .surrogate import Surrogate, fit_surrogate
 from .tolerance import LinearResponse, rss_stackup
 
 ROM_TRUST_FRACTION = 0.10  # the surrogate's validated error bound must stay below this × limit
-ROM_STEERED = "the reduced models do not carry the steering loop yet; every configuration runs in full"
+ROM_STEERED = ("the POD surrogate does not carry the steering loop (use the response surface, --rom-method response); "
+               "every configuration runs in full")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,6 +150,8 @@ def _chunk_outputs(study, surrogate, block, limit_um, chunk):
         return evaluate_configs(study, block, chunk), np.full(len(block), MODEL_CODES["full"], np.int8)
     res = {k: np.array(v) for k, v in surrogate.evaluate(block).items()}
     near = np.abs(res["metric"] - limit_um) <= res.pop("bound")
+    if "steering_mrad" in res:  # the surface cannot see the actuator clip: near the range, run in full
+        near |= res["steering_mrad"] + res.pop("steering_bound") >= SATURATION_FRACTION * study.range_mrad
     codes = np.full(len(block), MODEL_CODES["reduced"], np.int8)
     if np.any(near):
         full = evaluate_configs(study, block[near], chunk)
@@ -227,7 +233,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     identity = sweep_identity(study, dist, n, limit_um, seed, scene)
     done = min(open_sweep(out, identity), n) if out is not None else 0
     surrogate, rom_info = None, {"used": False}
-    if rom == "auto" and study.steered:
+    if rom == "auto" and study.steered and rom_method == "pod":
         rom_info = {"used": False, "reason": ROM_STEERED}
     elif rom == "auto" and done < n:
         surrogate, rom_info = _surrogate(study, dist, limit_um, seed, rom_method)

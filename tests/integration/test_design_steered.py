@@ -1,7 +1,7 @@
 """Tolerance design on a steered machine: the closed-loop metrics over the evaluation window,
 their linearity below saturation, the tolerance box with several limits verified by full
-closed-loop runs, saturation counted as a failure by the sweep, and the design commands'
-default scene.
+closed-loop runs, saturation counted as a failure by the sweep, the response-surface surrogate
+standing in with the loop closed, and the design commands' default scene.
 
 One coarse copy of ``three-roller-steered`` (3 grid lines across, 5 elements per arc: N = 252;
 100 steps = 2 s, a whole number of the scan's checkpoint chunks; window the last 20 steps) and
@@ -17,6 +17,7 @@ from helpers import load, scene_with
 
 from jaxbelt import design
 from jaxbelt.cli import build_parser
+from jaxbelt.design.surrogate import fit_surrogate
 from jaxbelt.design.sweep import ROM_STEERED
 
 COMPONENTS = "roller 1:ax,roller 3:dz"
@@ -92,9 +93,28 @@ def test_sweep_counts_saturation_as_failure(study):
     assert 0 < sat.sum() < CHUNK and np.all(mc.metric <= 1e4)  # only saturation fails here
     assert res.saturated == int(sat.sum()) and res.passed == CHUNK - res.saturated
     assert res.range_mrad == pytest.approx(0.05) and res.steering_max_mrad >= 0.999 * 0.05
-    assert res.rom == {"used": False, "reason": ROM_STEERED} and res.full_runs == CHUNK
+    # the response surface stands in with the loop closed, but never decides a saturation: every
+    # configuration it predicts near the range is re-run in full
+    assert res.rom["used"] and res.rom["steering_bound_mrad"] > 0
     # the saturated ones are exactly those whose actuator reached its range
     assert np.array_equal(sat, np.asarray(mc.outputs["steering_mrad"]) >= 0.999 * 0.05)
+    pod = design.run_sweep(st, dist, CHUNK, limit_um=1e4, chunk=CHUNK, with_form=False, rom="auto", rom_method="pod")
+    assert pod.rom == {"used": False, "reason": ROM_STEERED} and pod.full_runs == CHUNK
+    assert pod.saturated == res.saturated
+
+
+def test_response_surface_stands_in_with_the_loop_closed(study):
+    """``--rom auto`` on the steered machine: the surrogate, trained and validated by closed-loop
+    runs, predicts the metric and the actuator angle of fresh configurations as the full runs do."""
+    dist = design.Distribution(("roller 1:ax", "roller 3:dz"), ("normal", "normal"), (0.03, 0.01))
+    sur = fit_surrogate(study, dist, limit_um=20.0, n_validation=4)
+    thetas = np.array([[0.02, -0.01], [-0.05, 0.015], [0.01, 0.02], [0.0, -0.02]])
+    pred = sur.evaluate(thetas)
+    full = design.evaluate_configs(study, _batch(thetas), CHUNK)
+    np.testing.assert_allclose(pred["metric"], full["metric"][:4], atol=max(1e-3, sur.error_um))
+    np.testing.assert_allclose(pred["steering_mrad"], full["steering_mrad"][:4],
+                               atol=max(1e-6, sur.steering_error_mrad))
+    assert np.all(pred["steering_bound"] > 0) and not np.any(pred["saturated"])
 
 
 def test_design_commands_default_to_the_steered_machine():
