@@ -3,12 +3,11 @@ yield 1) importance sampling, stored chunk by chunk in a resumable Zarr store.""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from ..design import distribution_from_dict, run_sweep
 from ..design.store import open_sweep
-from ..design.sweep import ROM_STEERED, sweep_identity
+from ..design.sweep import sweep_identity
 from ._common import UsageError
 from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
                       read_toml, stage)
@@ -55,8 +54,6 @@ def run(args):
             open_sweep(args.out, sweep_identity(study, dist, args.samples, args.limit_um, args.seed, args.scene))
         except ValueError as e:
             raise UsageError(str(e)) from None
-    if args.rom == "auto" and study.steered:
-        print(f"jaxbelt: --rom auto: {ROM_STEERED}", file=sys.stderr, flush=True)
     res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
                     rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
     return finish(args, res.to_dict(), _print, "plot_yield", res.metric_values, args.limit_um, res)
