@@ -267,6 +267,9 @@ BENCHMARKS = {
     "bending_locking": ("Bending locking of the 2D element", "In-plane bending of a clamped belt strip against "
                         "the Timoshenko beam: the bilinear quad locks when its elements are long and few across, "
                         "the incompatible-modes element (QM6, the default) does not."),
+    "closed_loop": ("What the steering loop costs", "A 100 s closed-loop run of `three-roller-steered` against the "
+                    "open-loop run of the same machine (its `[[control]]` removed), the same solver and step count, "
+                    "best of several runs side by side in one process ([belt steering](steering.md))."),
     "design_steered": ("The 20 µm question on the steered machine", "The tolerance box of `three-roller-steered` "
                        "(lateral and longitudinal deviation ≤ 20 µm and the actuator within its range over 16–20 s, "
                        "verified by full closed-loop runs) beside the source's variant `three-roller-tolerance`, and "
