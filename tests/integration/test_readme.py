@@ -92,3 +92,28 @@ def test_front_door_patterns_hit_the_real_thing(text):
 ])
 def test_front_door_patterns_leave_ordinary_text_alone(text):
     assert not violations(text), violations(text)
+
+
+def test_readme_tolerance_table_is_the_benchmark_result():
+    """The 20 µm table carries the half-widths of ``benchmarks/results/design_steered.json`` (three
+    significant figures; "–" where a component is not felt), so it cannot drift from the script."""
+    import json
+
+    data = json.loads((README.parent / "benchmarks" / "results" / "design_steered.json").read_text())
+    rows = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:6]]
+            for ln in README.read_text().splitlines() if re.match(r"\| roller \d", ln)}
+    assert set(rows) == {"roller 1", "roller 2", "roller 3"}
+
+    def cells(box, name, unconstrained):
+        t = [(f"{name}:d{a}", v * 1e3) for a, v in zip("xyz", box[name]["translation_mm"])]
+        r = [(f"{name}:a{a}", v * 1e3) for a, v in zip("xy", box[name]["rotation_mrad"][:2])]
+        fmt = lambda kv: "–" if kv[0] in unconstrained else f"{kv[1]:.3g}"  # noqa: E731
+        return "/".join(map(fmt, t)), "/".join(map(fmt, r))
+
+    for j, scene in enumerate(("three-roller-steered", "three-roller-tolerance")):
+        tol = data[scene]["tolerance"]
+        for name, row in rows.items():
+            want = cells(tol["box"], name, set(tol["unconstrained"]))
+            got = tuple(row[2 * j:2 * j + 2])
+            assert [[float(x) if x != "–" else x for x in c.split("/")] for c in got] == \
+                [[float(x) if x != "–" else x for x in c.split("/")] for c in want], (scene, name, got, want)
