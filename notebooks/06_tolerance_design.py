@@ -129,7 +129,8 @@ print(f"linear estimate from the sensitivity alone: {linear_estimate * 1e3:.3f} 
 #
 # ## 2 · Sensitivities of the lateral deviation to every roller component
 #
-# The design scene `three-roller-tolerance` is the aligned machine evaluated at 4 s, when the
+# The source's variant `three-roller-tolerance` (no belt walk; notebook 7 asks the question of
+# the steered machine, the command line's default) is the aligned machine evaluated at 4 s, when the
 # lateral response has settled. A *study* fixes the metric — here `lateral_max`, the largest
 # lateral deviation of a tracer from the aligned machine's, µm — and runs the aligned reference
 # once. At the aligned machine every metric sits at its kink (a norm of a zero response), so the
