@@ -216,3 +216,69 @@ def scene_walk_rate(scene, rotation=None, tension=None, shear=True):
         rotation = np.array([r.rotation for r in rl])
     V = next(r.speed for r in rl if r.role == "drive")
     return walk_rate(geom, rotation, tension, EI, kGA if shear else np.inf, speed=V)
+
+
+def string_loop_transfer(geom: LoopGeometry, omega, rotation, speed, sensor_span: int, sensor_x: float):
+    """Shelton's first-order span model closed around the loop (string limit, ``K L ≫ 1``):
+    ``G(iω)``, the lateral displacement at a sensor per rad of a roller rotation, complex.
+
+    ``rotation`` (p, 3) the rotation the actuator makes per rad (a unit vector on the actuated
+    roller's row), ``speed`` ``V``, the sensor ``sensor_x`` m past the start of span
+    ``sensor_span``. Per span ``j`` (start ``x_j`` at roller ``j``'s exit, end ``e_j`` at roller
+    ``j + 1``'s entry, length ``L_j``, ``τ_j = L_j / V``; straight, since the boundary layers of
+    length ``1/K`` are negligible) normal entry gives ``τ_j ė_j + e_j = x_j + L_j σ_in u``; per wrap
+    (no slip) a pure transport delay ``W / V`` with the surface's lateral shift
+    ``x_{j+1}(t) = e_j(t − W/V) − v_in u(t − W/V) + v_out u(t)`` (0 for a skew, the twist's
+    per-pass shift for a tilt about x); the sensor reads the straight span,
+    ``x_j + (sensor_x / L_j)(e_j − x_j)``. Derivation: ``docs/steering.md``."""
+    w = np.atleast_1d(np.asarray(omega, float))
+    p = len(geom.span_length)
+    alpha = np.asarray(rotation, float).reshape(p, 3)
+    V = float(speed)
+    out = np.empty(w.shape, complex)
+    for n, om in enumerate(w):
+        s = 1j * om
+        M = np.zeros((2 * p, 2 * p), complex)  # unknowns x_0, e_0, x_1, e_1, …
+        rhs = np.zeros(2 * p, complex)
+        for j in range(p):
+            L, tau = geom.span_length[j], geom.span_length[j] / V
+            r = (j + 1) % p  # the roller span j enters
+            s_in = roller_slope(alpha[r], geom.span_direction[j])
+            M[2 * j, 2 * j + 1] = 1.0 + tau * s
+            M[2 * j, 2 * j] = -1.0
+            rhs[2 * j] = L * s_in
+            delay = np.exp(-s * geom.wrap_length[r] / V)
+            v_in = surface_lateral(alpha[r], geom.radius[r], geom.normal_in[r])
+            v_out = surface_lateral(alpha[r], geom.radius[r], geom.normal_out[r])
+            M[2 * j + 1, 2 * r] = 1.0
+            M[2 * j + 1, 2 * j + 1] = -delay
+            rhs[2 * j + 1] = v_out - delay * v_in
+        sol = np.linalg.solve(M, rhs)
+        f = sensor_x / geom.span_length[sensor_span]
+        out[n] = (1 - f) * sol[2 * sensor_span] + f * sol[2 * sensor_span + 1]
+    return out
+
+
+def string_loop_response(scene, omega, loop: int = 0):
+    """:func:`string_loop_transfer` for loop ``loop`` (a ``[[control]]`` table) of a
+    :class:`jaxbelt.scene.Scene`: the actuated roller and axis, the drive speed as ``V`` and the
+    sensor's position along the path (which must lie on a free span). Returns ``G(iω)`` (m per
+    rad) with the machine's own sign; its low-frequency limit is ``c / (iω)`` with ``c`` the
+    string walk rate ``V Σ L σ_in / L_loop`` of :func:`walk_rate`'s string limit."""
+    geom, _ = scene_geometry(scene)
+    rl = scene.rollers
+    spec = scene.control[loop]
+    names = [r.name for r in rl]
+    rot = np.zeros((len(rl), 3))
+    rot[names.index(spec.actuator), "xyz".index(spec.axis)] = 1.0
+    V = next(r.speed for r in rl if r.role == "drive")
+    s = float(spec.sensor[0])
+    pos = 0.0
+    for j in range(len(rl)):  # arc of roller j, then span j
+        pos += geom.wrap_length[j]
+        if s < pos:
+            raise ValueError(f"the sensor at s = {s * 1e3:g} mm lies on roller {names[j]!r}'s wrap, not on a free span")
+        if s <= pos + geom.span_length[j]:
+            return string_loop_transfer(geom, omega, rot, V, j, s - pos)
+        pos += geom.span_length[j]
+    raise ValueError(f"the sensor at s = {s * 1e3:g} mm lies beyond the belt path")

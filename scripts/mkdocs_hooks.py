@@ -316,6 +316,9 @@ BENCHMARKS = {
                    "unknowns, with the fitted log-log slope."),
     "solver_2d": ("The 2D solvers against SciPy", "Per-step cost of the exact solver (block Thomas, cyclic "
                   "reduction) and the reuse solver against a numpy + SciPy SuperLU step."),
+    "steering": ("The steering plant against its references", "Steering coefficient against the moving-beam theory "
+                 "over the grid, the P loop's boundary against the gain margins, the PI loop holding the belt, and "
+                 "the string limit against Shelton's span model ([belt steering](steering.md))."),
     "step_profile": ("Where the time of a step goes", "Assembly, solve, transport and outputs of one step, each "
                      "compiled on its own, for the reuse and exact solvers."),
     "step_vs_superlu": ("Per step against SuperLU, quick", "The two per-step comparisons of the baselines benchmark "

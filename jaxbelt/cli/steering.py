@@ -56,8 +56,9 @@ def _print(r):
           f"z = {p['zero']:.4g} s, θ = {p['delay']:.4g} s, D = {p['feedthrough']:+.4g} m/rad")
     print(f"                   recirculation θ_r = {p['loop_delay']:.4g} s, τ_r = {p['loop_lag']:.4g} s "
           f"(transit {r['loop_time_s']:.4g} s); fit error {100 * r['plant_fit_error']:.2f} % of range")
-    print(f"  P-loop margin    k_p < {r['plant_gain_margin']:.4g} mrad/mm "
-          f"(oscillation period {r['plant_crossover_period_s']:.3g} s)")
+    print(f"  P-loop margin    k_p < {r['response_gain_margin']:.4g} mrad/mm on the step response "
+          f"(period {r['response_crossover_period_s']:.3g} s); {r['plant_gain_margin']:.4g} mrad/mm on the plant "
+          f"with the hold's {1e3 * r['sample_delay_s']:.3g} ms (period {r['plant_crossover_period_s']:.3g} s)")
     if r["walk_sensitivity"] is not None:
         print(f"  {'roller':12s} {'translation x, y, z [mm/s per mm]':>36s}   {'rotation x, y, z [mm/s per mrad]':>36s}")
         for name, g in r["walk_sensitivity"].items():

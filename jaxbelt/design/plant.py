@@ -83,39 +83,46 @@ class SteeringPlant:
         the full form by time stepping (:func:`plant_step_response`)."""
         t = np.asarray(t, float)
         if self.recirculating or self.lag2 or self.zero or self.feedthrough:
-            return amplitude * np.asarray(plant_step_response(_params(self), jnp.asarray(t), _grid_step(self, t)))
+            return amplitude * np.asarray(plant_step_response(plant_parameters(self), jnp.asarray(t), _grid_step(self, t)))
         tp = np.maximum(t - self.delay, 0.0)
         lagged = self.lag * -np.expm1(-tp / self.lag) if self.lag > 0 else 0.0 * tp
         return self.gain * amplitude * (tp - lagged)
 
-    def loop_response(self, omega, kp, ki=0.0, kd=0.0):
-        """The loop transfer ``L(iω) = |G(iω)| … C(iω)`` with the loop's sign folded in (complex)."""
+    def loop_response(self, omega, kp, ki=0.0, kd=0.0, sample_delay=0.0):
+        """The loop transfer ``L(iω) = |G(iω)| … C(iω)`` with the loop's sign folded in (complex),
+        times ``e^{−iω d}`` for the sampled loop's own delay ``d = sample_delay`` s (the zero-order
+        hold's ``T_s / 2``: :func:`jaxbelt.design.steering.sampling_delay`)."""
         s = 1j * np.asarray(omega, float)
-        return abs(self.gain) / self.gain * self.frequency_response(omega) * (kp + ki / s + kd * s)
+        hold = np.exp(-sample_delay * s) if sample_delay else 1.0
+        return abs(self.gain) / self.gain * self.frequency_response(omega) * (kp + ki / s + kd * s) * hold
 
-    def margins(self, kp, ki=0.0, kd=0.0, omega=None):
+    def margins(self, kp, ki=0.0, kd=0.0, omega=None, sample_delay=0.0):
         """``(gain_margin, phase_margin_deg, omega_pc, omega_gc)`` of the loop with a PID
-        controller (gains in SI: rad/m, rad/(m s), rad s/m). Found on a log grid refined by
-        bisection; ``inf`` where the curve does not cross. The gain margin is the smallest over
-        all crossings of the negative real axis (a recirculating plant crosses once per lap)."""
+        controller (gains in SI: rad/m, rad/(m s), rad s/m) and the sampled loop's own delay
+        ``sample_delay`` s (:meth:`loop_response`; 0: the continuous loop). Found on a log grid
+        refined by bisection; ``inf`` where the curve does not cross. The gain margin is the
+        smallest over all crossings of the negative real axis (a recirculating plant crosses once
+        per lap)."""
         w = np.logspace(-4, 3, 20000) if omega is None else np.asarray(omega, float)
-        L = self.loop_response(w, kp, ki, kd)
-        mag, ph = np.abs(L), np.unwrap(np.angle(L))
+        L = self.loop_response(w, kp, ki, kd, sample_delay)
+        mag = np.abs(L)
         gm, w_pc = np.inf, np.nan
         # every crossing of the negative real axis (phase −π − 2πn): the smallest margin decides
         im = L.imag
         cross = np.flatnonzero((im[:-1] * im[1:] <= 0) & (L.real[:-1] < 0))
         for i in cross:
-            x = _refine(lambda x: self.loop_response(np.array([x]), kp, ki, kd)[0].imag, w[i], w[i + 1])
-            g = 1.0 / abs(self.loop_response(np.array([x]), kp, ki, kd)[0])
+            x = _refine(lambda x: self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0].imag,
+                        w[i], w[i + 1])
+            g = 1.0 / abs(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0])
             if g < gm:
                 gm, w_pc = g, x
         pm, w_gc = np.inf, np.nan
         cross = np.flatnonzero((mag[:-1] - 1.0) * (mag[1:] - 1.0) <= 0)
         if cross.size:
             i = cross[0]
-            w_gc = _refine(lambda x: abs(self.loop_response(np.array([x]), kp, ki, kd)[0]) - 1.0, w[i], w[i + 1])
-            phase = np.unwrap(np.angle(self.loop_response(np.array([w[i], w_gc]), kp, ki, kd)))[1]
+            w_gc = _refine(lambda x: abs(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0]) - 1.0,
+                           w[i], w[i + 1])
+            phase = np.unwrap(np.angle(self.loop_response(np.array([w[i], w_gc]), kp, ki, kd, sample_delay)))[1]
             pm = float(np.degrees(phase + np.pi))
         return float(gm), float(pm), float(w_pc), float(w_gc)
 
@@ -133,7 +140,8 @@ def _refine(f, a, b, iters: int = 60):
     return np.sqrt(a * b)
 
 
-def _params(p: SteeringPlant):
+def plant_parameters(p: SteeringPlant):
+    """The parameter vector ``(k, τ, τ₂, z, θ, D, θ_r, τ_r)`` of :func:`plant_step_response`."""
     return jnp.asarray([p.gain, p.lag, p.lag2, p.zero, p.delay, p.feedthrough, p.loop_delay, p.loop_lag], float)
 
 

@@ -12,8 +12,17 @@ run (``t ∈ [t_end / 2, t_end]``), after the transient: at least several belt t
 response is linear in the angle, so the coefficient is the slope of the stepped run minus the
 unstepped one, per mrad.
 
+**The sampled loop's timing.** The controller reads the sensor at the state of ``t_k`` and its
+angle acts through the step ``t_k → t_{k+1}``, held for the sample period ``T_s`` (zero-order
+hold). The open-loop step response already holds the one-step lag (a step of the angle at
+``t = 0`` first shows at ``t_1``), so the closed P loop is exactly the discrete loop of the
+step-response samples, ``u_k = −k_p y_k``: its margin is :func:`response_gain_margin`, with no
+fitted form in between. The continuous identified plant needs the hold's delay ``T_s / 2``
+added (:func:`sampling_delay`, ``SteeringPlant.margins(..., sample_delay=…)``) to describe
+that loop.
+
 Library functions: :func:`steering_report` (``jaxbelt steering``), :func:`stability_boundary`,
-:func:`identify_plant`.
+:func:`identify_plant`, :func:`response_transfer`, :func:`response_gain_margin`.
 """
 
 from __future__ import annotations
@@ -27,9 +36,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..misalignment import TO_SI, TRANSLATIONS, parameter_space
+from ..misalignment import TO_SI, parameter_space
 from ..timeloop import RunOptions, belt_speed, simulate
-from .plant import SteeringPlant, _params, plant_step_response
+from ..control import samples_per_update
+from .plant import SteeringPlant, plant_step_response
 
 STEP_MRAD = 0.1  # default actuator step, mrad (linear range)
 
@@ -157,6 +167,61 @@ def identify_plant(t, response, gain, loop_time, starts=None, iterations: int = 
     return plant, float(np.max(np.abs(r)))
 
 
+# ------------------------------------------------------------------------------ the discrete loop
+
+
+def sampling_delay(loops, dt, loop: int = 0) -> float:
+    """The sampled loop's own delay beyond the step response, s: half the sample period
+    ``T_s = n_s Δt`` (the zero-order hold, module docstring)."""
+    return 0.5 * float(samples_per_update(loops, dt)[loop]) * float(dt)
+
+
+def response_transfer(response, gain, dt, omega, sample_steps: int = 1):
+    """The discrete plant ``P(e^{iω T_s})`` of a sampled loop from the model's own unit step
+    response, no fitted form: ``response`` (n,) m per rad at ``t_k = k Δt``, ``k = 1 … n`` (the
+    runs' records; the angle steps at ``t = 0``), ``gain`` the steady coefficient ``k`` (m/s per
+    rad), ``T_s = sample_steps Δt``. With the samples ``y_m = y(m T_s)``, ``y_0 = 0``, the pulse
+    response ``h_m = y_m − y_{m−1}`` tends to ``h_∞ = k T_s`` (the integrator), so
+
+        P(z) = Σ_{m=1}^{M} (h_m − h_∞) z^{−m} + h_∞ z^{−1} / (1 − z^{−1})
+
+    (the first sum converges once the laps' transient has died out within the run). A loop
+    ``u_m = −C y_m`` through the hold is then exactly ``1 + C P(z) = 0``."""
+    y = np.asarray(response, float)[sample_steps - 1::sample_steps]
+    Ts = sample_steps * float(dt)
+    h = np.diff(np.concatenate([[0.0], y]))
+    h_inf = float(gain) * Ts
+    zi = np.exp(-1j * np.asarray(omega, float)[..., None] * Ts)  # z^{-1}
+    m = np.arange(1, len(h) + 1)
+    return ((h - h_inf) * zi ** m).sum(-1) + h_inf * zi[..., 0] / (1.0 - zi[..., 0])
+
+
+def response_gain_margin(response, gain, dt, sample_steps: int = 1, n_grid: int = 4000):
+    """``(gain_margin, omega_pc)`` of the sampled P loop on :func:`response_transfer` (the loop's
+    sign folded in): the smallest ``1/|P|`` over the crossings of the negative real axis below the
+    Nyquist frequency ``π / T_s``, each refined by bisection (rad/m; ``inf``/``nan`` without one)."""
+    Ts = sample_steps * float(dt)
+    sign = np.sign(gain)
+
+    def L(w):
+        return sign * response_transfer(response, gain, dt, np.atleast_1d(w), sample_steps)
+
+    w = np.geomspace(1e-3 / Ts, np.pi / Ts * 0.999, n_grid)
+    Lw = L(w)
+    gm, w_pc = np.inf, np.nan
+    for i in np.flatnonzero((Lw.imag[:-1] * Lw.imag[1:] <= 0) & (Lw.real[:-1] < 0)):
+        a, b, fa = w[i], w[i + 1], Lw.imag[i]
+        for _ in range(50):
+            mid = 0.5 * (a + b)
+            fm = L(mid)[0].imag
+            a, b, fa = (a, mid, fa) if fa * fm <= 0 else (mid, b, fm)
+        x = 0.5 * (a + b)
+        lx = L(x)[0]
+        if lx.real < 0 and 1.0 / abs(lx) < gm:
+            gm, w_pc = 1.0 / abs(lx), x
+    return float(gm), float(w_pc)
+
+
 # ------------------------------------------------------------------------------ the report
 
 
@@ -174,10 +239,14 @@ class SteeringReport:
     walk rate per unit of each misalignment component at the scene's misalignment (``jax.jacfwd``
     of the open-loop walk rate; structurally zero components, such as the drive rotation about
     z, are 0), or ``None`` when not asked for; ``plant`` the identified transfer function
-    (:class:`~jaxbelt.design.plant.SteeringPlant` as a dict: SI, m/s per rad, s, m per rad);
+    (:class:`~jaxbelt.design.plant.SteeringPlant` as a dict: SI, m/s per rad, s, m per rad; ``None``
+    when not identified);
     ``plant_fit_error`` its largest deviation from the model's step response as a fraction of
-    the response's range; ``plant_gain_margin`` the identified plant's P-loop gain margin (the
-    stability boundary ``k_p``, mrad/mm) and ``plant_crossover_period_s`` its oscillation period;
+    the response's range; ``sample_delay_s`` the sampled loop's own delay ``T_s / 2``
+    (:func:`sampling_delay`); ``plant_gain_margin`` the identified plant's P-loop gain margin with
+    that delay (the stability boundary ``k_p``, mrad/mm) and ``plant_crossover_period_s`` its
+    oscillation period; ``response_gain_margin`` and ``response_crossover_period_s`` the same of
+    the discrete loop on the step response itself (:func:`response_gain_margin`, no fitted form);
     ``step_mrad`` the actuator step; ``t_end_s``, ``dt_s`` the runs; ``window_s`` the walk-rate
     window; ``step_response`` ``{"t_s": […], "sensor_mm_per_mrad": […]}`` the model's open-loop
     response to the step per mrad; ``belt_speed_m_s``, ``loop_time_s`` the transit time;
@@ -191,10 +260,13 @@ class SteeringReport:
     limit_mrad: float
     saturated: bool
     walk_sensitivity: dict | None
-    plant: dict
+    plant: dict | None
     plant_fit_error: float
+    sample_delay_s: float
     plant_gain_margin: float
     plant_crossover_period_s: float
+    response_gain_margin: float
+    response_crossover_period_s: float
     step_mrad: float
     t_end_s: float
     dt_s: float
@@ -212,6 +284,10 @@ class SteeringReport:
     def identified(self) -> SteeringPlant:
         """The identified plant as a :class:`~jaxbelt.design.plant.SteeringPlant`."""
         return SteeringPlant(**self.plant)
+
+
+def _period_of(w):
+    return float(2 * np.pi / w) if np.isfinite(w) else float("nan")
 
 
 def walk_sensitivity(model, options: RunOptions, loop: int = 0) -> dict:
@@ -241,14 +317,15 @@ def walk_sensitivity(model, options: RunOptions, loop: int = 0) -> dict:
 
 
 def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: float = STEP_MRAD,
-                    sensitivity: bool = True) -> SteeringReport:
+                    sensitivity: bool = True, identify: bool = True) -> SteeringReport:
     """The plant of loop ``loop`` (:class:`SteeringReport`; module docstring for the method).
 
     Three open-loop runs in one vmapped batch (the scene's machine, the same with the actuator
     stepped by ``step_mrad``, the aligned machine), ``options.n_steps`` steps of ``options.dt``;
     the walk sensitivity (when asked) by forward-mode differentiation of the open-loop run; the
-    plant by :func:`identify_plant` on the step response. A hold angle beyond the loop's range
-    sets ``saturated`` and warns (:class:`SteeringWarning`).
+    plant by :func:`identify_plant` on the step response (``identify=False``: skipped, the plant
+    fields ``None``/NaN). A hold angle beyond the loop's range sets ``saturated`` and warns
+    (:class:`SteeringWarning`).
     """
     _require_loop(model, loop)
     start = time.perf_counter()
@@ -269,13 +346,20 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     resp = (v[1] - v[0]) / a  # m per rad
     V = belt_speed(model)
     loop_time = float(model.control.loop_length) / V
-    plant, err = identify_plant(t, resp, coeff, loop_time)  # mm/s per mrad = m/s per rad
-    gm, _, w_pc, _ = plant.margins(1.0)
+    n_s = int(samples_per_update(model.control, options.dt)[loop])
+    delay = sampling_delay(model.control, options.dt, loop)
+    plant, err, gm, w_pc = None, float("nan"), float("nan"), float("nan")
+    if identify:
+        plant, err = identify_plant(t, resp, coeff, loop_time)  # mm/s per mrad = m/s per rad
+        gm, _, w_pc, _ = plant.margins(1.0, sample_delay=delay)
+    rgm, rw_pc = response_gain_margin(resp, coeff, options.dt, n_s)
     sens = walk_sensitivity(model, options, loop) if sensitivity else None
     return SteeringReport(
         loop=label, coefficient_mm_s_per_mrad=coeff, disturbance_mm_s=disturbance, hold_angle_mrad=float(hold),
-        limit_mrad=limit, saturated=saturated, walk_sensitivity=sens, plant=plant.to_dict(), plant_fit_error=err,
-        plant_gain_margin=float(gm), plant_crossover_period_s=float(2 * np.pi / w_pc) if np.isfinite(w_pc) else float("nan"),
+        limit_mrad=limit, saturated=saturated, walk_sensitivity=sens,
+        plant=None if plant is None else plant.to_dict(), plant_fit_error=err,
+        sample_delay_s=delay, plant_gain_margin=float(gm), plant_crossover_period_s=_period_of(w_pc),
+        response_gain_margin=rgm, response_crossover_period_s=_period_of(rw_pc),
         step_mrad=float(step_mrad), t_end_s=float(t[-1]), dt_s=float(options.dt),
         window_s=(float(t[-1] / 2), float(t[-1])),
         step_response={"t_s": [float(x) for x in t], "sensor_mm_per_mrad": [float(x) for x in resp]},

@@ -1,13 +1,22 @@
 """The steering plant measured on the model (jaxbelt.design.steering) against independent references:
 the moving-beam walk (jaxbelt.lateral_theory), the scene's geometry (hold angle = the drive's skew),
-python-control's gain margin, and closed-loop runs."""
+Shelton's first-order span model in the string limit, python-control's gain margin, and closed-loop
+runs."""
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxbelt as jb
 from jaxbelt import lateral_theory as th
-from jaxbelt.design.steering import SteeringWarning, stability_boundary, steering_report
+from jaxbelt.design.steering import (SteeringWarning, response_transfer, stability_boundary, steering_report,
+                                     walk_slope)
+
+
+def _skew(alpha=1e-3):
+    a = np.zeros((2, 3))
+    a[1, 1] = alpha  # the idle roller about y: the loop's actuator
+    return a
 
 
 @pytest.fixture(scope="module")
@@ -17,8 +26,9 @@ def scene():
 
 @pytest.fixture(scope="module")
 def report(scene):
+    """40 s open-loop runs (2000 steps, one vmapped batch)."""
     m = jb.build_model(scene)
-    return steering_report(m, jb.RunOptions.from_scene(scene).replace(n_steps=600), sensitivity=False)
+    return steering_report(m, jb.RunOptions.from_scene(scene).replace(n_steps=2000), sensitivity=False)
 
 
 def test_hold_angle_is_the_drive_skew(report):
@@ -26,35 +36,93 @@ def test_hold_angle_is_the_drive_skew(report):
     assert not report.saturated
 
 
-def test_coefficient_against_moving_beam_theory(scene, report):
-    # the coarse grid (34 mm span elements) walks 35 % faster than the reference; the grid
-    # converges to it (16/12 elements: +12 %, 32/24: +4.9 %): a loose check on the coarse grid
-    alpha = np.zeros((2, 3))
-    alpha[1, 1] = 1e-3
-    ref = th.scene_walk_rate(scene, alpha)  # m/s for 1 mrad
+def test_coefficient_on_the_coarse_scene(scene, report):
+    """The teaching scene's grid (30° arc elements, 34 mm span elements) walks 35 % faster than
+    the reference; the resolved grid below is within 2 % (docs/steering.md)."""
+    ref = th.scene_walk_rate(scene, _skew())  # m/s for 1 mrad
     assert np.sign(report.coefficient_mm_s_per_mrad) == np.sign(ref)
-    assert report.coefficient_mm_s_per_mrad / (ref * 1e3) == pytest.approx(1.0, rel=0.40)
+    assert report.coefficient_mm_s_per_mrad / (ref * 1e3) == pytest.approx(1.35, abs=0.03)
+
+
+def test_coefficient_on_a_resolved_grid_against_moving_beam_theory():
+    """two-roller-steered with 48 elements per wrap and 64 per span (3.3 / 4.3 mm), the idle
+    roller skewed by 1 mrad, loop open: the belt's walk (mean of the tracers, second half of 6 s)
+    is the Timoshenko loop's within 2 % (+1.6 %; the grid sequence 6/8 … 48/64 is in
+    benchmarks/steering.py)."""
+    sc = jb.scene_from_dict({"extends": "two-roller-steered",
+                             "mesh": {"roller_elements": [48, 48], "free_elements": [64, 64]},
+                             "time": {"dt_s": 0.006, "t_end_s": 6.0}})
+    m = jb.build_model(sc)
+    m = jb.with_misalignment(m.replace(control=m.control.with_gains(0.0, 0.0, 0.0)), rotation=jnp.asarray(_skew()))
+    _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc))
+    c = walk_slope(np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1))
+    assert c == pytest.approx(th.scene_walk_rate(sc, _skew()), rel=0.02)
+
+
+def test_pi_loop_holds_the_belt(scene, report):
+    """The scene's PI gains against the drive's skew: the sensor error settles below 0.1 µm and
+    the actuator ends at the hold angle of the open-loop report."""
+    m = jb.build_model(scene)
+    _, tr = jb.simulate(m, **jb.RunOptions.from_scene(scene).replace(n_steps=7500))  # 150 s
+    t, v, u = np.asarray(tr.t), np.asarray(tr.sensor_v[:, 0]), np.asarray(tr.control_u[:, 0])
+    assert np.max(np.abs(v[t >= 110.0])) < 0.1e-6
+    assert u[-1] * 1e3 == pytest.approx(report.hold_angle_mrad, rel=0.01)
 
 
 def test_plant_reproduces_step_response(report):
     r = report.step_response
     y = np.asarray(r["sensor_mm_per_mrad"])
     fit = report.identified.step_response(np.asarray(r["t_s"]))
-    assert np.max(np.abs(fit - y)) / np.ptp(y) < 0.06
+    assert np.max(np.abs(fit - y)) / np.ptp(y) < 0.03
 
 
-def test_p_boundary_against_python_control_margin(scene, report):
+def test_p_boundary_against_the_gain_margin(scene, report):
+    """The P loop's stability boundary from closed-loop runs (3.156 mrad/mm) against the gain
+    margin: of the discrete loop on the model's step response (the loop's own timing: sample,
+    one-step lag, hold) by python-control on its frequency response and by the report, within
+    5 % (0.2 %); of the identified continuous plant with the hold's delay T_s / 2, within 5 %
+    (+3.9 %; without the delay +5.6 %)."""
     control = pytest.importorskip("control")
-    w = np.geomspace(0.05, 40, 4000)
-    plant = report.identified
-    L = control.frd(np.sign(plant.gain) * plant.frequency_response(w), w)  # the loop sign folded in
-    gm = control.stability_margins(L)[0]
-    b = stability_boundary(jb.build_model(scene), jb.RunOptions.from_scene(scene).replace(n_steps=1000),
-                           2.0, 5.0, rounds=2)
-    assert b.bracket[0] < 3.2 and b.bracket[1] > 3.0
-    # the target is 5 %: the identified plant's margin is +6 % from a 40 s step response and +14 % from
-    # the 12 s one used here (the low-order recirculating form misses part of the first lap's shape)
-    assert gm == pytest.approx(b.kp_mrad_per_mm, rel=0.15)
+    # batches of 3 runs of 2000 steps: the report's compiled program
+    b = stability_boundary(jb.build_model(scene), jb.RunOptions.from_scene(scene).replace(n_steps=2000),
+                           2.5, 4.0, rounds=3, batch=3)
+    kp = b.kp_mrad_per_mm
+    assert b.bracket[1] - b.bracket[0] < 0.02 * kp
+    dt = report.dt_s
+    w = np.geomspace(0.05, 0.999 * np.pi / dt, 6000)
+    P = response_transfer(report.step_response["sensor_mm_per_mrad"], report.coefficient_mm_s_per_mrad, dt, w)
+    gm = control.stability_margins(control.frd(np.sign(report.coefficient_mm_s_per_mrad) * P, w))[0]
+    assert gm == pytest.approx(kp, rel=0.05)
+    assert report.response_gain_margin == pytest.approx(kp, rel=0.05)
+    assert report.sample_delay_s == pytest.approx(dt / 2)
+    assert report.plant_gain_margin == pytest.approx(kp, rel=0.05)
+    assert report.identified.margins(1.0)[0] > report.plant_gain_margin  # the hold's delay lowers it
+
+
+@pytest.fixture(scope="module")
+def string_report():
+    """A narrow tight belt (5 mm, pre-strain 1e-2: K L = 19) on two-roller-steered, 12 s."""
+    sc = jb.scene_from_dict({"extends": "two-roller-steered", "belt": {"width_mm": 5.0, "length_mm": 855.6},
+                             "time": {"t_end_s": 12.0},
+                             "control": [{"actuator": "idle", "axis": "y", "sensor_mm": [689.0, 2.5],
+                                          "kp_mrad_per_mm": 0.0}]})
+    return sc, steering_report(jb.build_model(sc), jb.RunOptions.from_scene(sc), sensitivity=False)
+
+
+def test_plant_in_the_string_limit_is_sheltons_span_model(string_report):
+    """Shelton's first-order spans closed around the loop (jaxbelt.lateral_theory.string_loop_response)
+    against the model's frequency response from its step response (hold removed) and the
+    identified plant's: within 15 % up to half the transit frequency (8 %) and 0.3 of it (10 %). The steady walk is the
+    string's within 15 % (the moving-beam theory puts K L = 19 at 0.90 of the string rate)."""
+    sc, r = string_report
+    w = np.linspace(0.05, 0.5, 10) * 2 * np.pi / r.loop_time_s
+    G = th.string_loop_response(sc, w)
+    coeff = r.coefficient_mm_s_per_mrad
+    assert coeff == pytest.approx((1j * w[0] * G[0]).real, rel=0.15)
+    measured = response_transfer(r.step_response["sensor_mm_per_mrad"], coeff, r.dt_s, w) * np.exp(0.5j * w * r.dt_s)
+    assert np.max(np.abs(measured / G - 1)) < 0.15
+    low = w <= 0.3 * 2 * np.pi / r.loop_time_s
+    assert np.max(np.abs(r.identified.frequency_response(w[low]) / G[low] - 1)) < 0.15
 
 
 def test_saturation_is_reported(scene):
@@ -62,5 +130,5 @@ def test_saturation_is_reported(scene):
     specs = (dataclasses.replace(scene.control[0], limit=0.1e-3),)
     m = jb.build_model(scene.replace(control=specs))
     with pytest.warns(SteeringWarning, match=r"idle/y.*0\.15"):
-        r = steering_report(m, jb.RunOptions.from_scene(scene).replace(n_steps=600), sensitivity=False)
+        r = steering_report(m, jb.RunOptions.from_scene(scene).replace(n_steps=2000), sensitivity=False, identify=False)
     assert r.saturated
