@@ -163,7 +163,7 @@ def _entry_line_correction(m, s):
     st = jb.initial_state(m)
     r = roller_surface_displacement(m, st.chi, roller_R(m, st.u))
     a, fwd = upwind_weights(jnp.full((m.n_xi, m.n_eta), s), m.ell)
-    return entry_line_correction(m, jnp.repeat(a, 2, axis=1), jnp.repeat(fwd, 2, axis=1), r)
+    return entry_line_correction(m, jnp.repeat(a, 2, axis=1), jnp.repeat(fwd, 2, axis=1), st.chi)
 
 
 @pytest.mark.parametrize("axis", [0, 1])

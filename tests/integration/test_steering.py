@@ -37,11 +37,11 @@ def test_hold_angle_is_the_drive_skew(report):
 
 
 def test_coefficient_on_the_coarse_scene(scene, report):
-    """The teaching scene's grid (30° arc elements, 34 mm span elements) walks 35 % faster than
+    """The teaching scene's grid (30° arc elements, 34 mm span elements) walks 11 % faster than
     the reference; the resolved grid below is within 2 % (docs/steering.md)."""
     ref = th.scene_walk_rate(scene, _skew())  # m/s for 1 mrad
     assert np.sign(report.coefficient_mm_s_per_mrad) == np.sign(ref)
-    assert report.coefficient_mm_s_per_mrad / (ref * 1e3) == pytest.approx(1.35, abs=0.03)
+    assert report.coefficient_mm_s_per_mrad / (ref * 1e3) == pytest.approx(1.11, abs=0.03)
 
 
 def test_coefficient_on_a_resolved_grid_against_moving_beam_theory():
@@ -112,7 +112,7 @@ def string_report():
 def test_plant_in_the_string_limit_is_sheltons_span_model(string_report):
     """Shelton's first-order spans closed around the loop (jaxbelt.lateral_theory.string_loop_response)
     against the model's frequency response from its step response (hold removed) and the
-    identified plant's: within 15 % up to half the transit frequency (8 %) and 0.3 of it (10 %). The steady walk is the
+    identified plant's: within 15 % up to half the transit frequency and 0.2 of it. The steady walk is the
     string's within 15 % (the moving-beam theory puts K L = 19 at 0.90 of the string rate)."""
     sc, r = string_report
     w = np.linspace(0.05, 0.5, 10) * 2 * np.pi / r.loop_time_s
@@ -121,7 +121,7 @@ def test_plant_in_the_string_limit_is_sheltons_span_model(string_report):
     assert coeff == pytest.approx((1j * w[0] * G[0]).real, rel=0.15)
     measured = response_transfer(r.step_response["sensor_mm_per_mrad"], coeff, r.dt_s, w) * np.exp(0.5j * w * r.dt_s)
     assert np.max(np.abs(measured / G - 1)) < 0.15
-    low = w <= 0.3 * 2 * np.pi / r.loop_time_s
+    low = w <= 0.2 * 2 * np.pi / r.loop_time_s
     assert np.max(np.abs(r.identified.frequency_response(w[low]) / G[low] - 1)) < 0.15
 
 
@@ -132,3 +132,17 @@ def test_saturation_is_reported(scene):
     with pytest.warns(SteeringWarning, match=r"idle/y.*0\.15"):
         r = steering_report(m, jb.RunOptions.from_scene(scene).replace(n_steps=2000), sensitivity=False, identify=False)
     assert r.saturated
+
+
+@pytest.mark.slow
+def test_coefficient_on_the_design_scene_against_moving_beam_theory():
+    """three-roller-steered on its own grid, roller 2 tilted 1 mrad about y, loop open, 30 s: the
+    belt's walk (mean of the tracers, second half) is the Timoshenko loop's within 2 %."""
+    sc = jb.load_scene("three-roller-steered")
+    m = jb.build_model(sc)
+    rot = np.zeros((3, 3))
+    rot[1, 1] = 1e-3
+    m = jb.with_misalignment(m.replace(control=m.control.with_gains(0.0, 0.0, 0.0)), rotation=jnp.asarray(rot))
+    _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc).replace(n_steps=1500))
+    c = walk_slope(np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1))
+    assert c == pytest.approx(th.scene_walk_rate(sc, rot), rel=0.02)
