@@ -100,9 +100,9 @@ class SteeringPlant:
         """``(gain_margin, phase_margin_deg, omega_pc, omega_gc)`` of the loop with a PID
         controller (gains in SI: rad/m, rad/(m s), rad s/m) and the sampled loop's own delay
         ``sample_delay`` s (:meth:`loop_response`; 0: the continuous loop). Found on a log grid
-        refined by bisection; ``inf`` where the curve does not cross. The gain margin is the
-        smallest over all crossings of the negative real axis (a recirculating plant crosses once
-        per lap)."""
+        refined by bisection; ``inf`` where the curve does not cross. Each margin is the smallest
+        over all its crossings (a recirculating plant crosses once per lap); the phase margin is
+        wrapped to [−180°, 180°), negative for a loop past −180° at its gain crossing."""
         w = np.logspace(-4, 3, 20000) if omega is None else np.asarray(omega, float)
         L = self.loop_response(w, kp, ki, kd, sample_delay)
         mag = np.abs(L)
@@ -117,13 +117,15 @@ class SteeringPlant:
             if g < gm:
                 gm, w_pc = g, x
         pm, w_gc = np.inf, np.nan
-        cross = np.flatnonzero((mag[:-1] - 1.0) * (mag[1:] - 1.0) <= 0)
-        if cross.size:
-            i = cross[0]
-            w_gc = _refine(lambda x: abs(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0]) - 1.0,
-                           w[i], w[i + 1])
-            phase = np.unwrap(np.angle(self.loop_response(np.array([w[i], w_gc]), kp, ki, kd, sample_delay)))[1]
-            pm = float(np.degrees(phase + np.pi))
+        # every gain crossing: the phase's distance from −180°, wrapped to [−180°, 180°) (negative:
+        # the loop is past it); the smallest decides, as python-control's stability_margins
+        for i in np.flatnonzero((mag[:-1] - 1.0) * (mag[1:] - 1.0) <= 0):
+            x = _refine(lambda x: abs(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0]) - 1.0,
+                        w[i], w[i + 1])
+            p = float(np.mod(np.degrees(np.angle(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0])),
+                             360.0) - 180.0)
+            if p < pm:
+                pm, w_gc = p, x
         return float(gm), float(pm), float(w_pc), float(w_gc)
 
 
