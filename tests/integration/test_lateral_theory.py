@@ -180,7 +180,7 @@ def test_entry_line_correction_is_the_roller_skew_at_the_contact_line(two_roller
         entry = np.flatnonzero((node_roller == j) & (np.roll(node_roller, 1) != j))
         assert len(entry) == 1
         sigma = th.roller_slope(rot(1, axis)[j], g.span_direction[(j - 1) % 2])
-        assert np.allclose(corr[entry[0], 1::2] / s, sigma, atol=2e-2 * 1e-3)  # O((ℓ/r)²)
+        assert np.allclose(corr[entry[0], 1::2] / s, sigma, rtol=1e-12, atol=1e-15)  # the exact skew
     assert np.count_nonzero(np.abs(corr[:, 1::2]) > 1e-15) <= 2 * m.n_eta  # entry nodes only
 
 
