@@ -52,7 +52,9 @@ def test_open_loop_walks_and_the_loop_stops_the_walk(open_and_closed):
     walk_closed = np.polyfit(t[late], np.asarray(closed.sensor_v)[late, 0], 1)[0]
     assert walk_open > 5e-6  # m/s: the skewed drive walks the belt (about 11 µm/s)
     assert np.all(np.asarray(open_.control_u) == 0.0)
-    assert abs(walk_closed) < 0.3 * walk_open  # still settling at 12–18 s (the PI loop settles in ~30 s)
+    # the loop is taking over the drive's skew (hold angle 0.15 mrad; the PI loop settles in ~100 s)
+    assert 0.3 < float(closed.control_u[-1, 0]) / 0.15e-3 < 1.5
+    assert abs(walk_closed) < walk_open
     assert np.max(np.abs(np.asarray(closed.sensor_v)[late, 0])) < 0.5 * abs(np.asarray(open_.sensor_v)[-1, 0])
 
 
