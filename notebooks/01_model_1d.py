@@ -231,7 +231,8 @@ def solve_once(integ, m, s, dt):
 def steady_strain(rule, dt, refine=1, seconds=STEADY_S):
     sc = jb.load_scene("two-roller-1d-idle-translated")
     sc = sc.replace(mesh=dataclasses.replace(sc.mesh, roller_elements=(40 * refine,) * 2,
-                                             free_elements=(70 * refine,) * 2))
+                                             free_elements=(70 * refine,) * 2),
+                    time=dataclasses.replace(sc.time, dt=dt))  # the grid is checked against this Δt's CFL
     msh = jb.build_mesh(sc)
     m = jb.build_model(sc, msh)
     integ = jb.make_solver("direct", transport=rule)

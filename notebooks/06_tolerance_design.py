@@ -273,9 +273,9 @@ axs[1].legend(fontsize=8)
 show(fig)
 
 # %% [markdown]
-# The walk rate converges to the beam-loop reference at second order in the element length:
-# +13 % at n_ξ = 104 (the design grid) and +3 % at 208 in the full-size run (README: within 1.1 %
-# over K L = 0.3 … 98 on resolved grids). For tolerances this is a second kind of limit: not a
+# The walk rate agrees with the beam-loop reference on the design grid already: +1.2 % at
+# n_ξ = 104 and +0.5 % at 208 in the full-size run ([lateral mechanics](../docs/lateral.md): within
+# 0.52 % over K L = 0.3 … 98). For tolerances this is a second kind of limit: not a
 # deviation but a *rate* — a skew tolerance follows from how long the belt may run before a
 # tracking correction (the `walk_rate` metric of `jaxbelt.design`, with `lateral_transport =
 # true`). The source's model, without lateral transport, cannot show this at all.
