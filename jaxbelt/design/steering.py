@@ -34,6 +34,7 @@ import warnings
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax import lax
 import numpy as np
 
 from ..misalignment import TO_SI, parameter_space
@@ -134,34 +135,35 @@ def identify_plant(t, response, gain, loop_time, starts=None, iterations: int = 
     def resid(q):  # q = (τ, τ₂, z, θ, D, θ_r, τ_r)
         return (plant_step_response(full(q), tj, h) - y) / scale
 
-    r_j = jax.jit(resid)
-    jac = jax.jit(jax.jacfwd(resid))
     lo = np.array([0.0, 0.0, -10 * loop_time, 0.0, -np.inf, h, 0.0])
     if starts is None:
         starts = [[0.2 * loop_time, 0.1 * loop_time, z, 0.0, 0.0, f * loop_time, 0.1 * loop_time]
                   for f in (0.7, 0.85) for z in (0.0, -0.5 * loop_time)]
-    best = None
-    for q0 in starts:
-        q = np.maximum(np.asarray(q0, float), lo)
-        r = np.asarray(r_j(q))
-        lam = 1e-3
-        for _ in range(iterations):
-            J = np.asarray(jac(q))
+    lo_j = jnp.asarray(lo)
+
+    def levenberg_marquardt(q0):  # one start; the starts run side by side (vmap), the loop compiled
+        q = jnp.maximum(q0, lo_j)
+
+        def step(_, st):
+            q, r, lam, done = st
+            J = jax.jacfwd(resid)(q)
             A, g = J.T @ J, J.T @ r
-            qn = np.maximum(q - np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), g), lo)
-            rn = np.asarray(r_j(qn))
-            if rn @ rn < r @ r:
-                small = (r @ r - rn @ rn) < 1e-12 * (r @ r)
-                q, r, lam = qn, rn, lam / 3
-                if small:
-                    break
-            else:
-                lam *= 10
-                if lam > 1e8:
-                    break
-        if best is None or r @ r < best[1] @ best[1]:
-            best = (q, r)
-    q, r = best
+            qn = jnp.maximum(q - jnp.linalg.solve(A + lam * jnp.diag(jnp.diag(A) + 1e-12), g), lo_j)
+            rn = resid(qn)
+            better = rn @ rn < r @ r  # false for a non-finite trial: rejected, λ grows
+            small = (r @ r - rn @ rn) < 1e-12 * (r @ r)
+            stop = done | (better & small) | (~better & (lam * 10 > 1e8))
+            keep = done | ~better
+            return (jnp.where(keep, q, qn), jnp.where(keep, r, rn),
+                    jnp.where(done, lam, jnp.where(better, lam / 3, lam * 10)), stop)
+
+        q, r, _, _ = lax.fori_loop(0, iterations, step, (q, resid(q), jnp.asarray(1e-3), jnp.asarray(False)))
+        return q, r
+
+    qs, rs = jax.jit(jax.vmap(levenberg_marquardt))(jnp.asarray(np.asarray(starts, float)))
+    qs, rs = np.asarray(qs), np.asarray(rs)
+    best = int(np.argmin(np.sum(rs**2, axis=1)))
+    q, r = qs[best], rs[best]
     plant = SteeringPlant(gain=float(gain), lag=float(q[0]), delay=float(q[3]), lag2=float(q[1]), zero=float(q[2]),
                           feedthrough=float(q[4]), loop_delay=float(q[5]), loop_lag=float(q[6]))
     return plant, float(np.max(np.abs(r)))
