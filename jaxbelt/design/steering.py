@@ -301,7 +301,7 @@ def walk_sensitivity(model, options: RunOptions, loop: int = 0) -> dict:
     base = _open(model, loop)
     n = int(options.n_steps)
     t = np.arange(1, n + 1) * float(options.dt)
-    sel = t >= t[-1] / 2
+    sel = np.flatnonzero(t >= t[-1] / 2)  # static indices: the second half
     ts = jnp.asarray(t[sel] - t[sel].mean())
     idx = jnp.asarray(space.chi_index, dtype=jnp.int32)
 
@@ -309,7 +309,7 @@ def walk_sensitivity(model, options: RunOptions, loop: int = 0) -> dict:
     def rate(theta):
         m = base.replace(chi_static=base.chi_static.at[idx].add(TO_SI * theta))
         _, tr = simulate(m, options.solver, n_steps=n, dt=float(options.dt), check=False)
-        v = tr.sensor_v[:, loop][jnp.asarray(sel)]
+        v = tr.sensor_v[sel, loop]
         return (v - v.mean()) @ ts / (ts @ ts) * 1e3  # mm/s
 
     g = np.asarray(jax.jacfwd(rate)(jnp.zeros(space.size)))

@@ -146,3 +146,16 @@ def test_coefficient_on_the_design_scene_against_moving_beam_theory():
     _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc).replace(n_steps=1500))
     c = walk_slope(np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1))
     assert c == pytest.approx(th.scene_walk_rate(sc, rot), rel=0.02)
+
+
+def test_walk_sensitivity_is_the_coefficient_and_the_disturbance(scene):
+    """Forward-mode walk sensitivities (one run, every component) against the report's own
+    stepped runs: the idle roller's y rotation walks the belt by the steering coefficient per
+    mrad, and the drive's 0.15 mrad skew about y by the disturbance (the response is linear)."""
+    opts = jb.RunOptions.from_scene(scene).replace(n_steps=600)
+    r = steering_report(jb.build_model(scene), opts, identify=False)
+    s = r.walk_sensitivity
+    assert set(s) == {"drive", "idle"}
+    assert s["idle"]["rotation_mm_s_per_mrad"][1] == pytest.approx(r.coefficient_mm_s_per_mrad, rel=0.02)
+    assert 0.15 * s["drive"]["rotation_mm_s_per_mrad"][1] == pytest.approx(r.disturbance_mm_s, rel=0.02)
+    assert s["drive"]["rotation_mm_s_per_mrad"][2] == 0.0  # the drive DOF: structurally zero
