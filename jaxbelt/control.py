@@ -41,6 +41,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 class SteeringLoops(eqx.Module):
@@ -178,8 +179,6 @@ def loop_summary(loops: SteeringLoops, control_u, sensor_v, t=None) -> list[dict
     ``saturated_fraction`` (of the recorded steps). With ``t`` (k,) also ``sensor_walk_um_s``: the
     least-squares slope of the sensor signal over the last quarter of the run (a saturated loop
     cannot stop the walk)."""
-    import numpy as np
-
     u, y = np.asarray(control_u), np.asarray(sensor_v)
     limit = np.asarray(loops.limit)
     out = []

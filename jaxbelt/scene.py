@@ -227,6 +227,18 @@ def _vector(d: dict, key: str, where: str, n: int, default=None):
     return tuple(float(x) for x in v)
 
 
+def _number_tuples(d: dict, key: str, where: str, n: int, what: str) -> list:
+    """``d[key]`` as a list of lists of ``n`` finite numbers each (``[]`` when absent), else a
+    :class:`SceneError` naming the key: "must be a list of ``what`` of finite numbers"."""
+    v = d.get(key, [])
+    ok = isinstance(v, list) and all(
+        isinstance(t, list) and len(t) == n and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                     and math.isfinite(x) for x in t) for t in v)
+    if not ok:
+        raise _err(f"{where}.{key}", v, f"must be a list of {what} of finite numbers")
+    return v
+
+
 def _choice(d: dict, key: str, where: str, choices, default=None):
     if key not in d:
         if default is None:
@@ -328,15 +340,8 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
 
     out = data.get("output", {})
     _check_keys(out, _TABLES["output"], "output")
-    tracers = ()
-    if "tracers_mm" in out:
-        v = out["tracers_mm"]
-        ok = isinstance(v, list) and all(
-            isinstance(t, list) and len(t) == 2 and all(isinstance(c, (int, float)) and not isinstance(c, bool)
-                                                         and math.isfinite(c) for c in t) for t in v)
-        if not ok:
-            raise _err("output.tracers_mm", v, "must be a list of [x_mm, z_mm] pairs of finite numbers")
-        tracers = tuple((t[0] * 1e-3, t[1] * 1e-3) for t in v)
+    tracers = tuple((t[0] * 1e-3, t[1] * 1e-3)
+                    for t in _number_tuples(out, "tracers_mm", "output", 2, "[x_mm, z_mm] pairs"))
     out_spec = OutputSpec(
         tracers_per_segment=_number(out, "tracers_per_segment", "output", required=False, default=5,
                                     integer=True, lo=0),
@@ -407,18 +412,11 @@ def _control(c: dict, i: int, rollers, belt: BeltSpec, time: TimeSpec) -> Contro
     if abs(roller.rotation[k]) + limit > ROTATION_REFUSE:
         raise _err(f"{where}.limit_mrad", limit * 1e3,
                    f"static rotation + range beyond the model's range of {ROTATION_REFUSE * 1e3:g} mrad")
-    profile = ()
-    if "edge_profile_um" in c:
-        v = c["edge_profile_um"]
-        ok = isinstance(v, list) and all(
-            isinstance(t, list) and len(t) == 3 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                         and math.isfinite(x) for x in t) for t in v)
-        if not ok:
-            raise _err(f"{where}.edge_profile_um", v, "must be a list of [harmonic, amplitude_um, phase_rad] triples")
-        for t in v:
-            if not (float(t[0]).is_integer() and t[0] >= 1):
-                raise _err(f"{where}.edge_profile_um", v, f"harmonic {t[0]!r} must be a whole number >= 1 (per loop)")
-        profile = tuple((float(t[0]), float(t[1]) * 1e-6, float(t[2])) for t in v)
+    v = _number_tuples(c, "edge_profile_um", where, 3, "[harmonic, amplitude_um, phase_rad] triples")
+    for t in v:
+        if not (float(t[0]).is_integer() and t[0] >= 1):
+            raise _err(f"{where}.edge_profile_um", v, f"harmonic {t[0]!r} must be a whole number >= 1 (per loop)")
+    profile = tuple((float(t[0]), float(t[1]) * 1e-6, float(t[2])) for t in v)
     seed = c.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise _err(f"{where}.seed", seed, "must be a non-negative integer")

@@ -47,6 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..control import SATURATION_FRACTION
 from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
@@ -71,7 +72,6 @@ METRICS = {
 SMOOTH_TAU_UM = 0.05
 OPEN_LOOP_WINDOW = 0.1  # fraction of [0, t_eval]: lateral_peak's window
 CLOSED_LOOP_WINDOW = 0.2  # fraction of [0, t_eval]: the window of steady operation of a steered machine
-SATURATION_FRACTION = 0.999  # an actuator angle at or beyond this × its range limit is saturated
 
 
 def metric_unit(name: str) -> str:

@@ -106,16 +106,7 @@ class SteeringPlant:
         w = np.logspace(-4, 3, 20000) if omega is None else np.asarray(omega, float)
         L = self.loop_response(w, kp, ki, kd, sample_delay)
         mag = np.abs(L)
-        gm, w_pc = np.inf, np.nan
-        # every crossing of the negative real axis (phase −π − 2πn): the smallest margin decides
-        im = L.imag
-        cross = np.flatnonzero((im[:-1] * im[1:] <= 0) & (L.real[:-1] < 0))
-        for i in cross:
-            x = _refine(lambda x: self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0].imag,
-                        w[i], w[i + 1])
-            g = 1.0 / abs(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0])
-            if g < gm:
-                gm, w_pc = g, x
+        gm, w_pc = gain_margin(lambda x: self.loop_response(x, kp, ki, kd, sample_delay), w, L)
         pm, w_gc = np.inf, np.nan
         # every gain crossing: the phase's distance from −180°, wrapped to [−180°, 180°) (negative:
         # the loop is past it); the smallest decides, as python-control's stability_margins
@@ -127,6 +118,21 @@ class SteeringPlant:
             if p < pm:
                 pm, w_gc = p, x
         return float(gm), float(pm), float(w_pc), float(w_gc)
+
+
+def gain_margin(loop, omega, values=None):
+    """``(gain_margin, omega_pc)`` of a loop transfer ``loop(omega) -> L(iω)`` (complex, arrays)
+    sampled on the grid ``omega``: the smallest ``1 / |L|`` over every crossing of the negative
+    real axis (a recirculating plant crosses once per lap), each refined by bisection;
+    ``(inf, nan)`` without one. ``values``: ``loop(omega)`` if already computed."""
+    L = loop(omega) if values is None else values
+    gm, w_pc = np.inf, np.nan
+    for i in np.flatnonzero((L.imag[:-1] * L.imag[1:] <= 0) & (L.real[:-1] < 0)):
+        x = _refine(lambda x: loop(np.array([x]))[0].imag, omega[i], omega[i + 1])
+        lx = loop(np.array([x]))[0]
+        if lx.real < 0 and 1.0 / abs(lx) < gm:
+            gm, w_pc = 1.0 / abs(lx), x
+    return float(gm), float(w_pc)
 
 
 def _refine(f, a, b, iters: int = 60):

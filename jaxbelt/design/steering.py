@@ -40,7 +40,7 @@ import numpy as np
 from ..misalignment import TO_SI, parameter_space
 from ..timeloop import RunOptions, belt_speed, simulate
 from ..control import samples_per_update
-from .plant import SteeringPlant, plant_step_response
+from .plant import SteeringPlant, gain_margin, plant_step_response
 
 STEP_MRAD = 0.1  # default actuator step, mrad (linear range)
 
@@ -208,20 +208,7 @@ def response_gain_margin(response, gain, dt, sample_steps: int = 1, n_grid: int 
     def L(w):
         return sign * response_transfer(response, gain, dt, np.atleast_1d(w), sample_steps)
 
-    w = np.geomspace(1e-3 / Ts, np.pi / Ts * 0.999, n_grid)
-    Lw = L(w)
-    gm, w_pc = np.inf, np.nan
-    for i in np.flatnonzero((Lw.imag[:-1] * Lw.imag[1:] <= 0) & (Lw.real[:-1] < 0)):
-        a, b, fa = w[i], w[i + 1], Lw.imag[i]
-        for _ in range(50):
-            mid = 0.5 * (a + b)
-            fm = L(mid)[0].imag
-            a, b, fa = (a, mid, fa) if fa * fm <= 0 else (mid, b, fm)
-        x = 0.5 * (a + b)
-        lx = L(x)[0]
-        if lx.real < 0 and 1.0 / abs(lx) < gm:
-            gm, w_pc = 1.0 / abs(lx), x
-    return float(gm), float(w_pc)
+    return gain_margin(L, np.geomspace(1e-3 / Ts, np.pi / Ts * 0.999, n_grid))
 
 
 # ------------------------------------------------------------------------------ the report
