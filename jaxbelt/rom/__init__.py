@@ -14,6 +14,7 @@ from .dmdc import fit_parametric_dmd as fit_parametric_dmd
 from .dmdc import interpolation_weights as interpolation_weights
 from .dmdc import stack_controlled as stack_controlled
 from .calibration import Calibration as Calibration
+from .indicator import BasisTrajectory as BasisTrajectory
 from .indicator import ErrorEstimate as ErrorEstimate
 from .indicator import ErrorRomOptions as ErrorRomOptions
 from .calibration import calibrate as calibrate

@@ -75,16 +75,16 @@ class Calibration:
 def calibrate(cases, dt, margin: float = SAFETY_MARGIN, **kwargs) -> Calibration:
     """Safety factor of :func:`error_rom` from cases whose true error is known from training data.
 
-    ``cases``: iterable of ``(model, truth, prediction, inputs)`` — the observed tracers of the
-    full model and of a reduced model fitted on part of the training data (each (n, o), m), and
-    the :func:`error_rom` arguments of that prediction (``basis``, ``coords``, ``z_true0``, and
-    optionally ``integrator``); ``dt`` the time step; ``kwargs``: further :func:`error_rom`
-    arguments (``stride``, ``order``, ``options``, …).
+    ``cases``: iterable of ``(model, truth, prediction, trajectory, integrator)`` — the observed
+    tracers of the full model and of a reduced model fitted on part of the training data (each
+    (n, o), m), that prediction as a :class:`~jaxbelt.rom.indicator.BasisTrajectory`, and the
+    full model's integrator for it (``None``: :func:`error_rom`'s default); ``dt`` the time step;
+    ``kwargs``: further :func:`error_rom` arguments (``stride``, ``order``, ``options``, …).
     """
     rows = []
-    for model, truth, pred, inputs in cases:
+    for model, truth, pred, traj, integrator in cases:
         true_mm = float(rmse(jnp.asarray(truth), jnp.asarray(pred))) * 1e3
-        est_mm = error_rom(model, dt=dt, **{**kwargs, **inputs}).rmse_mm
+        est_mm = error_rom(model, traj.basis, traj.coords, dt, traj.z_true0, integrator=integrator, **kwargs).rmse_mm
         # a case without error (the reduced model reproduces its training run) says nothing
         eta = est_mm / true_mm if true_mm > 1e-12 else float("nan")
         rows.append(CalibrationCase(true_mm=true_mm, estimate_mm=est_mm, effectivity=eta))

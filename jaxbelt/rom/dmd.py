@@ -20,6 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .indicator import BasisTrajectory
+
 
 class DMDModel(eqx.Module):
     """A fitted DMD: ``eigs`` (r,) complex, ``modes`` (N, r) complex."""
@@ -113,8 +115,8 @@ def stack_trajectories(trajectories):
     return X, Y
 
 
-def dmd_coordinates(Z, fit, x_start, k: int) -> dict:
-    """:func:`~jaxbelt.rom.indicator.error_rom`'s inputs for an exact-DMD prediction (:class:`~jaxbelt.rom.DMDModel`)
+def dmd_coordinates(Z, fit, x_start, k: int) -> BasisTrajectory:
+    """An exact-DMD prediction (:class:`~jaxbelt.rom.DMDModel`), as :func:`~jaxbelt.rom.indicator.error_rom` reads it,
     from ``x_start`` over ``k`` steps: ``x_start`` and ``Re(Φ Λʲ b)``, j = 1 … k, as coordinates in
     an orthonormal basis of the training snapshots ``Z`` (exact DMD modes lie in their span), so
     the full states are never formed. ``x_start`` is a full-order state: no initial error."""
@@ -124,4 +126,4 @@ def dmd_coordinates(Z, fit, x_start, k: int) -> dict:
     b = fit.amplitudes(x_start)
     powers = fit.eigs[None, :] ** jnp.arange(1, k + 1)[:, None]
     coords = jnp.real((powers * b[None, :]) @ (Q.T.astype(fit.modes.dtype) @ fit.modes).T)
-    return dict(basis=Q, coords=jnp.concatenate([(Q.T @ x_start)[None], coords]), z_true0=x_start)
+    return BasisTrajectory(basis=Q, coords=jnp.concatenate([(Q.T @ x_start)[None], coords]), z_true0=x_start)

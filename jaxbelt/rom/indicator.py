@@ -66,6 +66,7 @@ ablation).
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -322,6 +323,19 @@ class EstimateCost:
     windows: int
     quasi_static_iterations: int
     full_step_equivalents: int
+
+
+class BasisTrajectory(NamedTuple):
+    """A reduced prediction as coordinates in an orthonormal basis of full states, the form
+    :func:`error_rom` reads: the full state after step ``k`` is ``basis @ coords[k]``.
+
+    **Fields:** ``basis`` (2N, b) orthonormal columns; ``coords`` (n+1, b), row 0 the start;
+    ``z_true0`` (2N,) the full model's state at step 0 (``None``: the start is exact).
+    """
+
+    basis: jax.Array
+    coords: jax.Array
+    z_true0: jax.Array | None = None
 
 
 @dataclasses.dataclass(frozen=True)

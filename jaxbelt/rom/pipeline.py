@@ -41,7 +41,7 @@ from ..timeloop import SaveAt, simulate
 from .dmd import dmd_coordinates, fit_dmd
 from .dmdc import belt_inputs, fit_dmdc, fit_parametric_dmd, stack_controlled
 from .calibration import calibrate
-from .indicator import error_rom
+from .indicator import BasisTrajectory, error_rom
 from .metrics import rmse, rrmse
 from .reduced import fit_reduced_pod, parameters
 from .results import (FullRunDivergedError, ReduceConfig, ReducedRunDivergedError, ReductionEstimate, ReductionResult,
@@ -111,8 +111,8 @@ class _Fit:
     offline_s: float
     offline_first_s: float
     online_s: float
-    estimate_input: Callable[[], dict]  # error_rom's basis, coords, z_true0 of the prediction
-    calibration_cases: Callable[[int], Iterator]  # half -> (model, truth, prediction, error_rom inputs)
+    estimate_input: Callable[[], BasisTrajectory]  # the prediction as error_rom reads it
+    calibration_cases: Callable[[int], Iterator]  # half -> calibrate's (model, truth, prediction, trajectory, integrator)
     spectra: Callable[[], Spectra]
     modes_discarded: int | None = None
     training_starts_at_step: int | None = None
@@ -261,8 +261,9 @@ def _estimate(ctx: _Context, fit: _Fit, at) -> ReductionEstimate:
     ``at`` the prediction's rows at the compared steps."""
     config = ctx.config
     t0 = time.perf_counter()
-    est = error_rom(ctx.model, dt=ctx.dt, stride=config.stride, order=fit.order, integrator=ctx.test_solver,
-                    options=config.estimate, **fit.estimate_input())
+    traj = fit.estimate_input()
+    est = error_rom(ctx.model, traj.basis, traj.coords, ctx.dt, traj.z_true0, stride=config.stride, order=fit.order,
+                    integrator=ctx.test_solver, options=config.estimate)
     test_s = time.perf_counter() - t0
     cal = calibrate(fit.calibration_cases(max(1, ctx.m_train // 2)), ctx.dt, stride=config.stride, order=fit.order,
                     options=config.estimate)
@@ -301,13 +302,12 @@ def _fit_pod(ctx: _Context) -> _Fit:
         for m, s, (_, Zpost) in ctx.calibration_subset(zip(ctx.train, ctx.snapshot_solvers, snaps)):
             x0 = cfit.project(m, initial_state(m))
             o = cfit.run(x0, parameters(m), m_train)
-            yield m, (C @ Zpost[:N, 1:]).T, o.tracer_u, dict(
-                basis=cfit.basis, coords=jnp.concatenate([x0[None], o.xi]), z_true0=Zpost[:, 0], integrator=s)
+            yield m, (C @ Zpost[:N, 1:]).T, o.tracer_u, BasisTrajectory(
+                cfit.basis, jnp.concatenate([x0[None], o.xi]), Zpost[:, 0]), s
 
     return _Fit(prediction=out.tracer_u, start=0, compared="tracer_u", order="post", modes=fit.n_modes,
                 offline_s=offline_s, offline_first_s=first_s, online_s=online_s,
-                estimate_input=lambda: dict(basis=fit.basis, coords=jnp.concatenate([xi0[None], out.xi]),
-                                            z_true0=z0),
+                estimate_input=lambda: BasisTrajectory(fit.basis, jnp.concatenate([xi0[None], out.xi]), z0),
                 calibration_cases=calibration_cases,
                 spectra=lambda: Spectra(singular_values=np.asarray(fit.singular_values)))
 
@@ -332,7 +332,7 @@ def _fit_dmd(ctx: _Context) -> _Fit:
         cfit = fit_dmd(Zpre[:, :k2], rank=modes).stable()
         xs = Zpre[:, k2 - 1]
         yield ctx.model, (C @ Zpre[:N, k2:]).T, cfit.predict(xs, m_train - k2, observe=Cz), \
-            dict(dmd_coordinates(Zpre[:, :k2], cfit, xs, m_train - k2), integrator=ctx.test_solver)
+            dmd_coordinates(Zpre[:, :k2], cfit, xs, m_train - k2), ctx.test_solver
 
     def spectra():
         return Spectra(singular_values=np.asarray(jnp.linalg.svd(Zpre[:, :-1], compute_uv=False)),
@@ -369,16 +369,15 @@ def _fit_dmdc(ctx: _Context) -> _Fit:
     pred, online_s = _timed(jax.jit(lambda f, z, u: f.predict(z, u, n, observe=Cz)), fit, z0, u)
 
     def estimate_input(f, z, uu, steps):
-        return dict(basis=f.basis, coords=jnp.concatenate([(f.basis.T @ z)[None], f.predict(z, uu, steps,
-                                                                                            observe=f.basis.T)]),
-                    z_true0=z)
+        return BasisTrajectory(f.basis, jnp.concatenate([(f.basis.T @ z)[None], f.predict(z, uu, steps,
+                                                                                        observe=f.basis.T)]), z)
 
     def calibration_cases(half):
         cfit = fit_on([Z[:, :half + 1] for Z in trajs])[2]
         for m, s, p, Z in ctx.calibration_subset(zip(ctx.train, ctx.snapshot_solvers, params, trajs)):
             uu = belt_inputs(p, 1)[:, 0]
             yield m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], uu, m_train, observe=Cz), \
-                dict(estimate_input(cfit, Z[:, 0], uu, m_train), integrator=s)
+                estimate_input(cfit, Z[:, 0], uu, m_train), s
 
     def spectra():
         return Spectra(singular_values=np.asarray(jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), compute_uv=False)),
@@ -421,8 +420,8 @@ def _fit_pdmd(ctx: _Context) -> _Fit:
     def calibration_cases(half):
         cfit = fit_parametric_dmd([Z[:, skip:half + 1] for Z in trajs], jnp.stack(params), rank=modes)
         for m, s, p, Z in ctx.calibration_subset(zip(ctx.train, ctx.snapshot_solvers, params, trajs)):
-            yield m, (C @ Z[:N, 1:]).T, forecast(cfit, p, m_train, Cz), dict(
-                basis=cfit.basis, coords=coordinates(cfit, p, m_train, Z[:, 0]), z_true0=Z[:, 0], integrator=s)
+            yield m, (C @ Z[:N, 1:]).T, forecast(cfit, p, m_train, Cz), BasisTrajectory(
+                cfit.basis, coordinates(cfit, p, m_train, Z[:, 0]), Z[:, 0]), s
 
     def spectra():
         w = (np.abs(np.asarray(fit.amplitudes)) * np.linalg.norm(np.asarray(fit.modes), axis=1)).reshape(-1)
@@ -432,7 +431,7 @@ def _fit_pdmd(ctx: _Context) -> _Fit:
 
     return _Fit(prediction=pred, start=0, compared="tracer_u", order="post", modes=int(fit.basis.shape[1]),
                 offline_s=offline_s, offline_first_s=first_s, online_s=online_s,
-                estimate_input=lambda: dict(basis=fit.basis, coords=coordinates(fit, mu, n, z0), z_true0=z0),
+                estimate_input=lambda: BasisTrajectory(fit.basis, coordinates(fit, mu, n, z0), z0),
                 calibration_cases=calibration_cases, spectra=spectra, training_starts_at_step=skip)
 
 

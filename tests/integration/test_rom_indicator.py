@@ -15,7 +15,7 @@ import jaxbelt as jb
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, tracer_operator)
 from jaxbelt.rom.calibration import calibrate, safety_factor, snapshot_count
-from jaxbelt.rom.indicator import _quasi_static_response, _split_changing_windows, error_rom, residual_indicator
+from jaxbelt.rom.indicator import BasisTrajectory, _quasi_static_response, _split_changing_windows, error_rom, residual_indicator
 
 N_TRAIN, N_TEST = 100, 200
 DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene
@@ -58,7 +58,7 @@ def pod(setup):
             x0 = cal_roms[r].project(mc, jb.initial_state(mc))
             o = cal_roms[r].run(x0, parameters(mc), N_TRAIN)
             cases.append((mc, (C @ run[2][: mc.n_unknowns, 1:]).T, o.tracer_u,
-                          dict(basis=cal_roms[r].basis, coords=jnp.concatenate([x0[None], o.xi]), z_true0=run[2][:, 0])))
+                          BasisTrajectory(cal_roms[r].basis, jnp.concatenate([x0[None], o.xi]), run[2][:, 0]), None))
         cal = calibrate(cases, DT)
         xi0 = roms[r].project(m, jb.initial_state(m))
         o = roms[r].run(xi0, parameters(m), N_TEST)
@@ -114,20 +114,19 @@ def test_dmdc_effectivity_on_a_held_out_configuration(setup):
         return fit_dmdc(X, Y, U, rank=30)
 
     def inputs(f, z, u, n):
-        return dict(basis=f.basis, coords=jnp.concatenate([(f.basis.T @ z)[None], f.predict(z, u, n, observe=f.basis.T)]),
-                    z_true0=z)
+        return BasisTrajectory(f.basis, jnp.concatenate([(f.basis.T @ z)[None], f.predict(z, u, n, observe=f.basis.T)]), z)
 
     cf = fit([z[:, : N_TRAIN // 2 + 1] for z in post])
     cases = []
     for m, p, z in zip(ms, params, post):
         u = belt_inputs(p, 1)[:, 0]
-        cases.append((m, (Cz @ z[:, 1:]).T, cf.predict(z[:, 0], u, N_TRAIN, observe=Cz), inputs(cf, z[:, 0], u, N_TRAIN)))
+        cases.append((m, (Cz @ z[:, 1:]).T, cf.predict(z[:, 0], u, N_TRAIN, observe=Cz), inputs(cf, z[:, 0], u, N_TRAIN), None))
     kappa = calibrate(cases, DT).safety_factor
     f = fit(post)
     m, Z = setup["truth"]["same"]
     u = belt_inputs(parameters(m), 1)[:, 0]
     true = _rmse_mm((Cz @ Z[:, 1:]).T, f.predict(Z[:, 0], u, N_TEST, observe=Cz))
-    est = error_rom(m, dt=DT, **inputs(f, Z[:, 0], u, N_TEST)).rmse_mm
+    est = error_rom(m, *inputs(f, Z[:, 0], u, N_TEST)[:2], DT, Z[:, 0]).rmse_mm
     assert 0.8 < est / true < 1.25
     assert 1.0 <= kappa * est / true <= 3.0
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from jaxbelt.rom import fit_dmd, rmse, rrmse
+from jaxbelt.rom import BasisTrajectory, dmd_coordinates
 from jaxbelt.rom.dmd import stack_trajectories
 
 
@@ -107,3 +108,19 @@ def test_rmse_and_rrmse_definitions_on_hand_made_arrays():
     assert float(rmse(x, y)) == pytest.approx(np.sqrt((0.25 + 1.0) / 4))
     assert float(rrmse(x, y)) == pytest.approx(np.sqrt(1.25 / 30.0))
     np.testing.assert_allclose(np.asarray(rmse(x, y, axis=1)), [np.sqrt(0.25 / 2), np.sqrt(1.0 / 2)])
+
+
+def test_dmd_coordinates_carry_the_prediction_in_an_orthonormal_basis():
+    _, X, _ = _linear_system()
+    Z = jnp.asarray(X[:, :30])
+    model = fit_dmd(Z)
+    traj = dmd_coordinates(Z, model, Z[:, -1], 10)
+    assert isinstance(traj, BasisTrajectory)
+    Q = np.asarray(traj.basis)
+    np.testing.assert_allclose(Q.T @ Q, np.eye(Q.shape[1]), atol=1e-12)
+    assert traj.coords.shape == (11, Q.shape[1])
+    # row 0 the start, rows 1 … k the prediction, both as full states through the basis
+    np.testing.assert_allclose(Q @ np.asarray(traj.coords[0]), X[:, 29], atol=1e-10)
+    np.testing.assert_allclose(np.asarray(traj.coords[1:]) @ Q.T, np.asarray(model.predict(Z[:, -1], 10)),
+                               rtol=1e-8, atol=1e-8)
+    np.testing.assert_array_equal(np.asarray(traj.z_true0), X[:, 29])
