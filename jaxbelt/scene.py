@@ -98,6 +98,7 @@ class SolverSpec:
     transport: str = DEFAULT_TRANSPORT  # a name of jaxbelt.registry.TRANSPORT_RULES
     lateral_transport: bool = False  # 2D: also transport v (lets a skewed roller steer the belt)
     tension_stiffening: bool = True  # 2D: initial-stress (geometric) stiffness of the membrane tension
+    accuracy_um: float | None = None  # run on the cheapest grid whose estimated error is at most this (jaxbelt.accuracy)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,7 +156,7 @@ _TABLES = {
     "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements", "element"},
     "time": {"dt_s", "t_end_s"},
     "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
-    "solver": {"integrator", "linear_solver", "transport", "lateral_transport", "tension_stiffening"},
+    "solver": {"integrator", "linear_solver", "transport", "lateral_transport", "tension_stiffening", "accuracy_um"},
     "control": {"actuator", "axis", "sensor_mm", "kp_mrad_per_mm", "ki_mrad_per_mm_s", "kd_mrad_s_per_mm",
                 "sample_s", "limit_mrad", "rate_limit_mrad_s", "lag_s", "setpoint_mm", "noise_um", "seed",
                 "edge_profile_um"},
@@ -359,6 +360,7 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
         transport=_choice(solver, "transport", "solver", tuple(TRANSPORT_RULES), default=DEFAULT_TRANSPORT),
         lateral_transport=_choice(solver, "lateral_transport", "solver", (True, False), default=False),
         tension_stiffening=_choice(solver, "tension_stiffening", "solver", (True, False), default=True),
+        accuracy_um=_number(solver, "accuracy_um", "solver", required=False, positive=True),
     )
     if solver_spec.lateral_transport and kind == "1d":
         raise _err("solver.lateral_transport", True, "the 1D model has no lateral displacement")

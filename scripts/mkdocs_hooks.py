@@ -270,6 +270,10 @@ BENCHMARKS = {
     "closed_loop": ("What the steering loop costs", "A 100 s closed-loop run of `three-roller-steered` against the "
                     "open-loop run of the same machine (its `[[control]]` removed), the same solver and step count, "
                     "best of several runs side by side in one process ([belt steering](steering.md))."),
+    "error_estimate": ("The discretisation-error estimate", "Estimated against true error (a run refined 4× in "
+                       "every direction) on eleven held-out cases, 1D and 2D, open and closed loop, with and without "
+                       "lateral transport: the effectivity and the cost of the estimate in runs of the scene "
+                       "([accuracy on demand](accuracy.md))."),
     "design_steered": ("The 20 µm question on the steered machine", "The tolerance box of `three-roller-steered` "
                        "(lateral and longitudinal deviation ≤ 20 µm and the actuator within its range over 16–20 s, "
                        "verified by full closed-loop runs) beside the source's variant `three-roller-tolerance`, and "

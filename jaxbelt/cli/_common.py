@@ -57,6 +57,12 @@ def load_run(scene_arg, t_end=None, dt=None, integrator=None, transport=None, li
     return scene, mesh, build_model(scene, mesh), RunOptions.from_scene(scene)
 
 
+def rebuild(scene):
+    """``(scene, mesh, model, options)`` of a scene already loaded (another grid of it)."""
+    mesh = build_mesh(scene)
+    return scene, mesh, build_model(scene, mesh), RunOptions.from_scene(scene)
+
+
 def check_at_least(name, v, low=1):
     if v is not None and v < low:
         raise UsageError(f"{name} = {v}: must be at least {low}")

@@ -12,7 +12,8 @@ from pathlib import Path
 from .. import plot
 from ..design import METRICS, make_study
 from ..registry import LINEAR_SOLVERS
-from ._common import SCENE_HELP, UsageError, emit, load_run
+from ._accuracy import add_accuracy_arguments, choose_accuracy, print_accuracy
+from ._common import SCENE_HELP, UsageError, emit, load_run, rebuild
 
 DESIGN_SCENE = "three-roller-steered"
 
@@ -31,6 +32,7 @@ def add_design_arguments(p, metric_default: str, limit: bool = False):
         p.add_argument("--limit-um", type=float, default=20.0,
                        help="limit on the metric, µm (default 20); tolerance on a steered machine: on the lateral "
                             "and the longitudinal deviation both")
+    add_accuracy_arguments(p, estimate=False)
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--plot", default=None, metavar="FILE.png")
     p.add_argument("--progress", action="store_true", help="progress bars and stage messages on stderr")
@@ -60,8 +62,24 @@ def load_design_model(args):
     and its run settings (:class:`jaxbelt.RunOptions`)."""
     if args.at is not None and not (math.isfinite(args.at) and args.at > 0):
         raise UsageError(f"--at = {args.at}: must be a positive time in s")
-    _, _, model, options = load_run(args.scene, linear_solver=args.solver)
+    scene, _, model, options = load_run(args.scene, linear_solver=args.solver)
+    if args.metric in METRICS:  # an unknown metric is reported by make_design_study
+        chosen = choose_accuracy(args, scene, metric_quantities(args.metric, scene))
+        if chosen is not None:
+            _, _, model, options = rebuild(chosen.scene)
+            args.accuracy_chosen = chosen.as_dict()
     return model, options
+
+
+def metric_quantities(metric: str, scene) -> tuple[str, ...]:
+    """The tracer quantities whose discretisation error a design metric carries: the lateral
+    deviation, the longitudinal one, or (the steering angle, which answers the lateral walk, and a
+    steered machine's several limits) both."""
+    if scene.kind == "1d" or metric.startswith("longitudinal"):
+        return ("longitudinal",)
+    if scene.control or not (metric.startswith("lateral") or metric == "walk_rate"):
+        return ("longitudinal", "lateral")
+    return ("lateral",)
 
 
 def make_design_study(args, model, options, components=None):
@@ -86,7 +104,12 @@ def stage(args, text):
 def finish(args, out, print_text, plot_name, *plot_args):
     """Print ``out`` (JSON with ``--json``) and, with ``--plot``, draw ``jaxbelt.plot.<plot_name>(*plot_args,
     args.plot)``."""
+    chosen = getattr(args, "accuracy_chosen", None)
+    if chosen is not None:
+        out["chosen"] = chosen
     emit(args, out, print_text)
+    if chosen is not None and not args.json:
+        print_accuracy({"chosen": chosen})
     if args.plot:
         getattr(plot, plot_name)(*plot_args, args.plot)
     return 0

@@ -72,7 +72,27 @@ def model_info(scene, mesh, model, options: RunOptions | None = None) -> dict:
         n_tracers=model.n_tracers, output_every=options.saveat.every, full_fields=options.saveat.fields,
         pretension_strain=float(mesh.length / (scene.belt.length or mesh.length) - 1.0),
         dynamic_roller_rows=int(np.sum(dyn)), rollers=rollers, segments=segments,
+        automatic=automatic_choices(scene, mesh),
     )
+
+
+def automatic_choices(scene, mesh) -> list[str]:
+    """What the program decides for this scene itself, in words (``jaxbelt info``)."""
+    pre = mesh.length / (scene.belt.length or mesh.length) - 1.0
+    tension = pre > 0 or any(r.role == "tension" for r in scene.rollers)
+    acc = scene.solver.accuracy_um
+    out = [f"grid: chosen for {acc:g} µm when the scene runs (the cheapest n_xi, n_eta, dt whose estimated "
+           "discretisation error meets it, verified by its own estimate)" if acc is not None else
+           "grid: the scene's own (--accuracy-um or [solver] accuracy_um chooses one for an accuracy)",
+           "precision: float64 (float32 is a benchmarked option, not chosen automatically)"]
+    if scene.kind == "2d":
+        out.append("lateral transport: " + ("on: the belt walks under a skewed or tilted roller"
+                                            if scene.solver.lateral_transport else
+                                            "off: the lateral displacement is not carried by the transport step"))
+        st = scene.solver.tension_stiffening
+        out.append("tension stiffening: " + ("off" if not st else "on, acting (tension in the belt)" if tension else
+                                             "on, idle here (no pre-tension and no tension roller: nothing to stiffen)"))
+    return out
 
 
 def _print_info(info):
@@ -91,5 +111,7 @@ def _print_info(info):
         print(f"  roller {r['name']!r}: {r['role']}, {r['side']}, r = {r['radius_mm']:g} mm at {r['center_mm']}, "
               f"wrap {r['wrap_deg']:.1f}° ({r['elements']} elements), dynamic DOFs {r['dynamic_dofs'] or '-'}"
               + (f", prescribed {r['prescribed']}" if any(r["prescribed"].values()) else ""))
+    for line in info["automatic"]:
+        print(f"  automatic: {line}")
     for s in info["segments"]:
         print(f"    {s['kind']:6s} {s['name']:24s} {s['length_mm']:10.3f} mm  {s['elements']:4d} elements")

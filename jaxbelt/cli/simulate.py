@@ -13,7 +13,8 @@ from ..control import loop_summary
 from ..prestress import slack_message, slack_spans
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, TRANSPORT_RULES
 from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
-from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run
+from ._accuracy import add_accuracy_arguments, choose_accuracy, error_estimate, print_accuracy
+from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, rebuild
 
 
 def add_parser(subparsers):
@@ -44,6 +45,7 @@ def add_parser(subparsers):
                         "field time")
     s.add_argument("--exaggerate", type=float, default=1.0, metavar="F",
                    help="--plot-3d: draw displacements and roller motions F times their size (default 1)")
+    add_accuracy_arguments(s)
     s.add_argument("--json", action="store_true", help="print a JSON summary")
     s.add_argument("--progress", action="store_true", help="progress bar even when not on a terminal")
     s.set_defaults(func=run)
@@ -216,6 +218,9 @@ def _text(s, scene, model, demo):
 def run(args, demo=False):
     scene, mesh, model, options = load_run(args.scene, args.t_end, args.dt, args.integrator,
                                            getattr(args, "transport", None), getattr(args, "solver", None))
+    chosen = choose_accuracy(args, scene)
+    if chosen is not None:
+        scene, mesh, model, options = rebuild(chosen.scene)
     request = _field_request(args, scene, options)  # checked before anything is compiled
     slack = slack_spans(scene, mesh, model)
     if slack:  # before the run: the user learns it even if the run is long
@@ -231,6 +236,11 @@ def run(args, demo=False):
         check_finite(traj, options.dt)
     except NonFiniteStateError as e:
         raise SimulationError(f"{e} (transport weights {s['transport_weight_range']})") from None
+    if chosen is not None:
+        s["chosen"] = chosen.as_dict()
+        s["discretisation_error_um"] = s["chosen"].pop("discretisation_error_um")
+    elif getattr(args, "error_estimate", False):
+        s["discretisation_error_um"] = error_estimate(args, scene)
     if args.out:
         _write_npz(args.out, traj, mesh, model, request, fields)
         s["out"] = str(Path(args.out))
@@ -241,6 +251,8 @@ def run(args, demo=False):
         s["field_times_s"] = [float(v) for v in request["t"]]
         _plot_fields(args, scene, mesh, model, traj, request, fields, s)
     emit(args, s, _text(s, scene, model, demo))
+    if not args.json:
+        print_accuracy(s)
     _warn(s)
     if not args.json:
         for k in ("out", "plot", "plot_fields", "plot_3d"):

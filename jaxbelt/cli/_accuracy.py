@@ -1,0 +1,67 @@
+"""``--accuracy-um`` and ``--error-estimate``, shared by ``simulate`` and the design commands:
+the options, their checks (one line, exit 2) and their text output (:mod:`jaxbelt.accuracy`)."""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from ..accuracy import AccuracyError, choose_grid, estimate_error
+from ._common import UsageError
+
+
+def add_accuracy_arguments(p, estimate: bool = True):
+    p.add_argument("--accuracy-um", type=float, default=None, metavar="X",
+                   help="run on the cheapest grid (n_xi, n_eta, dt) whose estimated discretisation error is at most "
+                        "X µm, verified by its own estimate (default: the scene's [solver] accuracy_um, else the "
+                        "scene's grid)")
+    if estimate:
+        p.add_argument("--error-estimate", action="store_true",
+                       help="also estimate the run's discretisation error (Richardson in n_xi, n_eta and dt; "
+                            "several more runs)")
+
+
+def accuracy_asked(args, scene):
+    """``--accuracy-um``, else the scene's ``[solver] accuracy_um``, else ``None``; checked."""
+    x = getattr(args, "accuracy_um", None)
+    if x is None:
+        return scene.solver.accuracy_um
+    if not (math.isfinite(x) and x > 0):
+        raise UsageError(f"--accuracy-um = {x}: must be a positive number of µm")
+    return x
+
+
+def _progress(args):
+    if getattr(args, "progress", False) or (not getattr(args, "json", False) and sys.stderr.isatty()):
+        return lambda line: print(f"jaxbelt: accuracy: {line}", file=sys.stderr, flush=True)
+    return None
+
+
+def choose_accuracy(args, scene, quantities=None):
+    """The :class:`jaxbelt.accuracy.GridChoice` for the accuracy asked, or ``None``."""
+    x = accuracy_asked(args, scene)
+    if x is None:
+        return None
+    try:
+        return choose_grid(scene, x, quantities, progress=_progress(args))
+    except AccuracyError as e:
+        raise UsageError(str(e)) from None
+
+
+def error_estimate(args, scene) -> dict:
+    """``discretisation_error_um`` of the scene's run."""
+    return estimate_error(scene, progress=_progress(args)).as_dict()
+
+
+def print_accuracy(s: dict):
+    """Text lines for ``chosen`` and ``discretisation_error_um`` of a summary, where present."""
+    c = s.get("chosen")
+    if c is not None:
+        print(f"  chosen for {c['accuracy_um']:g} µm: n_xi = {c['n_xi']}, n_eta = {c['n_eta']}, dt = {c['dt_s']:g} s, "
+              f"{c['solver']}, {c['precision']}; estimate {c['estimate_um']:.3g} µm, {c['cost_s']:.3g} s a run")
+    e = s.get("discretisation_error_um")
+    if e is not None:
+        lat = "" if e["lateral"] is None else f", lateral {e['lateral']:.3g} µm"
+        orders = ", ".join(f"{d} {'-' if p is None else f'{p:.2f}'}" for d, p in e["orders"].items())
+        print(f"  discretisation error (estimate): longitudinal {e['longitudinal']:.3g} µm{lat}; dominant "
+              f"{e['dominant']}; observed orders {orders}; the estimate cost {e['cost_runs']:.1f} runs")
