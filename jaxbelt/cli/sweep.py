@@ -7,10 +7,10 @@ from pathlib import Path
 
 from ..design import distribution_from_dict, run_sweep
 from ..design.store import open_sweep
-from ..design.sweep import sweep_identity
+from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
-                      read_toml, stage)
+from ._design import (add_design_arguments, check_limit, check_plot, finer_study, finish, load_design_model,
+                      make_design_study, read_toml, stage)
 
 
 def add_parser(subparsers):
@@ -56,7 +56,12 @@ def run(args):
             raise UsageError(str(e)) from None
     res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
                     rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
-    return finish(args, res.to_dict(), _print, "plot_yield", res.metric_values, args.limit_um, res)
+    out = res.to_dict()
+    if not args.no_error_bars:
+        stage(args, "error bar: the samples nearest the limit on the grid one level finer")
+        fine, grid, grid_fine = finer_study(args, list(dist.labels))
+        out["discretisation"] = yield_discretisation(res, study, fine, dist, grid=grid, grid_fine=grid_fine).to_dict()
+    return finish(args, out, _print, "plot_yield", res.metric_values, args.limit_um, res)
 
 
 def _print(r):
@@ -65,6 +70,10 @@ def _print(r):
     print(f"yield {r['yield']:.4f} (95 % Wilson interval {lo:.4f}–{hi:.4f}): {r['passed']} of {r['samples']} "
           f"configurations with {r['metric']} ≤ {r['limit_um']:g} µm" + (" and the steering within its range"
                                                                           if steered else ""))
+    d = r.get("discretisation")
+    if d is not None:
+        print(f"discretisation bias of the yield {d['bias']:+.4f} (one level finer: {d['flipped']} of the {d['samples']} "
+              f"samples nearest the limit change verdict; their metric moves by {100 * d['metric_relative_change']:.2g} %)")
     if steered:
         print(f"{r['saturated']} configuration(s) saturated the steering actuator (±{r['range_mrad']:g} mrad) "
               f"and count as failures; largest actuator angle {r['steering_max_mrad']:.4g} mrad")

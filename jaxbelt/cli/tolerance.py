@@ -7,10 +7,10 @@ import math
 
 from ..design import parameter_space, tolerance_box
 from ..design.metrics import metric_unit
-from ..design.tolerance import weights_from_dict
+from ..design.tolerance import box_discretisation, weights_from_dict
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finish, load_design_model, make_design_study,
-                      read_toml, stage)
+from ._design import (add_design_arguments, check_limit, check_plot, finer_study, finish, load_design_model,
+                      make_design_study, read_toml, stage)
 
 
 def add_parser(subparsers):
@@ -73,6 +73,13 @@ def run(args):
         raise UsageError(str(e)) from None
     out = res.to_dict()
     out["window_s"] = list(study.t_window) if study.steered else None
+    if not args.no_error_bars:
+        stage(args, "error bars: the verified corners on the grid one level finer")
+        fine, grid, grid_fine = finer_study(args, args.components)
+        bars = box_discretisation(res, study, fine, grid, grid_fine).to_dict()
+        out["discretisation"] = bars
+        for row, u in zip(out["half_widths"], bars["half_width_uncertainty"]):
+            row["discretisation_uncertainty"] = u
     return finish(args, out, _print, "plot_tolerance_box", res)
 
 
@@ -91,7 +98,9 @@ def _print(r):
     for row in r["half_widths"]:
         note = " (not felt: capped)" if row["component"] in r["unconstrained"] else (
             f"  {100 * row['share']:.0f} % of the worst case" if row["share"] > 0 else "")
-        print(f"  {row['component']:16s} ± {row['half_width']:.4g} {row['unit']}{note}")
+        bar = row.get("discretisation_uncertainty")
+        bar = "" if bar is None or row["component"] in r["unconstrained"] else f" (± {bar:.2g} discretisation)"
+        print(f"  {row['component']:16s} ± {row['half_width']:.4g} {row['unit']}{bar}{note}")
     print(f"verified worst case {r['worst_case_um']:.4g} µm by {len(r['verification'])} full runs "
           f"({'within' if r['verified'] else 'NOT within'} [0.97, 1] × limit, {r['iterations']} iteration(s)); "
           f"linear model {r['predicted_worst_um']:.4g} µm")
@@ -99,5 +108,11 @@ def _print(r):
         print(f"  {x['metric']:17s} verified worst {x['worst_case']:.4g} {x['unit']} of {x['limit']:g} "
               f"({100 * x['ratio']:.0f} %; linear model {x['predicted_worst']:.4g}){'  <- binds' if x['binds'] else ''}")
     print(f"binding: {', '.join(r['binding'][:5]) or '-'}; RSS stack-up with σ = h/3: {r['rss_um']:.4g} µm")
+    d = r.get("discretisation")
+    if d is not None:
+        g = d["grid_fine"]
+        print(f"discretisation: one level finer (n_xi {g['n_xi']}, n_eta {g['n_eta']}, dt {g['dt']:g} s) the worst corner "
+              f"reads {d['worst_case_fine_um']:.4g} against {d['worst_case_um']:.4g} µm: the half-widths change by "
+              f"{100 * d['half_width_relative_change']:+.2g} %")
     if not r["verified"]:
         print("warning: the verified worst case is outside [0.97, 1] × limit (strongly nonlinear response)")

@@ -272,6 +272,8 @@ class ToleranceBox:
     response0_um: np.ndarray
     limits: list = dataclasses.field(default_factory=list)
     binding_limit: str = ""
+    corners: np.ndarray | None = None  # (m, P) the verified corners, as parameter vectors
+    limit_names: tuple | None = None  # ((metric, limit), ...) with several limits
 
     def to_dict(self) -> dict:
         """The box as JSON-able data (``jaxbelt tolerance --json``): the scalar and table fields
@@ -318,7 +320,7 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
             (s0, w0), (s1, w1) = history[-2], history[-1]
             s = s1 + (target - w1) * (s1 - s0) / (w1 - w0) if w1 != w0 else s1 * target / w1
         s = max(s, 1e-6)
-    return h, worst, table, len(history)
+    return h, worst, table, len(history), corners * h
 
 
 @eqx.filter_jit
@@ -380,7 +382,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     h_lin = optimise_box(lin, limit_um, weights, h_max)
     felt = np.any(J != 0, axis=0) & (h_lin < h_max)
     rand = np.random.default_rng(seed).choice([-1.0, 1.0], size=(n_random, len(h_lin)))  # the same in every iteration
-    h, worst, table, iterations = _verify(lin, h_lin, felt, limit_um, evaluate_many, rand, n_corners, max_iter, sp,
+    h, worst, table, iterations, thetas = _verify(lin, h_lin, felt, limit_um, evaluate_many, rand, n_corners, max_iter, sp,
                                           names)
     W = worst_case(lin, h)
     per_limit, binding_limit = ([], study.metric) if not names else _per_limit(
@@ -398,7 +400,64 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
         binding=binding, unconstrained=[labels[k] for k in range(len(h)) if not felt[k]],
         verification=table, iterations=iterations,
         rss_um=rss_stackup(lin, h / 3.0).three_sigma_um, jacobian_um=J, response0_um=r0,
-        limits=per_limit, binding_limit=binding_limit)
+        limits=per_limit, binding_limit=binding_limit, corners=thetas, limit_names=names)
+
+
+@dataclasses.dataclass(frozen=True)
+class BoxDiscretisation:
+    """The discretisation uncertainty of a tolerance box (:func:`box_discretisation`).
+
+    **Fields:** ``worst_case_um``/``worst_case_fine_um`` the largest metric over the box's
+    verified corners on the box's grid and on the grid one level finer (on the scale of
+    ``limit_um`` with several limits); ``floor_um``/``floor_fine_um`` the metric of the scene's
+    own misalignment (no tolerance) on both; ``half_width_relative_change`` the relative change
+    of every half-width the finer grid asks for (the box scaled until its worst corner is back at
+    the verified level, the excess over the floor taken as linear in the scale);
+    ``half_width_uncertainty`` (P,) its size per half-width, in their units; ``grid``/``grid_fine``
+    the two grids; ``runs`` the corners re-evaluated."""
+
+    worst_case_um: float
+    worst_case_fine_um: float
+    floor_um: float
+    floor_fine_um: float
+    half_width_relative_change: float
+    half_width_uncertainty: np.ndarray
+    grid: dict
+    grid_fine: dict
+    runs: int
+
+    def to_dict(self) -> dict:
+        out = dataclasses.asdict(self)
+        out["half_width_uncertainty"] = [float(x) for x in self.half_width_uncertainty]
+        return out
+
+
+def _box_values(study: Study, box: ToleranceBox, thetas) -> np.ndarray:
+    """The box's measure at the parameter vectors ``thetas`` on ``study``'s grid: the metric, or
+    with several limits the largest ratio to its limit times ``limit_um``."""
+    thetas = jnp.asarray(thetas, study.base.dtype)
+    if box.limit_names:
+        values = np.asarray(_limit_values_batch(with_limits(study, box.limit_names), thetas))
+        return box.limit_um * np.max(values / np.array([lim for _, lim in box.limit_names]), axis=1)
+    return np.asarray(evaluate_metric(study, thetas))
+
+
+def box_discretisation(box: ToleranceBox, study: Study, fine_study: Study, grid=None, grid_fine=None) -> BoxDiscretisation:
+    """The box's worst corners (every verified corner) and the scene's own misalignment
+    evaluated on ``study``'s grid and on ``fine_study``'s — the same scene one level finer (the
+    metric, components and evaluation time the same) — and the half-widths' relative change
+    that follows (:class:`BoxDiscretisation`)."""
+    thetas = np.concatenate([np.zeros((1, box.corners.shape[1])), box.corners])
+    coarse = _box_values(study, box, thetas)
+    fine = _box_values(fine_study, box, thetas)
+    floor, floor_f = float(coarse[0]), float(fine[0])
+    worst, worst_f = float(np.max(coarse[1:])), float(np.max(fine[1:]))
+    scale = (worst - floor_f) / (worst_f - floor_f) if worst_f > floor_f else 1.0
+    return BoxDiscretisation(
+        worst_case_um=worst, worst_case_fine_um=worst_f, floor_um=floor, floor_fine_um=floor_f,
+        half_width_relative_change=float(scale - 1.0),
+        half_width_uncertainty=np.abs(scale - 1.0) * np.asarray(box.half_widths),
+        grid=grid or {}, grid_fine=grid_fine or {}, runs=2 * len(thetas))
 
 
 def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:

@@ -60,6 +60,17 @@ def test_tolerance_json(files, capsys):
     assert max(v["full_um"] for v in r["verification"]) == r["worst_case_um"]
     assert set(r["binding"]) <= {"roller 2:ax", "roller 2:ay"}
     assert all(h["half_width"] >= 0 and math.isfinite(h["half_width"]) for h in r["half_widths"])
+    # error bars: the verified corners on the grid one level finer (elements ×2 along and across, Δt / 2)
+    d = r["discretisation"]
+    assert d["grid_fine"]["n_xi"] == 2 * d["grid"]["n_xi"] and d["grid_fine"]["dt"] == pytest.approx(d["grid"]["dt"] / 2)
+    assert d["worst_case_um"] == pytest.approx(r["worst_case_um"]) and d["worst_case_fine_um"] > 0
+    change = d["half_width_relative_change"]
+    assert 0 < abs(change) < 0.5
+    # the worst corner's excess over the floor, scaled back to the verified level on the finer grid
+    scale = (d["worst_case_um"] - d["floor_fine_um"]) / (d["worst_case_fine_um"] - d["floor_fine_um"])
+    assert change == pytest.approx(scale - 1)
+    for h in r["half_widths"]:
+        assert h["discretisation_uncertainty"] == pytest.approx(abs(change) * h["half_width"])
 
 
 def test_sweep_json_store_and_resume(files, capsys):
@@ -69,8 +80,12 @@ def test_sweep_json_store_and_resume(files, capsys):
     r = _json(capsys, argv + ["--plot", str(files / "y.png")])
     assert r["samples"] == 24 and r["full_runs"] == 24 and r["reduced_runs"] == 0
     assert r["ci95"][0] <= r["yield"] <= r["ci95"][1]
-    again = _json(capsys, argv)  # everything already stored: resumes with nothing to run
-    assert again["yield"] == r["yield"]
+    # the yield's discretisation bias: the 16 samples nearest the limit re-run one level finer
+    d = r["discretisation"]
+    assert d["samples"] == 16 and 0 <= d["flipped"] <= 16 and d["metric_relative_change"] > 0
+    assert abs(d["bias"]) <= d["flipped"] / 24 + 1e-12
+    again = _json(capsys, argv + ["--no-error-bars"])  # everything already stored: resumes with nothing to run
+    assert again["yield"] == r["yield"] and "discretisation" not in again
 
 
 BAD = [
@@ -85,6 +100,9 @@ BAD = [
     (["sweep", "{small}", "--dist", "{missing}"], "no such file"),
     (["sweep", "{small}", "--dist", "{dist}", "--rom", "maybe"], "--rom"),
     (["sensitivity", "{small}", "--at", "-1"], "--at"),
+    (["tolerance", "{small}", "--accuracy-um", "0"], "--accuracy-um"),
+    (["sweep", "{small}", "--dist", "{dist}", "--accuracy-um", "nan"], "--accuracy-um"),
+    (["sensitivity", "{small}", "--accuracy-um", "-2"], "--accuracy-um"),
 ]
 
 
