@@ -13,8 +13,11 @@ beam limit (1/3 of it). Also: a twist (about x) against the per-pass shift ``2 r
 a mesh-convergence check, tension stiffening off, and the three-roller scene's tilt of roller 2
 split into skew and twist per span. Writes ``results/lateral_theory.json`` and ``.png``.
 
-``python benchmarks/lateral_theory.py [--quick | --shape]`` (quick: three K L points, coarse
-meshes; shape: only the steady span shape against the reference's, ``results/lateral_span_shape.json``).
+``python benchmarks/lateral_theory.py [--quick | --shape | --coarse]`` (quick: three K L points,
+coarse meshes; shape: only the steady span shape against the reference's,
+``results/lateral_span_shape.json``; coarse: the skew and twist walk at K L = 4.9 on 8, 16 and
+32 elements per roller arc, with the observed order of the walk rate,
+``results/lateral_coarse_mesh.json``).
 """
 
 import sys
@@ -147,6 +150,32 @@ def span_shape(w_mm=50, eps0=5e-3, alpha=1e-3, n_xis=(200, 400)):
     return rows
 
 
+def coarse_meshes(per_arc=(8, 16, 32), w_mm=50, eps0=5e-3, alpha=1e-3):
+    """Skew and twist walk on coarse meshes (``per_arc`` elements on each roller arc, Δt = 0.8 ℓ / V,
+    n_η = 5) against the references; the observed order of the walk rate from the three meshes."""
+    arc = np.pi * R
+    out = {"per_arc": list(per_arc), "KL": span_parameter(w_mm * 1e-3, eps0), "skew": [], "twist": []}
+    for k in per_arc:
+        n_xi = int(round(L_LOOP / (arc / k)))
+        sc = scene(w_mm, eps0, n_xi=n_xi, dt=round(0.8 * L_LOOP / n_xi, 5))
+        for kind, axis in (("skew", 1), ("twist", 0)):
+            rot = np.zeros((2, 3))
+            rot[1, axis] = alpha
+            c, _ = simulated_walk(sc, rot)
+            exact = references(sc, rot)["timoshenko"]  # the twist's: the per-pass shift 2 r α V / L_loop
+            row = {"per_arc": k, "n_xi": n_xi, "dt_s": sc.time.dt, "model_m_s": c, "reference_m_s": exact,
+                   "error": c / exact - 1.0}
+            out[kind].append(row)
+            print(f"{kind:5s} {k:3d} elements an arc (n_xi {n_xi}): walk {c * 1e6:+.4f} µm/s against "
+                  f"{exact * 1e6:+.4f}: {100 * row['error']:+.3f} %", flush=True)
+    for kind in ("skew", "twist"):
+        w = [r["model_m_s"] for r in out[kind]]
+        d1, d2 = abs(w[0] - w[1]), abs(w[1] - w[2])
+        out[f"{kind}_observed_order"] = float(np.log2(d1 / d2)) if d1 > 0 and d2 > 0 else None
+        print(f"{kind}: observed order of the walk rate {out[f'{kind}_observed_order']}", flush=True)
+    write("lateral_coarse_mesh", out)
+
+
 def main(quick=False):
     if quick:
         cases = [(50, 2.5e-5), (50, 5e-3), (10, 2e-2)]
@@ -211,7 +240,9 @@ def plot(rows, off, name):
 
 
 if __name__ == "__main__":
-    if "--shape" in sys.argv:  # the span-shape comparison alone
+    if "--coarse" in sys.argv:
+        coarse_meshes()
+    elif "--shape" in sys.argv:  # the span-shape comparison alone
         write("lateral_span_shape", {"scene": "two rollers, w = 50 mm, eps0 = 5e-3, K L = 4.9, roller 2 skewed 1 mrad",
                                      "rows": span_shape()})
     else:

@@ -145,7 +145,8 @@ class DiscretisationError:
     ``grid`` the scene's :class:`Grid`; ``safety_factor``; ``run_s`` the wall time of the scene's
     own run (compilation apart); ``estimate_s`` the wall time of the whole estimate (every run,
     compilation included); ``runs_s`` the summed run times of the ladders (compilation apart);
-    ``cost_runs`` ``runs_s / run_s``; ``run_bytes`` XLA's memory estimate of the scene's run."""
+    ``cost_runs`` ``runs_s / run_s``; ``run_bytes`` XLA's memory estimate of the scene's run;
+    ``t_from_s`` the start of the output times the error is taken over."""
 
     longitudinal_um: float
     lateral_um: float | None
@@ -158,6 +159,7 @@ class DiscretisationError:
     runs_s: float
     cost_runs: float
     run_bytes: float
+    t_from_s: float = 0.0
 
     def direction(self, name: str) -> DirectionError:
         return next(d for d in self.directions if d.direction == name)
@@ -170,7 +172,8 @@ class DiscretisationError:
             directions={d.direction: dict(longitudinal_um=d.longitudinal_um, lateral_um=d.lateral_um, order=d.order,
                                           order_clamped=d.order_clamped, factors=list(d.factors), dt_s=d.dt_s)
                         for d in self.directions},
-            grid=dataclasses.asdict(self.grid), safety_factor=self.safety_factor, run_s=self.run_s,
+            grid=dataclasses.asdict(self.grid), t_from_s=self.t_from_s, safety_factor=self.safety_factor,
+            run_s=self.run_s,
             estimate_s=self.estimate_s, cost_runs=self.cost_runs)
 
 
@@ -206,11 +209,13 @@ def tracer_run(scene: Scene, solver=None) -> TracerRun:
                      None if traj.tracer_v is None else np.asarray(traj.tracer_v), run_s, run_bytes)
 
 
-def at_times(run: TracerRun, dt_run: float, dt_common: float, k: int):
+def at_times(run: TracerRun, dt_run: float, dt_common: float, k: int, t_from: float = 0.0):
     """``(u, v)`` rows of a run with step ``dt_run`` at the times ``dt_common, 2 dt_common, …,
-    k dt_common`` (``dt_common`` a whole multiple of ``dt_run``); ``v`` is ``None`` in 1D."""
+    k dt_common`` (``dt_common`` a whole multiple of ``dt_run``) from ``t_from`` on; ``v`` is
+    ``None`` in 1D."""
     stride = int(round(dt_common / dt_run))
-    rows = np.arange(1, k + 1) * stride - 1
+    first = max(1, int(math.ceil(t_from / dt_common - 1e-9)))
+    rows = np.arange(min(first, k), k + 1) * stride - 1
     return run.u[rows], None if run.v is None else run.v[rows]
 
 
@@ -277,11 +282,13 @@ def _h(scene: Scene, direction: str) -> float:
     return {"n_xi": 1.0 / g.n_xi, "n_eta": 1.0 / max(g.n_eta - 1, 1), "dt": g.dt}[direction]
 
 
-def estimate_error(scene: Scene, solver=None, *, progress=None) -> DiscretisationError:
+def estimate_error(scene: Scene, solver=None, *, t_from: float = 0.0, progress=None) -> DiscretisationError:
     """The discretisation error of ``scene``'s run (its own solver unless ``solver``): the
-    estimated largest tracer error over the output times against the converged solution, per
-    quantity, with the dominant direction and each direction's observed order (module
-    docstring). ``progress``: a callable taking a line of text, told of each run."""
+    estimated largest tracer error over the output times from ``t_from`` on (s; default all)
+    against the converged solution, per quantity, with the dominant direction and each
+    direction's observed order (module docstring). A design metric read over a window asks for
+    the error there: the drive's start-up, whose error converges slowly, lies before it.
+    ``progress``: a callable taking a line of text, told of each run."""
     t_start = time.perf_counter()
     directions = ("n_xi", "dt") if scene.kind == "1d" else DIRECTIONS
     cache: dict = {}
@@ -307,11 +314,11 @@ def estimate_error(scene: Scene, solver=None, *, progress=None) -> Discretisatio
         # time of the scene from the two finest levels (both have them: their steps divide the scene's)
         dt_common = max(sc.time.dt for sc in scenes)
         k = int(math.floor(scene.time.t_end / dt_common + 1e-9))
-        common = [at_times(r, sc.time.dt, dt_common, k) for r, sc in zip(runs, scenes)]
-        user = [at_times(r, sc.time.dt, scene.time.dt, k_user) if i else None
+        common = [at_times(r, sc.time.dt, dt_common, k, t_from) for r, sc in zip(runs, scenes)]
+        user = [at_times(r, sc.time.dt, scene.time.dt, k_user, t_from) if i else None
                 for i, (r, sc) in enumerate(zip(runs, scenes))]
         at = factors.index(1.0)
-        level_at = user[at] if at else at_times(runs[0], scenes[0].time.dt, scene.time.dt, k_user)
+        level_at = user[at] if at else at_times(runs[0], scenes[0].time.dt, scene.time.dt, k_user, t_from)
         errs = []
         for c in (0, 1):
             if common[0][c] is None:
@@ -338,7 +345,7 @@ def estimate_error(scene: Scene, solver=None, *, progress=None) -> Discretisatio
         longitudinal_um=long_um, lateral_um=lat_um, dominant=dominant, directions=tuple(parts),
         grid=scene_grid(scene), safety_factor=SAFETY_FACTOR, run_s=own.run_s,
         estimate_s=time.perf_counter() - t_start, runs_s=runs_s, cost_runs=runs_s / max(own.run_s, 1e-12),
-        run_bytes=own.run_bytes)
+        run_bytes=own.run_bytes, t_from_s=float(t_from))
 
 
 # ----------------------------------------------------------------------------- choosing a grid
@@ -444,12 +451,13 @@ def _candidates(scene: Scene, est: DiscretisationError, quantities, run_bytes: f
     return out
 
 
-def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, *, rounds: int = 3,
-                progress=None) -> GridChoice:
+def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, *, t_from: float = 0.0,
+                rounds: int = 3, progress=None) -> GridChoice:
     """The cheapest grid for ``scene`` whose estimated discretisation error is at most
     ``accuracy_um`` for the ``quantities`` (``longitudinal``/``lateral``; default both the scene
     has), verified by its own estimate (module docstring). ``AccuracyError`` (naming the best
-    reachable error and its cost) when no grid within half the machine's memory reaches it."""
+    reachable error and its cost) when no grid within half the machine's memory reaches it.
+    ``t_from``: the error is taken over the output times from then on (:func:`estimate_error`)."""
     if not (isinstance(accuracy_um, (int, float)) and math.isfinite(accuracy_um) and accuracy_um > 0):
         raise ValueError(f"accuracy_um = {accuracy_um}: must be a positive number of µm")
     quantities = tuple(quantities or (QUANTITIES if scene.kind == "2d" else ("longitudinal",)))
@@ -460,7 +468,8 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
         quantities = tuple(q for q in quantities if q == "longitudinal") or ("longitudinal",)
     automatic = ["precision float64 (float32's rounding is not estimated here)",
                  f"solver {scene.solver.integrator}/{scene.solver.linear_solver} (the scene's)"]
-    base, base_est, factors_total = scene, estimate_error(scene, solver, progress=progress), {d: 1.0 for d in DIRECTIONS}
+    base, factors_total = scene, {d: 1.0 for d in DIRECTIONS}
+    base_est = estimate_error(scene, solver, t_from=t_from, progress=progress)
     best_reachable = None
     for r in range(1, rounds + 1):
         pick = None
@@ -481,7 +490,7 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
                 f"accuracy_um = {accuracy_um:g}: no grid within half the machine's memory reaches it; the best "
                 f"reachable is about {err:.3g} µm at about {cost_s:.3g} s a run")
         _, predicted, f, cand = pick
-        est = estimate_error(cand, solver, progress=progress)
+        est = estimate_error(cand, solver, t_from=t_from, progress=progress)
         factors_total = {d: factors_total[d] * f[d] for d in DIRECTIONS}
         value = asked_value(est, quantities)
         if value <= accuracy_um or r == rounds:

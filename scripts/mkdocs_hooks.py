@@ -270,6 +270,9 @@ BENCHMARKS = {
     "closed_loop": ("What the steering loop costs", "A 100 s closed-loop run of `three-roller-steered` against the "
                     "open-loop run of the same machine (its `[[control]]` removed), the same solver and step count, "
                     "best of several runs side by side in one process ([belt steering](steering.md))."),
+    "lateral_coarse_mesh": ("Belt walk on coarse meshes", "The skew and twist walk of the two-roller belt at "
+                            "K L = 4.9 on 8, 16 and 32 elements per roller arc against the moving-beam reference "
+                            "and the per-pass shift ([lateral mechanics](lateral.md))."),
     "error_estimate": ("The discretisation-error estimate", "Estimated against true error (a run refined 4× in "
                        "every direction) on eleven held-out cases, 1D and 2D, open and closed loop, with and without "
                        "lateral transport: the effectivity and the cost of the estimate in runs of the scene "

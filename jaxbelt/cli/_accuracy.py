@@ -37,13 +37,14 @@ def _progress(args):
     return None
 
 
-def choose_accuracy(args, scene, quantities=None):
-    """The :class:`jaxbelt.accuracy.GridChoice` for the accuracy asked, or ``None``."""
+def choose_accuracy(args, scene, quantities=None, t_from: float = 0.0):
+    """The :class:`jaxbelt.accuracy.GridChoice` for the accuracy asked (the error taken over the
+    output times from ``t_from`` on), or ``None``."""
     x = accuracy_asked(args, scene)
     if x is None:
         return None
     try:
-        return choose_grid(scene, x, quantities, progress=_progress(args))
+        return choose_grid(scene, x, quantities, t_from=t_from, progress=_progress(args))
     except AccuracyError as e:
         raise UsageError(str(e)) from None
 

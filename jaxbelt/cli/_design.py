@@ -13,6 +13,7 @@ from pathlib import Path
 from .. import plot
 from ..accuracy import refine, scene_grid
 from ..design import METRICS, make_study
+from ..design.metrics import CLOSED_LOOP_WINDOW, OPEN_LOOP_WINDOW
 from ..registry import LINEAR_SOLVERS
 from ._accuracy import add_accuracy_arguments, choose_accuracy, print_accuracy
 from ._common import SCENE_HELP, UsageError, emit, load_run, rebuild
@@ -70,7 +71,10 @@ def load_design_model(args):
         raise UsageError(f"--at = {args.at}: must be a positive time in s")
     scene, _, model, options = load_run(args.scene, linear_solver=args.solver)
     if args.metric in METRICS:  # an unknown metric is reported by make_design_study
-        chosen = choose_accuracy(args, scene, metric_quantities(args.metric, scene))
+        # the metric reads the window before t_eval: the error is asked there, not at the start-up
+        t_eval = scene.time.t_end if args.at is None else args.at
+        frac = CLOSED_LOOP_WINDOW if scene.control else OPEN_LOOP_WINDOW
+        chosen = choose_accuracy(args, scene, metric_quantities(args.metric, scene), t_from=(1 - frac) * t_eval)
         if chosen is not None:
             scene, _, model, options = rebuild(chosen.scene)
             args.accuracy_chosen = chosen.as_dict()
