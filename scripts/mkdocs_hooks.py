@@ -273,6 +273,13 @@ BENCHMARKS = {
     "lateral_coarse_mesh": ("Belt walk on coarse meshes", "The skew and twist walk of the two-roller belt at "
                             "K L = 4.9 on 8, 16 and 32 elements per roller arc against the moving-beam reference "
                             "and the per-pass shift ([lateral mechanics](lateral.md))."),
+    "accuracy_trade": ("The trade as `--accuracy-um` makes it", "On `three-roller-t72` over 2 s, the true error "
+                       "over the last 20 % against the run time of grids around the scene's, and the grids the "
+                       "program chooses for 20, 5 and 2 µm ([accuracy on demand](accuracy.md))."),
+    "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
+                          "each built-in design scene's grid and one level finer, as a share of the 20 µm limit "
+                          "(the rule: at most 5 %), and the half-widths' relative change "
+                          "([tolerance design](tolerance.md#error-bars))."),
     "error_estimate": ("The discretisation-error estimate", "Estimated against true error (a run refined 4× in "
                        "every direction) on eleven held-out cases, 1D and 2D, open and closed loop, with and without "
                        "lateral transport: the effectivity and the cost of the estimate in runs of the scene "

@@ -85,10 +85,12 @@ def automatic_choices(scene, mesh) -> list[str]:
            "discretisation error meets it, verified by its own estimate)" if acc is not None else
            "grid: the scene's own (--accuracy-um or [solver] accuracy_um chooses one for an accuracy)",
            "precision: float64 (float32 is a benchmarked option, not chosen automatically)"]
+    if scene.solver.linear_solver == "reuse":
+        exact = scene.solver.transport == "shift" and not scene.solver.lateral_transport
+        out.append("reuse solver: " + ("no refinement (shift transport, no lateral transport: the first step's "
+                                       "factors solve every step exactly)" if exact else
+                                       "2 refinement iterations a step (the step matrix drifts)"))
     if scene.kind == "2d":
-        out.append("lateral transport: " + ("on: the belt walks under a skewed or tilted roller"
-                                            if scene.solver.lateral_transport else
-                                            "off: the lateral displacement is not carried by the transport step"))
         st = scene.solver.tension_stiffening
         out.append("tension stiffening: " + ("off" if not st else "on, acting (tension in the belt)" if tension else
                                              "on, idle here (no pre-tension and no tension roller: nothing to stiffen)"))

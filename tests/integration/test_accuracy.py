@@ -105,3 +105,13 @@ def test_scene_accuracy_key():
     for bad in (0.0, -2.0, "x"):
         with pytest.raises(jb.SceneError, match="solver.accuracy_um"):
             scene_with(lambda d, b=bad: d.setdefault("solver", {}).update(accuracy_um=b))
+
+
+def test_info_says_what_the_program_decides(tmp_path, capsys):
+    path = tmp_path / "acc.toml"
+    path.write_text('extends = "two-roller-1d"\n[solver]\naccuracy_um = 50.0\nlinear_solver = "reuse"\n')
+    assert main(["info", str(path), "--json"]) == 0
+    auto = json.loads(capsys.readouterr().out)["automatic"]
+    assert any(a.startswith("grid: chosen for 50 µm") for a in auto)
+    assert any(a.startswith("reuse solver: no refinement") for a in auto)
+    assert any(a.startswith("precision: float64") for a in auto)

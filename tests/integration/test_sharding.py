@@ -107,6 +107,7 @@ def _free_port():
         return s.getsockname()[1]
 
 
+@pytest.mark.slow  # two worker processes; the sharded map itself runs in test_batched_map_over_four_cpu_devices_equals_vmap
 def test_distributed_map_two_processes_equals_single_process(tmp_path):
     port = _free_port()
     procs = []
