@@ -275,7 +275,7 @@ BENCHMARKS = {
                             "and the per-pass shift ([lateral mechanics](lateral.md))."),
     "accuracy_trade": ("The trade as `--accuracy-um` makes it", "On `three-roller-t72` over 2 s, the true error "
                        "over the last 20 % against the run time of grids around the scene's, and the grids the "
-                       "program chooses for 20, 5 and 2 µm ([accuracy on demand](accuracy.md))."),
+                       "program chooses for 40, 20 and 10 µm ([accuracy on demand](accuracy.md))."),
     "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
                           "each built-in design scene's grid and one level finer, as a share of the 20 µm limit "
                           "(the rule: at most 5 %), and the half-widths' relative change "

@@ -272,7 +272,7 @@ class ToleranceBox:
     response0_um: np.ndarray
     limits: list = dataclasses.field(default_factory=list)
     binding_limit: str = ""
-    corners: np.ndarray | None = None  # (m, P) the verified corners, as parameter vectors
+    corners: np.ndarray | None = None  # (m, P) the verified worst corners, as parameter vectors
     limit_names: tuple | None = None  # ((metric, limit), ...) with several limits
 
     def to_dict(self) -> dict:
@@ -320,7 +320,7 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
             (s0, w0), (s1, w1) = history[-2], history[-1]
             s = s1 + (target - w1) * (s1 - s0) / (w1 - w0) if w1 != w0 else s1 * target / w1
         s = max(s, 1e-6)
-    return h, worst, table, len(history), corners * h
+    return h, worst, table, len(history), signs * h
 
 
 @eqx.filter_jit
@@ -408,7 +408,7 @@ class BoxDiscretisation:
     """The discretisation uncertainty of a tolerance box (:func:`box_discretisation`).
 
     **Fields:** ``worst_case_um``/``worst_case_fine_um`` the largest metric over the box's
-    verified corners on the box's grid and on the grid one level finer (on the scale of
+    worst corners on the box's grid and on the grid one level finer (on the scale of
     ``limit_um`` with several limits); ``floor_um``/``floor_fine_um`` the metric of the scene's
     own misalignment (no tolerance) on both; ``half_width_relative_change`` the relative change
     of every half-width the finer grid asks for (the box scaled until its worst corner is back at
@@ -443,7 +443,7 @@ def _box_values(study: Study, box: ToleranceBox, thetas) -> np.ndarray:
 
 
 def box_discretisation(box: ToleranceBox, study: Study, fine_study: Study, grid=None, grid_fine=None) -> BoxDiscretisation:
-    """The box's worst corners (every verified corner) and the scene's own misalignment
+    """The box's worst corners (those of the last verification) and the scene's own misalignment
     evaluated on ``study``'s grid and on ``fine_study``'s — the same scene one level finer (the
     metric, components and evaluation time the same) — and the half-widths' relative change
     that follows (:class:`BoxDiscretisation`)."""
