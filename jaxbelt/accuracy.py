@@ -257,21 +257,20 @@ def richardson_limit(h, q, p):
 
 
 def _ladder(scene: Scene, direction: str):
-    """``(factors, scenes, dt_factor)``: the first admissible ladder of :data:`LADDERS` for the
+    """``(factors, scenes)``: the first admissible ladder of :data:`LADDERS` for the
     direction; along the belt, at the smallest refinement of the step its finest mesh admits."""
     for factors in LADDERS:
         if direction == "dt":
             scenes = [refine(scene, dt=f) for f in factors]
             if all(admissible(s) for s in scenes):
-                return factors, scenes, 1.0
+                return factors, scenes
             continue
         for k in range(4):
-            fdt = 2.0**k
-            scenes = [refine(scene, dt=fdt, **{direction: f}) for f in factors]
+            scenes = [refine(scene, dt=2.0**k, **{direction: f}) for f in factors]
             if direction == "n_eta" and len({s.mesh.n_eta for s in scenes}) < 3:
                 break
             if all(admissible(s) for s in scenes):
-                return factors, scenes, fdt
+                return factors, scenes
             if not admissible(scenes[0]):  # the coarse level itself is out (elements per arc): next ladder
                 break
     raise SceneError(f"no admissible grid ladder in {direction} for scene {scene.name!r}")
@@ -294,20 +293,19 @@ def estimate_error(scene: Scene, solver=None, *, t_from: float = 0.0, progress=N
     cache: dict = {}
 
     def run(sc: Scene) -> TracerRun:
-        key = (scene_grid(sc), sc.time.dt)
-        if key not in cache:
+        g = scene_grid(sc)  # the grid names the run: a ladder's level may be another ladder's
+        if g not in cache:
             if progress:
-                g = scene_grid(sc)
                 progress(f"run n_xi={g.n_xi} n_eta={g.n_eta} dt={g.dt:g} s")
-            cache[key] = tracer_run(sc, solver)
-        return cache[key]
+            cache[g] = tracer_run(sc, solver)
+        return cache[g]
 
     own = run(scene)
     ladders = {d: _ladder(scene, d) for d in directions}
     k_user = int(round(scene.time.t_end / scene.time.dt))
     parts, errs_u, errs_v = [], [], []
     for d in directions:
-        factors, scenes, fdt = ladders[d]
+        factors, scenes = ladders[d]
         runs = [run(sc) for sc in scenes]
         hs = [_h(sc, d) for sc in scenes]
         # the order from the three levels at the times they all have; the error at every output
@@ -315,10 +313,8 @@ def estimate_error(scene: Scene, solver=None, *, t_from: float = 0.0, progress=N
         dt_common = max(sc.time.dt for sc in scenes)
         k = int(math.floor(scene.time.t_end / dt_common + 1e-9))
         common = [at_times(r, sc.time.dt, dt_common, k, t_from) for r, sc in zip(runs, scenes)]
-        user = [at_times(r, sc.time.dt, scene.time.dt, k_user, t_from) if i else None
-                for i, (r, sc) in enumerate(zip(runs, scenes))]
+        user = [at_times(r, sc.time.dt, scene.time.dt, k_user, t_from) for r, sc in zip(runs, scenes)]
         at = factors.index(1.0)
-        level_at = user[at] if at else at_times(runs[0], scenes[0].time.dt, scene.time.dt, k_user, t_from)
         errs = []
         for c in (0, 1):
             if common[0][c] is None:
@@ -326,7 +322,7 @@ def estimate_error(scene: Scene, solver=None, *, t_from: float = 0.0, progress=N
                 continue
             p, clamped = observed_order(hs, [q[c] for q in common])
             limit = richardson_limit(hs, [None, user[1][c], user[2][c]], p)
-            errs.append((level_at[c] - limit, p, clamped))
+            errs.append((user[at][c] - limit, p, clamped))
         (eu, pu, cu), (ev, pv, cv) = errs
         errs_u.append(eu)
         errs_v.append(ev)

@@ -211,6 +211,12 @@ def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_sampl
     return out
 
 
+def sweep_samples(study: Study, dist: Distribution, n: int, seed: int) -> np.ndarray:
+    """The sweep's configurations (n, P): the first ``n`` of ``seed``'s sequence under ``dist``."""
+    # jit: one small program instead of compiling norm.cdf's primitives one by one (~2 s)
+    return np.asarray(jax.jit(dist.transform)(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
+
+
 @dataclasses.dataclass(frozen=True)
 class YieldDiscretisation:
     """The discretisation bias of a sweep's yield (:func:`yield_discretisation`).
@@ -240,7 +246,7 @@ def yield_discretisation(res: SweepResult, study: Study, fine_study: Study, dist
     :func:`run_sweep` (the same seed and distribution); a steered machine's saturation verdicts
     are kept."""
     n = res.samples
-    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(standard_normal_samples(n, study.space.size, res.seed))))
+    thetas = sweep_samples(study, dist, n, res.seed)
     values = np.asarray(res.metric_values)
     pick = np.argsort(np.abs(values - res.limit_um))[: min(k, n)]
     fine = np.asarray(evaluate_metric(fine_study, jnp.asarray(thetas[pick], fine_study.base.dtype)))
@@ -268,8 +274,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     _check(n, limit_um, rom, rom_method)
     check_distribution(dist, study)
     t0 = time.perf_counter()
-    # jit: one small program instead of compiling norm.cdf's primitives one by one (~2 s)
-    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
+    thetas = sweep_samples(study, dist, n, seed)
     identity = sweep_identity(study, dist, n, limit_um, seed, scene)
     done = min(open_sweep(out, identity), n) if out is not None else 0
     surrogate, rom_info = None, {"used": False}
