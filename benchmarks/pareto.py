@@ -2,7 +2,8 @@
 see :mod:`jaxbelt.bench.pareto` for what is measured and against which truth.
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/pareto.py [--quick]`` (or ``jaxbelt bench --only pareto``).
-Writes ``results/pareto[_quick].json``, ``.png`` and ``.md`` (the "if you need X µm" table).
+Writes ``results/pareto[_quick].json``, ``.png`` and ``.md`` (the Pareto front; the grid for an accuracy is
+``--accuracy-um``'s to choose: ``accuracy_trade.py``).
 """
 
 import sys

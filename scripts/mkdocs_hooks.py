@@ -276,6 +276,10 @@ BENCHMARKS = {
     "accuracy_trade": ("The trade as `--accuracy-um` makes it", "On `three-roller-t72` over 2 s, the true error "
                        "over the last 20 % against the run time of grids around the scene's, and the grids the "
                        "program chooses for 40, 20 and 10 µm ([accuracy on demand](accuracy.md))."),
+    "model_choice": ("The cheaper runs an accuracy may take", "The 1D counterpart of the symmetric "
+                     "`three-roller` against its 2D run, and float32 against float64 on `three-roller-t72` and "
+                     "`two-roller-1d`: the tracer differences and both run times ([accuracy on demand]"
+                     "(accuracy.md#the-model-and-the-precision))."),
     "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
                           "each built-in design scene's grid and one level finer, as a share of the 20 µm limit "
                           "(the rule: at most 5 %), and the half-widths' relative change "

@@ -207,7 +207,7 @@ def _integrators(model, dt, direct_row, T, n_short=(("naive", 2), ("eliminated",
 
 
 def run(out_dir: Path, quick: bool = False) -> dict:
-    """The whole trade; writes ``pareto[_quick].json``, ``.png`` and ``.md`` (the table) into ``out_dir``."""
+    """The whole trade; writes ``pareto[_quick].json``, ``.png`` and ``.md`` (the Pareto front) into ``out_dir``."""
     t_start = time.perf_counter()
     T = 4.0 if quick else 20.0
     repeat = 2 if quick else 3
@@ -253,7 +253,7 @@ def run(out_dir: Path, quick: bool = False) -> dict:
     payload = {"scene": SCENE, "t_end_s": T, "quick": quick, "repeat": repeat,
                "truth": {"grid": [36, 208], "dt": 0.005, "n_unknowns": int(truth_m.n_unknowns), "run_s": t_truth,
                          "solver": "reuse, refine 2"},
-               "rows": rows, "table": need_table(rows), "table_both": need_table(rows, error=_both),
+               "rows": rows,
                "wall_s": time.perf_counter() - t_start}
     name = "pareto" + ("_quick" if quick else "")
     path = write_json(out_dir, name, payload)
@@ -263,45 +263,26 @@ def run(out_dir: Path, quick: bool = False) -> dict:
     return payload
 
 
-def _both(r):
-    return max(r["lateral_max_um"], r["longitudinal_final_um"])
-
-
-def need_table(rows, levels_um=(20.0, 5.0, 1.0, 0.3, 0.1), error=lambda r: r["lateral_max_um"]) -> list:
-    """For each accuracy level, the fastest candidate whose ``error(row)`` meets it (and its cost);
-    by default the lateral error, the design quantity."""
-    out = []
-    for lv in levels_um:
-        ok = [(r["time_s"], name) for name, r in rows.items() if error(r) <= lv]
-        if ok:
-            t, name = min(ok)
-            r = rows[name]
-            out.append({"need_um": lv, "use": name, "time_s": t, "bytes": r.get("bytes"),
-                        "lateral_max_um": r["lateral_max_um"], "longitudinal_final_um": r["longitudinal_final_um"]})
-        else:
-            out.append({"need_um": lv, "use": None})
-    return out
+def front_rows(rows, error=lambda r: r["lateral_max_um"]) -> list:
+    """The Pareto-optimal candidates in run time and ``error(row)`` (default the lateral error, the
+    design quantity), fastest first. Which grid meets a given accuracy is
+    :func:`jaxbelt.accuracy.choose_grid`'s to say (``benchmarks/accuracy_trade.py``), not this
+    table's: its error is against one truth on one horizon."""
+    names = list(rows)
+    front = _front([(rows[n]["time_s"], error(rows[n])) for n in names])
+    return sorted(({"name": names[i], **rows[names[i]]} for i in front), key=lambda r: r["time_s"])
 
 
 def table_markdown(payload) -> str:
-    out = []
-    for key, what in (("table", "lateral"), ("table_both", "lateral and longitudinal")):
-        if key in payload:
-            out.append(_table(payload, payload[key], what))
-    return "\n".join(out)
-
-
-def _table(payload, table, what) -> str:
-    lines = [f"Tracer accuracy ({what}) on `{payload['scene']}` over {payload['t_end_s']:g} s "
-             f"(truth 36 × 208, Δt 0.005 s):", "",
-             f"| if you need ({what}, µm) | use | it costs (s, 2-core CPU) | memory (MiB) | lateral error (µm) | longitudinal error at T (µm) |",
-             "|---|---|---|---|---|---|"]
-    for r in table:
-        if r["use"] is None:
-            lines.append(f"| ≤ {r['need_um']:g} | nothing measured meets it | | | | |")
-            continue
-        mem = "" if r["bytes"] is None else f"{r['bytes'] / 2**20:.1f}"
-        lines.append(f"| ≤ {r['need_um']:g} | {r['use']} | {r['time_s']:.3g} | {mem} | {r['lateral_max_um']:.3g} | "
+    """The Pareto front of the lateral error against the run time, as a Markdown table."""
+    lines = [f"The Pareto front (lateral error against run time) on `{payload['scene']}` over "
+             f"{payload['t_end_s']:g} s (truth 36 × 208, Δt 0.005 s). For the grid that meets an accuracy, ask "
+             "`--accuracy-um` (the trade as it chooses: `accuracy_trade`).", "",
+             "| candidate | run time (s, 2-core CPU) | memory (MiB) | lateral error (µm) | longitudinal error at T (µm) |",
+             "|---|---|---|---|---|"]
+    for r in front_rows(payload["rows"]):
+        mem = "" if r.get("bytes") is None else f"{r['bytes'] / 2**20:.1f}"
+        lines.append(f"| {r['name']} | {r['time_s']:.3g} | {mem} | {r['lateral_max_um']:.3g} | "
                      f"{r['longitudinal_final_um']:.3g} |")
     return "\n".join(lines) + "\n"
 

@@ -37,14 +37,15 @@ def _progress(args):
     return None
 
 
-def choose_accuracy(args, scene, quantities=None, t_from: float = 0.0):
+def choose_accuracy(args, scene, quantities=None, t_from: float = 0.0, **allow):
     """The :class:`jaxbelt.accuracy.GridChoice` for the accuracy asked (the error taken over the
-    output times from ``t_from`` on), or ``None``."""
+    output times from ``t_from`` on; ``allow``: ``allow_1d``, ``allow_float32`` of
+    :func:`~jaxbelt.accuracy.choose_grid`), or ``None``."""
     x = accuracy_asked(args, scene)
     if x is None:
         return None
     try:
-        return choose_grid(scene, x, quantities, t_from=t_from, progress=_progress(args))
+        return choose_grid(scene, x, quantities, t_from=t_from, progress=_progress(args), **allow)
     except AccuracyError as e:
         raise UsageError(str(e)) from None
 
@@ -59,7 +60,10 @@ def print_accuracy(s: dict):
     c = s.get("chosen")
     if c is not None:
         print(f"  chosen for {c['accuracy_um']:g} µm: n_xi = {c['n_xi']}, n_eta = {c['n_eta']}, dt = {c['dt_s']:g} s, "
-              f"{c['solver']}, {c['precision']}; estimate {c['estimate_um']:.3g} µm, {c['cost_s']:.3g} s a run")
+              f"{c['solver']}, {c['model']} model, {c['precision']}; estimate {c['estimate_um']:.3g} µm, "
+              f"{c['cost_s']:.3g} s a run")
+        for line in c["automatic"]:
+            print(f"    automatic: {line}")
     e = s.get("discretisation_error_um")
     if e is not None:
         lat = "" if e["lateral"] is None else f", lateral {e['lateral']:.3g} µm"

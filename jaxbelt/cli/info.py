@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..accuracy import one_d_counterpart
 from ..assembly import dae_matrices
 from ..timeloop import RunOptions
 from ._common import SCENE_HELP, emit, load_run
@@ -84,7 +85,12 @@ def automatic_choices(scene, mesh) -> list[str]:
     out = [f"grid: chosen for {acc:g} µm when the scene runs (the cheapest n_xi, n_eta, dt whose estimated "
            "discretisation error meets it, verified by its own estimate)" if acc is not None else
            "grid: the scene's own (--accuracy-um or [solver] accuracy_um chooses one for an accuracy)",
-           "precision: float64 (float32 is a benchmarked option, not chosen automatically)"]
+           "precision: float64 (with an accuracy asked, simulate runs float32 where its rounding, measured on the "
+           "chosen grid, fits within the accuracy and the run is faster; the design commands keep float64)"]
+    if scene.kind == "2d":
+        s1, why = one_d_counterpart(scene)
+        out.append("model: 2D" + (f"; with an accuracy asked, simulate runs the 1D counterpart where the models' "
+                                  f"measured difference fits ({why})" if s1 is not None else f" ({why})"))
     if scene.solver.linear_solver == "reuse":
         exact = scene.solver.transport == "shift" and not scene.solver.lateral_transport
         out.append("reuse solver: " + ("no refinement (shift transport, no lateral transport: the first step's "

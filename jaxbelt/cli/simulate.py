@@ -13,6 +13,7 @@ from ..control import loop_summary
 from ..prestress import slack_message, slack_spans
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, TRANSPORT_RULES
 from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
+from ..accuracy import precision_scope
 from ._accuracy import add_accuracy_arguments, choose_accuracy, error_estimate, print_accuracy
 from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, rebuild
 
@@ -218,9 +219,16 @@ def _text(s, scene, model, demo):
 def run(args, demo=False):
     scene, mesh, model, options = load_run(args.scene, args.t_end, args.dt, args.integrator,
                                            getattr(args, "transport", None), getattr(args, "solver", None))
-    chosen = choose_accuracy(args, scene)
-    if chosen is not None:
-        scene, mesh, model, options = rebuild(chosen.scene)
+    # the 1D counterpart where the answer allows, unless fields of the 2D belt are asked for
+    fields_asked = bool(getattr(args, "plot_fields", None) or getattr(args, "plot_3d", None))
+    chosen = choose_accuracy(args, scene, allow_1d=not fields_asked, allow_float32=True)
+    with precision_scope("float64" if chosen is None else chosen.precision):
+        if chosen is not None:
+            scene, mesh, model, options = rebuild(chosen.scene)
+        return _run(args, demo, scene, mesh, model, options, chosen)
+
+
+def _run(args, demo, scene, mesh, model, options, chosen):
     request = _field_request(args, scene, options)  # checked before anything is compiled
     slack = slack_spans(scene, mesh, model)
     if slack:  # before the run: the user learns it even if the run is long

@@ -9,7 +9,8 @@ import pytest
 from helpers import scene_with
 
 import jaxbelt as jb
-from jaxbelt.accuracy import AccuracyError, at_times, tracer_run, choose_grid, estimate_error, refine
+from jaxbelt.accuracy import (AccuracyError, at_times, choose_grid, estimate_error, one_d_counterpart, precision_scope,
+                              refine, tracer_run)
 from jaxbelt.cli import main
 
 
@@ -69,12 +70,26 @@ def test_estimate_2d_with_a_walking_belt():
 
 def test_chosen_grid_meets_the_accuracy_and_is_verified(scene_1d, estimate_1d):
     target = 0.5 * estimate_1d.longitudinal_um
-    c = choose_grid(scene_1d, target)
-    assert c.estimate_um <= target and c.estimate.longitudinal_um == c.estimate_um
+    c = choose_grid(scene_1d, target, allow_float32=True)
+    assert c.estimate_um <= target
     assert c.factors["dt"] > 1 and c.grid.dt < scene_1d.time.dt  # the dominant direction refined
-    assert c.quantities == ("longitudinal",) and c.precision == "float64"
+    assert c.quantities == ("longitudinal",) and c.model == "1d"
     d = c.as_dict()
     assert set(d) >= {"n_xi", "n_eta", "dt_s", "solver", "precision", "estimate_um", "cost_s"}
+    # float32: its rounding measured against float64 on the chosen grid, independently here
+    check = next(ch for ch in c.checks if ch.name == "float32")
+    r64 = jb.simulate(jb.build_model(c.scene), **jb.RunOptions.from_scene(c.scene))[1]
+    with precision_scope("float32"):
+        r32 = jb.simulate(jb.build_model(c.scene), **jb.RunOptions.from_scene(c.scene))[1]
+    assert r32.tracer_u.dtype == np.float32 and r64.tracer_u.dtype == np.float64
+    assert check.difference_um == pytest.approx(_max_diff_um(r32, r64), rel=1e-3)
+    assert 0 < check.difference_um < 0.1 * target  # rounding, not discretisation
+    # float32 is taken only where it is faster and its rounding fits; the choice says which
+    assert check.used == (c.precision == "float32")
+    extra = check.difference_um if check.used else 0.0
+    assert c.estimate_um == pytest.approx(c.estimate.longitudinal_um + extra)
+    with pytest.raises(ValueError, match="precision"):
+        precision_scope("float16")
 
 
 def test_unreachable_accuracy_names_the_best_reachable(scene_1d):
@@ -115,3 +130,37 @@ def test_info_says_what_the_program_decides(tmp_path, capsys):
     assert any(a.startswith("grid: chosen for 50 µm") for a in auto)
     assert any(a.startswith("reuse solver: no refinement") for a in auto)
     assert any(a.startswith("precision: float64") for a in auto)
+
+
+def _symmetric_2d(d):
+    d.update(model={"kind": "2d"}, mesh={"n_eta": 3, "roller_elements": [6, 6], "free_elements": [8, 8]},
+             time={"dt_s": 0.005, "t_end_s": 0.05})
+
+
+def test_one_d_counterpart_only_without_lateral_physics():
+    s2 = scene_with(_symmetric_2d)
+    s1, why = one_d_counterpart(s2)
+    assert s1.kind == "1d" and s1.mesh.n_eta == 1 and "symmetry" in why
+    assert s1.rollers == s2.rollers and s1.time == s2.time and s1.belt == s2.belt
+    tilted = scene_with(lambda d: (_symmetric_2d(d), d["roller"][1].update(rotation_mrad=[0.0, 0.3, 0.0])))
+    assert one_d_counterpart(tilted)[0] is None and "tilted" in one_d_counterpart(tilted)[1]
+    walking = scene_with(lambda d: (_symmetric_2d(d), d.update(solver={"lateral_transport": True})))
+    assert "lateral transport" in one_d_counterpart(walking)[1]
+    assert one_d_counterpart(scene_with(_short_1d))[0] is None
+
+
+def _max_diff_um(a, b):
+    return 1e6 * float(np.max(np.abs(np.asarray(a.tracer_u, np.float64) - np.asarray(b.tracer_u, np.float64))))
+
+
+def test_symmetric_2d_scene_runs_its_1d_counterpart_with_the_model_difference_measured():
+    s2 = scene_with(_symmetric_2d)
+    c = choose_grid(s2, 1e3, allow_1d=True)  # loose: the 1D grid is the scene's own
+    assert c.model == "1d" and c.scene.kind == "1d"
+    check = next(ch for ch in c.checks if ch.name == "1d")
+    assert check.used and check.run_s < check.reference_run_s
+    # the model difference, measured independently on the 2D scene's grid
+    runs = [jb.simulate(jb.build_model(s), **jb.RunOptions.from_scene(s))[1] for s in (s2, one_d_counterpart(s2)[0])]
+    assert check.difference_um == pytest.approx(_max_diff_um(*runs), rel=1e-9)
+    assert c.estimate_um == pytest.approx(c.estimate.longitudinal_um + check.difference_um) and c.estimate_um <= 1e3
+    assert any(a.startswith("model 1d") for a in c.automatic)

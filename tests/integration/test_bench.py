@@ -1,4 +1,4 @@
-"""``jaxbelt bench``'s pieces: the Pareto front and the "if you need X µm" table, the SuperLU
+"""``jaxbelt bench``'s pieces: the Pareto front and its table, the SuperLU
 baseline checked against jaxbelt on a small scene, and the compiled programs it times giving
 ``simulate``'s results (timings themselves are never asserted)."""
 
@@ -16,14 +16,14 @@ def test_front_keeps_only_undominated_points():
     assert sorted(pareto._front(pts)) == [0, 1, 3, 4]
 
 
-def test_need_table_picks_the_cheapest_that_meets_each_level():
+def test_front_table_lists_the_undominated_candidates_fastest_first():
     rows = {"a": dict(time_s=1.0, lateral_max_um=3.0, longitudinal_final_um=1.0, bytes=2**20),
             "b": dict(time_s=5.0, lateral_max_um=0.2, longitudinal_final_um=1.0, bytes=2**21),
-            "c": dict(time_s=0.5, lateral_max_um=30.0, longitudinal_final_um=1.0, bytes=None)}
-    t = {r["need_um"]: r["use"] for r in pareto.need_table(rows, levels_um=(50.0, 5.0, 1.0, 0.1))}
-    assert t == {50.0: "c", 5.0: "a", 1.0: "b", 0.1: None}
-    md = pareto.table_markdown({"scene": "s", "t_end_s": 1.0, "table": pareto.need_table(rows, (5.0, 0.1))})
-    assert "| ≤ 5 | a | 1 | 1.0 |" in md and "(lateral, µm)" in md and "nothing measured meets it" in md
+            "c": dict(time_s=0.5, lateral_max_um=30.0, longitudinal_final_um=1.0, bytes=None),
+            "d": dict(time_s=6.0, lateral_max_um=0.3, longitudinal_final_um=1.0, bytes=None)}
+    assert [r["name"] for r in pareto.front_rows(rows)] == ["c", "a", "b"]  # d: slower and less accurate than b
+    md = pareto.table_markdown({"scene": "s", "t_end_s": 1.0, "rows": rows})
+    assert "| a | 1 | 1.0 | 3 | 1 |" in md and "| d |" not in md and "--accuracy-um" in md
 
 
 def test_superlu_baseline_reproduces_jaxbelt_on_a_small_scene():
@@ -38,13 +38,6 @@ def test_superlu_baseline_reproduces_jaxbelt_on_a_small_scene():
     assert out["scipy_reference_max_tracer_diff_vs_jaxbelt_mm"] < 1e-9
     assert out["superlu_ordering"] in ("MMD_AT_PLUS_A", "COLAMD")
     assert all(np.isfinite(v) and v > 0 for v in out["ms_per_step"].values())
-
-
-def test_need_table_on_both_directions_takes_the_worse_of_the_two():
-    rows = {"a": dict(time_s=1.0, lateral_max_um=0.1, longitudinal_final_um=3.0, bytes=None),
-            "b": dict(time_s=5.0, lateral_max_um=0.2, longitudinal_final_um=1.0, bytes=None)}
-    assert pareto.need_table(rows, (2.0,))[0]["use"] == "a"
-    assert pareto.need_table(rows, (2.0,), error=pareto._both)[0]["use"] == "b"
 
 
 def test_timed_programs_give_the_results_of_simulate():

@@ -1,5 +1,4 @@
-"""Discretisation error on demand: how far a run's tracers are from the converged solution (mesh
-and time step → 0), and the cheapest grid that meets an accuracy.
+"""How far a run's tracers are from the converged solution (mesh and time step → 0).
 
 **The estimate** (:func:`estimate_error`). The error of a run is split into three directions of
 the discretisation, each refined on its own with the other two held: the element length along
@@ -31,14 +30,6 @@ scene's — the largest error often sits at the first step, where the drive star
 
 The observed order is kept in ``[0.5, 4]``: outside it the ladder is not in its asymptotic range
 (the clamp is reported). A direction whose differences are at round-off contributes nothing.
-
-**Choosing a grid** (:func:`choose_grid`): the estimate's per-direction errors and orders model
-the error of a grid refined by ``f_d`` as ``F_s Σ_d e_d f_d^(−p_d)``; the cost of a run as
-``f_ξ f_η f_Δt`` times the scene's (a finer mesh along the belt forcing ``f_Δt ≥ f_ξ × CFL``).
-The cheapest refinement whose modelled error meets the accuracy is built, and its own estimate
-is computed — the choice is verified, not assumed; where it misses, the choice is made again
-from the chosen grid's own estimate (three rounds at most). A direction is coarsened no further
-than its ladder went: the error model is not extrapolated to grids coarser than it saw.
 """
 
 from __future__ import annotations
@@ -50,10 +41,10 @@ import time
 import jax
 import numpy as np
 
-from .build import build_model
-from .mesh import build_mesh
-from .scene import Scene, SceneError, TimeSpec
-from .timeloop import RunOptions, SaveAt, check_finite, simulate
+from ..build import build_model
+from ..mesh import build_mesh
+from ..scene import Scene, SceneError, TimeSpec
+from ..timeloop import RunOptions, SaveAt, check_finite, simulate
 
 DIRECTIONS = ("n_xi", "n_eta", "dt")
 SAFETY_FACTOR = 1.25  # Roache's F_s for a three-grid study
@@ -281,16 +272,19 @@ def _h(scene: Scene, direction: str) -> float:
     return {"n_xi": 1.0 / g.n_xi, "n_eta": 1.0 / max(g.n_eta - 1, 1), "dt": g.dt}[direction]
 
 
-def estimate_error(scene: Scene, solver=None, *, t_from: float = 0.0, progress=None) -> DiscretisationError:
+def estimate_error(scene: Scene, solver=None, *, t_from: float = 0.0, progress=None,
+                   runs: dict | None = None) -> DiscretisationError:
     """The discretisation error of ``scene``'s run (its own solver unless ``solver``): the
     estimated largest tracer error over the output times from ``t_from`` on (s; default all)
     against the converged solution, per quantity, with the dominant direction and each
     direction's observed order (module docstring). A design metric read over a window asks for
     the error there: the drive's start-up, whose error converges slowly, lies before it.
-    ``progress``: a callable taking a line of text, told of each run."""
+    ``progress``: a callable taking a line of text, told of each run. ``runs``: a dict of
+    :class:`TracerRun` by :class:`Grid` that the estimate reads and fills (one per scene and
+    solver: several estimates on related grids share their runs through it)."""
     t_start = time.perf_counter()
     directions = ("n_xi", "dt") if scene.kind == "1d" else DIRECTIONS
-    cache: dict = {}
+    cache: dict = {} if runs is None else runs
 
     def run(sc: Scene) -> TracerRun:
         g = scene_grid(sc)  # the grid names the run: a ladder's level may be another ladder's
@@ -336,169 +330,10 @@ def estimate_error(scene: Scene, solver=None, *, t_from: float = 0.0, progress=N
     long_um = SAFETY_FACTOR * float(np.max(np.abs(sum(errs_u)))) * 1e6
     lat_um = None if errs_v[0] is None else SAFETY_FACTOR * float(np.max(np.abs(sum(errs_v)))) * 1e6
     dominant = max(parts, key=lambda p: max(p.longitudinal_um, p.lateral_um or 0.0)).direction
-    runs_s = sum(r.run_s for r in cache.values()) - own.run_s
+    used = {scene_grid(sc) for d in directions for sc in ladders[d][1]} - {scene_grid(scene)}
+    runs_s = sum(cache[g].run_s for g in used)
     return DiscretisationError(
         longitudinal_um=long_um, lateral_um=lat_um, dominant=dominant, directions=tuple(parts),
         grid=scene_grid(scene), safety_factor=SAFETY_FACTOR, run_s=own.run_s,
         estimate_s=time.perf_counter() - t_start, runs_s=runs_s, cost_runs=runs_s / max(own.run_s, 1e-12),
         run_bytes=own.run_bytes, t_from_s=float(t_from))
-
-
-# ----------------------------------------------------------------------------- choosing a grid
-
-REFINEMENTS = tuple(2.0**k for k in range(-2, 9))  # candidate refinement factors per direction: 1/4 … 256
-QUANTITIES = ("longitudinal", "lateral")
-
-
-class AccuracyError(ValueError):
-    """No grid within the machine's memory reaches the accuracy asked for."""
-
-
-@dataclasses.dataclass(frozen=True)
-class GridChoice:
-    """:func:`choose_grid`'s result.
-
-    **Fields:** ``scene`` the scene on the chosen grid; ``grid`` its :class:`Grid`; ``factors``
-    the refinement factors against the given scene's grid, per direction; ``solver`` and
-    ``precision`` the run's; ``estimate`` the chosen grid's own :class:`DiscretisationError` (the
-    verification); ``estimate_um`` its largest value over the ``quantities`` asked;
-    ``predicted_um`` what the error model predicted for it; ``cost_s`` the chosen run's wall time
-    (compilation apart); ``accuracy_um`` the accuracy asked for; ``rounds`` the choices made
-    until one was verified; ``automatic`` what the program decided itself, in words."""
-
-    scene: Scene
-    grid: Grid
-    factors: dict
-    solver: str
-    precision: str
-    estimate: DiscretisationError
-    estimate_um: float
-    predicted_um: float
-    cost_s: float
-    accuracy_um: float
-    quantities: tuple[str, ...]
-    rounds: int
-    automatic: tuple[str, ...]
-
-    def as_dict(self) -> dict:
-        """The JSON form (``chosen`` of the commands' ``--accuracy-um``)."""
-        return dict(n_xi=self.grid.n_xi, n_eta=self.grid.n_eta, dt_s=self.grid.dt, solver=self.solver,
-                    precision=self.precision, estimate_um=self.estimate_um, predicted_um=self.predicted_um,
-                    cost_s=self.cost_s, accuracy_um=self.accuracy_um, quantities=list(self.quantities),
-                    factors=self.factors, rounds=self.rounds, automatic=list(self.automatic),
-                    discretisation_error_um=self.estimate.as_dict())
-
-
-def asked_value(est: DiscretisationError, quantities) -> float:
-    """The estimate's largest value over the quantities asked (lateral skipped in 1D)."""
-    vals = [est.longitudinal_um if q == "longitudinal" else est.lateral_um for q in quantities]
-    vals = [v for v in vals if v is not None]
-    return max(vals) if vals else 0.0
-
-
-def _error_model(est: DiscretisationError, quantities):
-    """``f ↦ modelled error (µm)`` for refinement factors ``f = {direction: factor}`` from the
-    estimate's per-direction errors and orders."""
-    terms = []
-    for d in est.directions:
-        p = d.order if d.order is not None else 0.0
-        for q in quantities:
-            e = d.longitudinal_um if q == "longitudinal" else d.lateral_um
-            if e is not None:
-                terms.append((q, d.direction, e, p))
-
-    def model(f):
-        by_q = {}
-        for q, direction, e, p in terms:
-            by_q[q] = by_q.get(q, 0.0) + e * (f.get(direction, 1.0) ** -p if p > 0 else 1.0)
-        return est.safety_factor * max(by_q.values(), default=0.0)
-
-    return model
-
-
-def _memory_limit_bytes() -> float:
-    """Half the machine's physical memory (a run must leave room for the rest)."""
-    try:
-        import os
-
-        return 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
-        return 8e9
-
-
-def _candidates(scene: Scene, est: DiscretisationError, quantities, run_bytes: float):
-    """Every refinement of the scene's grid as ``(cost multiple, modelled error µm, factors,
-    scene on the refined mesh, fits in memory)``, cheapest first. A direction is coarsened no
-    further than its ladder went (the error model is not extrapolated to coarser grids than it
-    saw); a direction the scene lacks (``n_eta`` in 1D) stays."""
-    model = _error_model(est, quantities)
-    lowest = {d.direction: min(d.factors) for d in est.directions}
-    options = {d: tuple(f for f in REFINEMENTS if f >= lowest[d]) if d in lowest else (1.0,) for d in DIRECTIONS}
-    limit = _memory_limit_bytes()
-    out = []
-    for fx in options["n_xi"]:
-        for fe in options["n_eta"]:
-            sc_mesh = refine(scene, n_xi=fx, n_eta=fe)
-            for ft in options["dt"]:
-                f = {"n_xi": fx, "n_eta": fe, "dt": ft}
-                mem = run_bytes * fx * fe**2 * ft
-                out.append((fx * fe * ft, model(f), f, sc_mesh, mem <= limit))
-    out.sort(key=lambda c: c[0])
-    return out
-
-
-def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, *, t_from: float = 0.0,
-                rounds: int = 3, progress=None) -> GridChoice:
-    """The cheapest grid for ``scene`` whose estimated discretisation error is at most
-    ``accuracy_um`` for the ``quantities`` (``longitudinal``/``lateral``; default both the scene
-    has), verified by its own estimate (module docstring). ``AccuracyError`` (naming the best
-    reachable error and its cost) when no grid within half the machine's memory reaches it.
-    ``t_from``: the error is taken over the output times from then on (:func:`estimate_error`)."""
-    if not (isinstance(accuracy_um, (int, float)) and math.isfinite(accuracy_um) and accuracy_um > 0):
-        raise ValueError(f"accuracy_um = {accuracy_um}: must be a positive number of µm")
-    quantities = tuple(quantities or (QUANTITIES if scene.kind == "2d" else ("longitudinal",)))
-    unknown = [q for q in quantities if q not in QUANTITIES]
-    if unknown:
-        raise ValueError(f"quantities {unknown}: unknown (one of {', '.join(QUANTITIES)})")
-    if scene.kind == "1d":
-        quantities = tuple(q for q in quantities if q == "longitudinal") or ("longitudinal",)
-    automatic = ["precision float64 (float32's rounding is not estimated here)",
-                 f"solver {scene.solver.integrator}/{scene.solver.linear_solver} (the scene's)"]
-    base, factors_total = scene, {d: 1.0 for d in DIRECTIONS}
-    base_est = estimate_error(scene, solver, t_from=t_from, progress=progress)
-    best_reachable = None
-    for r in range(1, rounds + 1):
-        pick = None
-        for cost, err, f, sc_mesh, fits in _candidates(base, base_est, quantities, base_est.run_bytes):
-            if not fits:
-                continue
-            if best_reachable is None or err < best_reachable[0]:
-                best_reachable = (err, cost * base_est.run_s)
-            if err > accuracy_um:
-                continue
-            cand = refine(sc_mesh, dt=f["dt"])
-            if admissible(cand):
-                pick = (cost, err, f, cand)
-                break
-        if pick is None:
-            err, cost_s = best_reachable
-            raise AccuracyError(
-                f"accuracy_um = {accuracy_um:g}: no grid within half the machine's memory reaches it; the best "
-                f"reachable is about {err:.3g} µm at about {cost_s:.3g} s a run")
-        _, predicted, f, cand = pick
-        est = estimate_error(cand, solver, t_from=t_from, progress=progress)
-        factors_total = {d: factors_total[d] * f[d] for d in DIRECTIONS}
-        value = asked_value(est, quantities)
-        if value <= accuracy_um or r == rounds:
-            if value > accuracy_um:
-                raise AccuracyError(
-                    f"accuracy_um = {accuracy_um:g}: the chosen grid's estimate is still {value:.3g} µm after "
-                    f"{rounds} rounds; the best reachable is about {best_reachable[0]:.3g} µm")
-            return GridChoice(
-                scene=cand, grid=est.grid, factors=factors_total,
-                solver=f"{cand.solver.integrator}/{cand.solver.linear_solver}", precision="float64",
-                estimate=est, estimate_um=value, predicted_um=predicted, cost_s=est.run_s, accuracy_um=accuracy_um,
-                quantities=quantities, rounds=r, automatic=tuple(automatic))
-        base, base_est = cand, est
-    raise AssertionError("unreachable")  # pragma: no cover
-

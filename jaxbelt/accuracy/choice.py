@@ -1,0 +1,361 @@
+"""The cheapest run that meets an accuracy: grid, model and precision.
+
+**The grid** (:func:`choose_grid`): the estimate's per-direction errors and orders
+(:func:`~jaxbelt.accuracy.estimate_error`) model the error of a grid refined by ``f_d`` as
+``F_s Σ_d e_d f_d^(−p_d)``; the cost of a run as ``f_ξ f_η f_Δt`` times the scene's (a finer mesh
+along the belt forcing ``f_Δt ≥ f_ξ × CFL``). The cheapest refinement whose modelled error meets
+the accuracy is built, and its own estimate is computed — the choice is verified, not assumed;
+where it misses, the choice is made again from the chosen grid's own estimate (three rounds at
+most). A direction is coarsened no further than its ladder went: the error model is not
+extrapolated to grids coarser than it saw.
+
+**The model** (``allow_1d``): a 2D scene with nothing to push the belt sideways — no roller tilt,
+no translation or force off the loop's plane, no steering loop, no lateral transport — has no
+lateral displacement by symmetry, and its longitudinal answer is the 1D string model's up to the
+in-plane physics the string lacks (plane stress, the rows across). The program then runs the 1D
+counterpart (:func:`one_d_counterpart`) when it is cheaper and its answer stays within the
+accuracy: the difference between the two models is *measured*, on the 2D scene's own grid over
+the asked window, and added to the 1D grid's estimate; the 1D grid is chosen by the same
+procedure (``benchmarks/model_choice.py`` measures the difference and the saving).
+
+**The precision** (``allow_float32``): float32 is taken where its rounding leaves the answer within
+the accuracy: the chosen grid is run in both precisions, the largest difference of the tracers
+over the window (the float32 rounding, measured) is added to the discretisation estimate, and
+float32 is chosen when that sum meets the accuracy and the float32 run is faster. A run in the
+chosen precision is built and run inside :func:`precision_scope`. The design commands keep
+float64: their Jacobians difference and differentiate the metric, where float32's rounding is not
+what this check measures.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import numpy as np
+
+from ..scene import Scene
+from ..timeloop import NonFiniteStateError
+from .estimate import (DIRECTIONS, DiscretisationError, TracerRun, admissible, at_times, estimate_error, refine,
+                       scene_grid, tracer_run)
+
+REFINEMENTS = tuple(2.0**k for k in range(-2, 9))  # candidate refinement factors per direction: 1/4 … 256
+QUANTITIES = ("longitudinal", "lateral")
+PRECISIONS = ("float64", "float32")
+
+
+class AccuracyError(ValueError):
+    """No grid within the machine's memory reaches the accuracy asked for."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelCheck:
+    """A cheaper model measured against the chosen one (``1d`` for a symmetric 2D scene,
+    ``float32`` for the precision).
+
+    **Fields:** ``name``; ``difference_um`` the largest tracer difference over the window and the
+    quantities asked (µm); ``run_s`` the cheaper model's run time and ``reference_run_s`` the
+    run it would replace, on the same grid (s, compilation apart); ``used`` whether it was chosen; ``why`` in
+    words."""
+
+    name: str
+    difference_um: float | None
+    run_s: float | None
+    reference_run_s: float | None
+    used: bool
+    why: str
+
+
+@dataclasses.dataclass(frozen=True)
+class GridChoice:
+    """:func:`choose_grid`'s result.
+
+    **Fields:** ``scene`` the scene to run (on the chosen grid; the 1D counterpart where chosen);
+    ``grid`` its :class:`~jaxbelt.accuracy.Grid`; ``factors`` the refinement factors against the
+    given scene's grid (of the scene that was refined), per direction; ``solver``, ``model``
+    (``1d``/``2d``) and ``precision`` (``float64``/``float32``, see :func:`precision_scope`) the
+    run's; ``estimate`` the chosen grid's own
+    :class:`~jaxbelt.accuracy.DiscretisationError` (the verification); ``estimate_um`` its
+    largest value over the ``quantities`` asked, plus the measured model and rounding differences
+    of the substitutions taken; ``predicted_um`` what the error model predicted for the grid;
+    ``cost_s`` the chosen run's wall time (compilation apart); ``accuracy_um`` the accuracy asked
+    for; ``rounds`` the choices made until one was verified; ``checks`` the
+    :class:`ModelCheck` of each substitution considered; ``automatic`` what the program decided
+    itself, in words."""
+
+    scene: Scene
+    grid: object
+    factors: dict
+    solver: str
+    precision: str
+    estimate: DiscretisationError
+    estimate_um: float
+    predicted_um: float
+    cost_s: float
+    accuracy_um: float
+    quantities: tuple[str, ...]
+    rounds: int
+    automatic: tuple[str, ...]
+    model: str = "2d"
+    checks: tuple[ModelCheck, ...] = ()
+
+    def as_dict(self) -> dict:
+        """The JSON form (``chosen`` of the commands' ``--accuracy-um``)."""
+        return dict(n_xi=self.grid.n_xi, n_eta=self.grid.n_eta, dt_s=self.grid.dt, solver=self.solver,
+                    model=self.model, precision=self.precision, estimate_um=self.estimate_um,
+                    predicted_um=self.predicted_um, cost_s=self.cost_s, accuracy_um=self.accuracy_um,
+                    quantities=list(self.quantities), factors=self.factors, rounds=self.rounds,
+                    automatic=list(self.automatic), checks=[dataclasses.asdict(c) for c in self.checks],
+                    discretisation_error_um=self.estimate.as_dict())
+
+
+def precision_scope(precision: str):
+    """The context in which a model of ``precision`` is built and run: ``jax.enable_x64`` on for
+    float64, off for float32 (JAX's arrays take their default precision from it)."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision = {precision!r}: one of {', '.join(PRECISIONS)}")
+    return jax.enable_x64(precision == "float64")
+
+
+def asked_value(est: DiscretisationError, quantities) -> float:
+    """The estimate's largest value over the quantities asked (lateral skipped in 1D)."""
+    vals = [est.longitudinal_um if q == "longitudinal" else est.lateral_um for q in quantities]
+    vals = [v for v in vals if v is not None]
+    return max(vals) if vals else 0.0
+
+
+def window_difference_um(a: TracerRun, b: TracerRun, scene: Scene, quantities, t_from: float) -> float:
+    """The largest tracer difference (µm) of two runs on ``scene``'s time grid, over the output
+    times from ``t_from`` on and the quantities asked (a run without ``v`` counts as ``v = 0``)."""
+    k = int(round(scene.time.t_end / scene.time.dt))
+    ua, va = at_times(a, scene.time.dt, scene.time.dt, k, t_from)
+    ub, vb = at_times(b, scene.time.dt, scene.time.dt, k, t_from)
+    out = []
+    if "longitudinal" in quantities:
+        out.append(float(np.max(np.abs(ua - ub))))
+    if "lateral" in quantities and (va is not None or vb is not None):
+        out.append(float(np.max(np.abs((0.0 if va is None else va) - (0.0 if vb is None else vb)))))
+    return 1e6 * max(out, default=0.0)
+
+
+def one_d_counterpart(scene: Scene) -> tuple[Scene | None, str]:
+    """``(scene_1d, why)``: the 1D string model of a 2D scene with nothing to push the belt
+    sideways (model specification §2: per roller the x translation, forces along x), or
+    ``(None, why not)``."""
+    if scene.kind != "2d":
+        return None, "the scene is 1D"
+    why_not = []
+    for r in scene.rollers:
+        if r.translation[1] != 0.0 or r.translation[2] != 0.0:
+            why_not.append(f"roller {r.name!r} translated off x")
+        if any(a != 0.0 for a in r.rotation):
+            why_not.append(f"roller {r.name!r} tilted")
+        if r.force[1] != 0.0 or r.force[2] != 0.0 or any(t != 0.0 for t in r.torque):
+            why_not.append(f"roller {r.name!r} loaded off x")
+    if scene.control:
+        why_not.append("a steering loop tilts a roller")
+    if scene.solver.lateral_transport:
+        why_not.append("lateral transport is on")
+    if why_not:
+        return None, "lateral physics: " + "; ".join(why_not)
+    mesh = dataclasses.replace(scene.mesh, n_eta=1)
+    return scene.replace(kind="1d", mesh=mesh, name=f"{scene.name} (1D counterpart)"), (
+        "nothing pushes the belt sideways: no lateral displacement by symmetry")
+
+
+def _error_model(est: DiscretisationError, quantities):
+    """``f ↦ modelled error (µm)`` for refinement factors ``f = {direction: factor}`` from the
+    estimate's per-direction errors and orders."""
+    terms = []
+    for d in est.directions:
+        p = d.order if d.order is not None else 0.0
+        for q in quantities:
+            e = d.longitudinal_um if q == "longitudinal" else d.lateral_um
+            if e is not None:
+                terms.append((q, d.direction, e, p))
+
+    def model(f):
+        by_q = {}
+        for q, direction, e, p in terms:
+            by_q[q] = by_q.get(q, 0.0) + e * (f.get(direction, 1.0) ** -p if p > 0 else 1.0)
+        return est.safety_factor * max(by_q.values(), default=0.0)
+
+    return model
+
+
+def _memory_limit_bytes() -> float:
+    """Half the machine's physical memory (a run must leave room for the rest)."""
+    try:
+        import os
+
+        return 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return 8e9
+
+
+def _candidates(scene: Scene, est: DiscretisationError, quantities, run_bytes: float):
+    """Every refinement of the scene's grid as ``(cost multiple, modelled error µm, factors,
+    scene on the refined mesh, fits in memory)``, cheapest first. A direction is coarsened no
+    further than its ladder went (the error model is not extrapolated to coarser grids than it
+    saw); a direction the scene lacks (``n_eta`` in 1D) stays."""
+    model = _error_model(est, quantities)
+    lowest = {d.direction: min(d.factors) for d in est.directions}
+    options = {d: tuple(f for f in REFINEMENTS if f >= lowest[d]) if d in lowest else (1.0,) for d in DIRECTIONS}
+    limit = _memory_limit_bytes()
+    out = []
+    for fx in options["n_xi"]:
+        for fe in options["n_eta"]:
+            sc_mesh = refine(scene, n_xi=fx, n_eta=fe)
+            for ft in options["dt"]:
+                f = {"n_xi": fx, "n_eta": fe, "dt": ft}
+                mem = run_bytes * fx * fe**2 * ft
+                out.append((fx * fe * ft, model(f), f, sc_mesh, mem <= limit))
+    out.sort(key=lambda c: c[0])
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class _Verified:
+    scene: Scene
+    estimate: DiscretisationError
+    value_um: float
+    predicted_um: float
+    factors: dict
+    rounds: int
+
+
+def _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs) -> _Verified:
+    """The grid loop of :func:`choose_grid` (module docstring) for one model."""
+    base, factors_total = scene, {d: 1.0 for d in DIRECTIONS}
+    base_est = estimate_error(scene, solver, t_from=t_from, progress=progress, runs=runs)
+    best_reachable = None
+    for r in range(1, rounds + 1):
+        pick = None
+        for cost, err, f, sc_mesh, fits in _candidates(base, base_est, quantities, base_est.run_bytes):
+            if not fits or (err > accuracy_um and best_reachable is not None and err >= best_reachable[0]):
+                continue
+            cand = refine(sc_mesh, dt=f["dt"])
+            if not admissible(cand):
+                continue
+            if best_reachable is None or err < best_reachable[0]:
+                best_reachable = (err, cost * base_est.run_s)
+            if err <= accuracy_um:
+                pick = (cost, err, f, cand)
+                break
+        if pick is None:
+            err, cost_s = best_reachable
+            raise AccuracyError(
+                f"accuracy_um = {accuracy_um:g}: no grid within half the machine's memory reaches it; the best "
+                f"reachable is about {err:.3g} µm at about {cost_s:.3g} s a run")
+        _, predicted, f, cand = pick
+        est = estimate_error(cand, solver, t_from=t_from, progress=progress, runs=runs)
+        factors_total = {d: factors_total[d] * f[d] for d in DIRECTIONS}
+        value = asked_value(est, quantities)
+        if value <= accuracy_um:
+            return _Verified(cand, est, value, predicted, factors_total, r)
+        if r == rounds:
+            raise AccuracyError(
+                f"accuracy_um = {accuracy_um:g}: the chosen grid's estimate is still {value:.3g} µm after "
+                f"{rounds} rounds; the best reachable is about {best_reachable[0]:.3g} µm")
+        base, base_est = cand, est
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs_2d):
+    """``(verified 1D grid or None, ModelCheck)``: the 1D counterpart where it is admissible,
+    cheaper and within the accuracy with the measured model difference added."""
+    s1, why = one_d_counterpart(scene)
+    if s1 is None:
+        return None, ModelCheck("1d", None, None, None, False, why)
+    if not admissible(s1):
+        return None, ModelCheck("1d", None, None, None, False, "the 1D counterpart's grid is not admissible")
+    g = scene_grid(scene)
+    if g not in runs_2d:
+        runs_2d[g] = tracer_run(scene, solver)
+    ref, own = runs_2d[g], tracer_run(s1, solver)
+    if own.u.shape != ref.u.shape:
+        return None, ModelCheck("1d", None, own.run_s, ref.run_s, False, "the 1D counterpart records other tracers")
+    diff = window_difference_um(own, ref, scene, quantities, t_from)
+    if own.run_s >= ref.run_s:
+        return None, ModelCheck("1d", diff, own.run_s, ref.run_s, False,
+                                f"the 1D run is not faster here ({own.run_s:.3g} s against {ref.run_s:.3g} s)")
+    if diff >= accuracy_um:
+        return None, ModelCheck("1d", diff, own.run_s, ref.run_s, False,
+                                f"the 1D and 2D models differ by {diff:.3g} µm, not within the accuracy")
+    try:
+        v = _verified_grid(s1, accuracy_um - diff, quantities, solver, t_from, rounds, progress, {})
+    except AccuracyError:
+        return None, ModelCheck("1d", diff, own.run_s, ref.run_s, False,
+                                f"no 1D grid meets the accuracy less the model difference ({diff:.3g} µm)")
+    return v, ModelCheck("1d", diff, own.run_s, ref.run_s, True, why)
+
+
+def _try_float32(scene, value_um, accuracy_um, quantities, solver, t_from, reference: TracerRun) -> ModelCheck:
+    """The float32 run of the chosen grid against its float64 run (the module docstring's rule)."""
+    try:
+        with precision_scope("float32"):
+            r32 = tracer_run(scene, solver)
+    except (NonFiniteStateError, FloatingPointError) as e:
+        return ModelCheck("float32", None, None, reference.run_s, False, f"the float32 run failed: {e}")
+    diff = window_difference_um(r32, reference, scene, quantities, t_from)
+    if value_um + diff > accuracy_um:
+        why = f"its rounding ({diff:.3g} µm) on top of the estimate exceeds the accuracy"
+    elif r32.run_s >= reference.run_s:
+        why = f"not faster here ({r32.run_s:.3g} s against {reference.run_s:.3g} s)"
+    else:
+        return ModelCheck("float32", diff, r32.run_s, reference.run_s, True,
+                          f"its rounding ({diff:.3g} µm, measured) leaves the answer within the accuracy")
+    return ModelCheck("float32", diff, r32.run_s, reference.run_s, False, why)
+
+
+def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, *, t_from: float = 0.0,
+                rounds: int = 3, progress=None, allow_1d: bool = False, allow_float32: bool = False) -> GridChoice:
+    """The cheapest run of ``scene`` whose estimated error is at most ``accuracy_um`` for the
+    ``quantities`` (``longitudinal``/``lateral``; default both the scene has), verified by its
+    own estimate (module docstring). ``AccuracyError`` (naming the best reachable error and its
+    cost) when no grid within half the machine's memory reaches it. ``t_from``: the error is
+    taken over the output times from then on (:func:`~jaxbelt.accuracy.estimate_error`).
+    ``allow_1d``: run a symmetric 2D scene's 1D counterpart where the measured model difference
+    allows; ``allow_float32``: run in float32 where its measured rounding allows (the caller
+    builds and runs the chosen scene inside :func:`precision_scope`)."""
+    if not (isinstance(accuracy_um, (int, float)) and math.isfinite(accuracy_um) and accuracy_um > 0):
+        raise ValueError(f"accuracy_um = {accuracy_um}: must be a positive number of µm")
+    quantities = tuple(quantities or (QUANTITIES if scene.kind == "2d" else ("longitudinal",)))
+    unknown = [q for q in quantities if q not in QUANTITIES]
+    if unknown:
+        raise ValueError(f"quantities {unknown}: unknown (one of {', '.join(QUANTITIES)})")
+    automatic = [f"solver {scene.solver.integrator}/{scene.solver.linear_solver} (the scene's)"]
+    checks, runs = [], {}
+    v, model_diff = None, 0.0
+    if allow_1d and scene.kind == "2d":
+        v1, check = _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs)
+        checks.append(check)
+        if v1 is not None:
+            v, model_diff = v1, check.difference_um
+            automatic.append(f"model 1d: {check.why}; the models differ by {check.difference_um:.3g} µm (measured)")
+        else:
+            automatic.append(f"model 2d: {check.why}")
+    if scene.kind == "1d":
+        quantities = tuple(q for q in quantities if q == "longitudinal") or ("longitudinal",)
+    if v is None:
+        v = _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs)
+    value = v.value_um + model_diff
+    precision, cost_s = "float64", v.estimate.run_s
+    if allow_float32:
+        g = scene_grid(v.scene)
+        reference = runs.get(g) if v.scene.kind == scene.kind else None
+        check = _try_float32(v.scene, value, accuracy_um, quantities, solver, t_from,
+                             reference if reference is not None else tracer_run(v.scene, solver))
+        checks.append(check)
+        if check.used:
+            precision, value, cost_s = "float32", value + check.difference_um, check.run_s
+        automatic.append(f"precision {precision}: {check.why}")
+    else:
+        automatic.append("precision float64 (float32 is not considered for this answer)")
+    return GridChoice(
+        scene=v.scene, grid=v.estimate.grid, factors=v.factors,
+        solver=f"{v.scene.solver.integrator}/{v.scene.solver.linear_solver}", precision=precision,
+        estimate=v.estimate, estimate_um=value, predicted_um=v.predicted_um + model_diff, cost_s=cost_s,
+        accuracy_um=accuracy_um, quantities=quantities, rounds=v.rounds, automatic=tuple(automatic),
+        model=v.scene.kind, checks=tuple(checks))
