@@ -10,6 +10,8 @@ scene and float32.
   9 × 208 at Δt 0.01 s (the grid ``--accuracy-um 40`` chooses there, ``accuracy_trade.py``), and
   ``two-roller-1d`` over 1 s: the largest tracer difference (longitudinal and lateral) and both
   run times.
+* The reuse solver against the scene's kept-interior solver on ``three-roller-t72`` at
+  9 × 208, Δt 0.01 s: the largest tracer difference and both run times.
 
 Run times are the best of three runs (compilation apart). Run:
 ``OPENBLAS_NUM_THREADS=1 python benchmarks/model_choice.py``. Writes ``results/model_choice.json``.
@@ -60,6 +62,14 @@ def main():
                          run_64_s=r64.run_s, run_32_s=r32.run_s, speedup=r64.run_s / r32.run_s))
         print(rows[-1], flush=True)
     out["float32"] = rows
+    fine = refine(t72, n_xi=2.0, n_eta=0.5, dt=2.0)
+    reuse = fine.replace(solver=dataclasses.replace(fine.solver, linear_solver="reuse"))
+    r_k, r_r = best_run(fine), best_run(reuse)
+    out["reuse"] = dict(scene="three-roller-t72", grid=dataclasses.asdict(scene_grid(fine)), t_end_s=2.0,
+                        solver=fine.solver.linear_solver,
+                        difference_um=window_difference_um(r_r, r_k, fine, ("longitudinal", "lateral"), 0.0),
+                        run_solver_s=r_k.run_s, run_reuse_s=r_r.run_s, speedup=r_k.run_s / r_r.run_s)
+    print(out["reuse"], flush=True)
     write("model_choice", out)
 
 

@@ -63,7 +63,7 @@ def pytest_addoption(parser):
 # turns off xdist's own reordering by test count). Seconds per module from a --durations run (a
 # stale or missing entry, default 5, only costs balance).
 MODULE_SECONDS = {
-    "test_accuracy": 50, "test_steering": 35, "test_tune": 30, "test_design_steered": 45, "test_control": 35, "test_control_law": 10,
+    "test_accuracy": 55, "test_steering": 35, "test_tune": 30, "test_design_steered": 45, "test_control": 35, "test_control_law": 10,
     "test_design": 37, "test_validation": 36, "test_grad": 36, "test_model2d": 28, "test_simulate_api": 26,
     "test_kept_interior": 26, "test_stability": 25, "test_cli_reduce": 22, "test_sharding": 20,
     "test_cli_design": 20, "test_design_surrogate": 18, "test_rom_reduced": 18, "test_linalg": 17,

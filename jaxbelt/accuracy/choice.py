@@ -18,6 +18,11 @@ accuracy: the difference between the two models is *measured*, on the 2D scene's
 the asked window, and added to the 1D grid's estimate; the 1D grid is chosen by the same
 procedure (``benchmarks/model_choice.py`` measures the difference and the saving).
 
+**The solver**: where the caller leaves the solver to the scene, the direct integrator's reuse
+solver (the first step's factors, refined against the current matrix; exact to round-off with
+the shift transport and no lateral transport) is run on the chosen grid beside the scene's own
+solver and taken where the measured difference fits within the accuracy and it is faster.
+
 **The precision** (``allow_float32``): float32 is taken where its rounding leaves the answer within
 the accuracy: the chosen grid is run in both precisions, the largest difference of the tracers
 over the window (the float32 rounding, measured) is added to the discretisation estimate, and
@@ -291,6 +296,26 @@ def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, ru
     return v, ModelCheck("1d", diff, own.run_s, ref.run_s, True, why)
 
 
+def _try_reuse(scene, value_um, accuracy_um, quantities, t_from, reference: TracerRun):
+    """``(scene with the reuse solver or None, ModelCheck)``: the direct integrator's reuse solver
+    (the first step's factors, refined) on the chosen grid against the scene's own solver, taken
+    where its measured difference fits and it is faster."""
+    if scene.solver.integrator != "direct" or scene.solver.linear_solver == "reuse":
+        return None, ModelCheck("reuse", None, None, reference.run_s, False,
+                                f"the scene runs {scene.solver.integrator}/{scene.solver.linear_solver}")
+    sc = scene.replace(solver=dataclasses.replace(scene.solver, linear_solver="reuse"))
+    r = tracer_run(sc)
+    diff = window_difference_um(r, reference, scene, quantities, t_from)
+    if value_um + diff > accuracy_um:
+        return None, ModelCheck("reuse", diff, r.run_s, reference.run_s, False,
+                                f"it differs by {diff:.3g} µm, beyond the accuracy")
+    if r.run_s >= reference.run_s:
+        return None, ModelCheck("reuse", diff, r.run_s, reference.run_s, False,
+                                f"not faster here ({r.run_s:.3g} s against {reference.run_s:.3g} s)")
+    return (sc, r), ModelCheck("reuse", diff, r.run_s, reference.run_s, True,
+                               f"it reproduces the {scene.solver.linear_solver} solver to {diff:.3g} µm and is faster")
+
+
 def _try_float32(scene, value_um, accuracy_um, quantities, solver, t_from, reference: TracerRun) -> ModelCheck:
     """The float32 run of the chosen grid against its float64 run (the module docstring's rule)."""
     try:
@@ -341,12 +366,22 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     if v is None:
         v = _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs)
     value = v.value_um + model_diff
-    precision, cost_s = "float64", v.estimate.run_s
-    if allow_float32:
+    chosen_scene, precision, cost_s = v.scene, "float64", v.estimate.run_s
+    reference = None
+    if solver is None or allow_float32:
         g = scene_grid(v.scene)
         reference = runs.get(g) if v.scene.kind == scene.kind else None
-        check = _try_float32(v.scene, value, accuracy_um, quantities, solver, t_from,
-                             reference if reference is not None else tracer_run(v.scene, solver))
+        reference = reference if reference is not None else tracer_run(v.scene, solver)
+    if solver is None:
+        taken, check = _try_reuse(v.scene, value, accuracy_um, quantities, t_from, reference)
+        checks.append(check)
+        if taken is not None:
+            (chosen_scene, reference), value, cost_s = taken, value + check.difference_um, check.run_s
+            automatic[0] = f"solver direct/reuse: {check.why}"
+        else:
+            automatic[0] = f"solver {scene.solver.integrator}/{scene.solver.linear_solver} (the scene's): {check.why}"
+    if allow_float32:
+        check = _try_float32(chosen_scene, value, accuracy_um, quantities, solver, t_from, reference)
         checks.append(check)
         if check.used:
             precision, value, cost_s = "float32", value + check.difference_um, check.run_s
@@ -354,8 +389,8 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     else:
         automatic.append("precision float64 (float32 is not considered for this answer)")
     return GridChoice(
-        scene=v.scene, grid=v.estimate.grid, factors=v.factors,
-        solver=f"{v.scene.solver.integrator}/{v.scene.solver.linear_solver}", precision=precision,
+        scene=chosen_scene, grid=v.estimate.grid, factors=v.factors,
+        solver=f"{chosen_scene.solver.integrator}/{chosen_scene.solver.linear_solver}", precision=precision,
         estimate=v.estimate, estimate_um=value, predicted_um=v.predicted_um + model_diff, cost_s=cost_s,
         accuracy_um=accuracy_um, quantities=quantities, rounds=v.rounds, automatic=tuple(automatic),
-        model=v.scene.kind, checks=tuple(checks))
+        model=chosen_scene.kind, checks=tuple(checks))

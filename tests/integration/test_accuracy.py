@@ -90,6 +90,10 @@ def test_chosen_grid_meets_the_accuracy_and_is_verified(scene_1d, estimate_1d):
     assert c.estimate_um == pytest.approx(c.estimate.longitudinal_um + extra)
     with pytest.raises(ValueError, match="precision"):
         precision_scope("float16")
+    # the reuse solver: exact with the shift transport, taken where it is also faster
+    reuse = next(ch for ch in c.checks if ch.name == "reuse")
+    assert reuse.difference_um is not None and reuse.difference_um < 1e-6
+    assert reuse.used == (c.solver == "direct/reuse") == (c.scene.solver.linear_solver == "reuse")
 
 
 def test_unreachable_accuracy_names_the_best_reachable(scene_1d):
