@@ -129,19 +129,6 @@ def check_distribution(dist: Distribution, study: Study):
 
 # ----------------------------------------------------------------------------- evaluation
 
-_EVALUATORS: dict = {}
-
-
-def _evaluator(study: Study):
-    """One function object per study, so the sharded map compiles once per study and chunk size."""
-    key = id(study)
-    if key not in _EVALUATORS:
-        if len(_EVALUATORS) > 8:
-            _EVALUATORS.clear()
-        _EVALUATORS[key] = (study, lambda th: evaluate(study, th))
-    return _EVALUATORS[key][1]
-
-
 def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=None):
     """Full-model :func:`jaxbelt.design.metrics.evaluate` for every row of ``thetas`` (n, P),
     batched with ``vmap`` and sharded over the local devices, ``chunk`` configurations at a
@@ -158,7 +145,7 @@ def _map(study, thetas, chunk, progress=None):
     n = thetas.shape[0]
     if chunk is not None and n % chunk:
         thetas = np.concatenate([thetas, np.repeat(thetas[-1:], chunk - n % chunk, axis=0)])
-    out = batched_map(_evaluator(study), thetas, chunk=chunk, progress=progress)
+    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=study)
     return jax.tree.map(lambda a: a[:n], out)
 
 

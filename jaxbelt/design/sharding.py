@@ -24,6 +24,7 @@ import functools
 import os
 from collections.abc import Callable, Sequence
 
+import equinox as eqx
 import jax
 import numpy as np
 from jax.experimental import multihost_utils
@@ -52,6 +53,15 @@ def _jitted(fn: Callable, mesh: Mesh):
     return jax.jit(jax.vmap(fn), in_shardings=sharding, out_shardings=sharding)
 
 
+@functools.lru_cache(maxsize=32)
+def _jitted_with_operand(fn: Callable, mesh: Mesh):
+    @eqx.filter_jit
+    def run(operand, x):
+        return jax.vmap(lambda theta: fn(operand, theta))(x)
+
+    return run
+
+
 def _compiled(fn, mesh):
     """``jit(vmap(fn))`` with the batch axis sharded over ``mesh``, cached per ``(fn, mesh)``
     (jit then caches one executable per input shape)."""
@@ -72,14 +82,20 @@ def _round_up(n: int, k: int) -> int:
     return -(-n // k) * k
 
 
-def _run_sharded(fn, block: np.ndarray, mesh: Mesh):
-    """Evaluate one padded block (rows a multiple of the mesh size); device arrays, sharded."""
+def _run_sharded(fn, block: np.ndarray, mesh: Mesh, operand=None):
+    """Evaluate one padded block (rows a multiple of the mesh size); device arrays, sharded.
+    With an ``operand``, its arrays are arguments of the compiled program, replicated on every
+    device of the mesh (not constants folded into it)."""
     x = jax.device_put(block, NamedSharding(mesh, PartitionSpec(AXIS)))
-    return _compiled(fn, mesh)(x)
+    if operand is None:
+        return _compiled(fn, mesh)(x)
+    arrays, rest = eqx.partition(operand, eqx.is_array)
+    arrays = jax.device_put(arrays, NamedSharding(mesh, PartitionSpec()))
+    return _jitted_with_operand(fn, mesh)(eqx.combine(arrays, rest), x)
 
 
 def batched_map(fn: Callable, configs, *, chunk: int | None = None, mesh: Mesh | None = None,
-                progress: Callable | None = None):
+                progress: Callable | None = None, operand=None):
     """Evaluate ``fn`` on every configuration, the batch sharded over the local devices.
 
     ``jax.vmap(fn)`` runs under ``jax.jit`` with the batch axis split over the mesh axis
@@ -90,7 +106,11 @@ def batched_map(fn: Callable, configs, *, chunk: int | None = None, mesh: Mesh |
     ``lambda`` per call compiles again).
 
     **Arguments:**
-    - ``fn``: ``fn(theta) -> pytree of arrays`` for one configuration ``theta`` (P,).
+    - ``fn``: ``fn(theta) -> pytree of arrays`` for one configuration ``theta`` (P,); with an
+      ``operand``, ``fn(operand, theta)``.
+    - ``operand``: a pytree (a model, a study) passed to every call as an argument of the
+      compiled program: its arrays are traced, not folded in as constants, so one compilation
+      serves every operand of the same shapes (a module-level ``fn`` compiles once per shape).
     - ``configs``: (n, P) configurations.
     - ``chunk``: evaluate at most this many configurations at a time (rounded up to a multiple
       of the device count; every chunk is padded to that size, so one compilation serves all),
@@ -108,7 +128,8 @@ def batched_map(fn: Callable, configs, *, chunk: int | None = None, mesh: Mesh |
     mesh = config_mesh() if mesh is None else mesh
     n = configs.shape[0]
     if n == 0:
-        shapes = jax.eval_shape(jax.vmap(fn), jax.ShapeDtypeStruct(configs.shape, configs.dtype))
+        one = fn if operand is None else (lambda theta: fn(operand, theta))
+        shapes = jax.eval_shape(jax.vmap(one), jax.ShapeDtypeStruct(configs.shape, configs.dtype))
         return jax.tree.map(lambda s: np.empty(s.shape, s.dtype), shapes)
     if chunk is not None and chunk < 1:
         raise ValueError(f"chunk must be a positive integer, got {chunk}")
@@ -125,7 +146,7 @@ def batched_map(fn: Callable, configs, *, chunk: int | None = None, mesh: Mesh |
     pending = None
     for start in range(0, n, size):
         block = configs[start:start + size]
-        out = _run_sharded(fn, _pad_rows(block, size), mesh)  # dispatched asynchronously
+        out = _run_sharded(fn, _pad_rows(block, size), mesh, operand)  # dispatched asynchronously
         if pending is not None:  # the previous chunk goes to the host while this one runs
             collect(*pending)
         pending = (out, start, len(block))

@@ -67,6 +67,22 @@ FOUR_DEVICES = METRIC + textwrap.dedent("""
     again = sharding.batched_map(counted, configs(5), chunk=4)  # same fn and size: cached
     np.testing.assert_allclose(again, ref[:5], rtol=1e-12, atol=1e-15)
     assert len(traces) == n_traces, len(traces)
+
+    # an operand (the model) is an argument of the program, replicated on the devices: another
+    # model of the same shapes reuses the compilation and gives its own results
+    op_traces = []
+    def with_model(m, t):
+        op_traces.append(1)
+        return jb.simulate(jb.with_misalignment(m, translation=t), opts.solver, n_steps=20, dt=opts.dt)[1].tracer_u[-1]
+    by_operand = sharding.batched_map(with_model, th, operand=model)
+    np.testing.assert_allclose(by_operand, ref, rtol=1e-12, atol=1e-15)
+    stiffer = jb.build_model(scene.replace(belt=scene.belt.__class__(**{**scene.belt.__dict__,
+                                                                          "youngs_modulus": 2 * scene.belt.youngs_modulus})))
+    other = sharding.batched_map(with_model, th, operand=stiffer)
+    assert len(op_traces) == 1, len(op_traces)
+    assert not np.allclose(other, by_operand)
+    direct = np.asarray(jax.vmap(lambda t: with_model(stiffer, t))(jnp.asarray(th)))
+    np.testing.assert_allclose(other, direct, rtol=1e-12, atol=1e-15)
     print("OK")
 """)
 
