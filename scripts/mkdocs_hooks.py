@@ -280,6 +280,10 @@ BENCHMARKS = {
                      "`three-roller` against its 2D run, and float32 against float64 on `three-roller-t72` and "
                      "`two-roller-1d`: the tracer differences and both run times ([accuracy on demand]"
                      "(accuracy.md#the-model-and-the-precision))."),
+    "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene "
+                          "(`--no-error-bars`), stage by stage, in a process with an empty compilation cache and in "
+                          "a second one that reads it: start-up, model build, the aligned run, the Jacobian and a "
+                          "batch of eight verification runs (first call and again), the whole box."),
     "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
                           "each built-in design scene's grid and one level finer, as a share of the 20 µm limit "
                           "(the rule: at most 5 %), and the half-widths' relative change "
