@@ -280,6 +280,10 @@ BENCHMARKS = {
                      "`three-roller` against its 2D run, and float32 against float64 on `three-roller-t72` and "
                      "`two-roller-1d`: the tracer differences and both run times ([accuracy on demand]"
                      "(accuracy.md#the-model-and-the-precision))."),
+    "dmd_one_run": ("DMD on one configuration", "`jaxbelt reduce three-roller-t72 --method dmd --train-steps 400` "
+                    "in one process, with the randomized and with the thin SVD: offline and online time, against "
+                    "the fastest full run and against the 400 snapshot steps alone, and the tracer RMSE "
+                    "([model order reduction](reduction.md))."),
     "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene "
                           "(`--no-error-bars`), stage by stage, in a process with an empty compilation cache and in "
                           "a second one that reads it: start-up, model build, the aligned run, the Jacobian and a "

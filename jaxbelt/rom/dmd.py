@@ -86,21 +86,61 @@ def _exact_dmd(U, s, Vh, Y, rank: int) -> DMDModel:
     return DMDModel(eigs, YVS.astype(W.dtype) @ W)
 
 
-def fit_dmd(X, Y=None, rank: int | None = None) -> DMDModel:
+SKETCH = 48  # columns of the randomized range finder (rank + oversampling)
+SKETCH_MARGIN = 8  # the sketch must exceed the rank by this much, else the full SVD is taken
+
+
+def fit_dmd(X, Y=None, rank: int | None = None, svd: str = "auto") -> DMDModel:
     """Exact DMD of snapshot pairs.
 
     **Arguments:** ``X`` (N, m) snapshots, and ``Y`` (N, m) their successors; with ``Y = None``
     the columns of ``X`` are one trajectory and the pairs are ``(X[:, :-1], X[:, 1:])``.
-    ``rank``: SVD truncation (default: all non-negligible singular values).
+    ``rank``: SVD truncation (default: all non-negligible singular values, ``σ > σ₁ max(N, m) ε``).
+    ``svd``: ``"full"`` (LAPACK's thin SVD), ``"randomized"`` (:func:`randomized_svd`, a
+    sketch of :data:`SKETCH` columns, ``rank`` + :data:`SKETCH_MARGIN` with a given rank), or
+    ``"auto"``: randomized where no rank is given and the sketch is at most half of ``m``, the
+    full SVD taken instead when the rank found reaches the sketch less :data:`SKETCH_MARGIN`.
+    Without a given rank the cut lies at round-off, so what the sketch leaves out is round-off
+    too; a given rank over a noisy tail would make the sketch's error that of the gap, and takes
+    the full SVD.
     **Returns:** :class:`DMDModel`.
     """
+    if svd not in ("auto", "full", "randomized"):
+        raise ValueError(f"svd = {svd!r}: one of auto, full, randomized")
     if Y is None:
         X, Y = _split_pairs(X)
-    U, s, Vh = _pairs_svd(X)
-    if rank is None:
-        sv = np.asarray(s)
-        rank = int(np.sum(sv > sv[0] * max(X.shape) * np.finfo(sv.dtype).eps))
-    return _exact_dmd(U, s, Vh, Y, int(rank))
+    k = SKETCH if rank is None else int(rank) + SKETCH_MARGIN
+    sketch = svd == "randomized" or (svd == "auto" and rank is None and 2 * k <= min(X.shape))
+    U, s, Vh = randomized_svd(X, min(k, min(X.shape))) if sketch else _pairs_svd(X)
+    if rank is not None:  # no look at the values: a given rank stays differentiable
+        return _exact_dmd(U, s, Vh, Y, min(int(rank), s.shape[0]))
+    r = _numerical_rank(s, X.shape)
+    if sketch and svd == "auto" and r > s.shape[0] - SKETCH_MARGIN:
+        U, s, Vh = _pairs_svd(X)
+        r = _numerical_rank(s, X.shape)
+    return _exact_dmd(U, s, Vh, Y, r)
+
+
+def _numerical_rank(s, shape) -> int:
+    """The singular values above ``σ₁ max(N, m) ε``."""
+    sv = np.asarray(s)
+    return int(np.sum(sv > sv[0] * max(shape) * np.finfo(sv.dtype).eps))
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def randomized_svd(X, k: int, power_iterations: int = 1):
+    """The leading ``k`` singular triplets ``(U (N, k), s (k,), Vh (k, m))`` of ``X`` by a
+    randomized range finder (Halko, Martinsson & Tropp 2011, Alg. 4.4): ``Q = orth(X Ω)`` for a
+    Gaussian ``Ω`` (m, k) of a fixed key, ``power_iterations`` subspace iterations re-orthonormalised
+    at each half step (they sharpen the small singular values the rank cut reads), then the SVD
+    of the small ``Qᵀ X``. Costs ``O(N m k)`` against the thin SVD's ``O(N m²)``."""
+    omega = jax.random.normal(jax.random.PRNGKey(0), (X.shape[1], k), X.dtype)
+    Q, _ = jnp.linalg.qr(X @ omega)
+    for _ in range(power_iterations):
+        Q, _ = jnp.linalg.qr(X.T @ Q)
+        Q, _ = jnp.linalg.qr(X @ Q)
+    Ub, s, Vh = jnp.linalg.svd(Q.T @ X, full_matrices=False)
+    return Q @ Ub, s, Vh
 
 
 @jax.jit

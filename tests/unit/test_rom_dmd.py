@@ -124,3 +124,34 @@ def test_dmd_coordinates_carry_the_prediction_in_an_orthonormal_basis():
     np.testing.assert_allclose(np.asarray(traj.coords[1:]) @ Q.T, np.asarray(model.predict(Z[:, -1], 10)),
                                rtol=1e-8, atol=1e-8)
     np.testing.assert_array_equal(np.asarray(traj.z_true0), X[:, 29])
+
+
+def test_randomized_svd_matches_the_full_svd_on_a_low_rank_matrix():
+    from jaxbelt.rom.dmd import randomized_svd
+
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(300, 12)) @ np.diag(np.logspace(0, -6, 12)) @ rng.normal(size=(12, 80))
+    U, s, Vh = randomized_svd(jnp.asarray(X), 24)
+    s_full = np.linalg.svd(X, compute_uv=False)
+    np.testing.assert_allclose(np.asarray(s)[:12], s_full[:12], rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(U[:, :12] * s[:12]) @ np.asarray(Vh[:12]), X, atol=1e-12 * s_full[0])
+    np.testing.assert_allclose(np.asarray(U.T @ U), np.eye(24), atol=1e-12)
+
+
+def test_fit_dmd_randomized_equals_full_and_auto_falls_back_when_the_rank_fills_the_sketch():
+    A, X, lam = _linear_system()
+    # a long trajectory of a rank-8 system embedded in 200 dimensions: the sketch applies
+    rng = np.random.default_rng(1)
+    E = np.linalg.qr(rng.normal(size=(200, 8)))[0]
+    Z = jnp.asarray(E @ X)
+    full, rnd, auto = (fit_dmd(Z, svd=k) for k in ("full", "randomized", "auto"))
+    for fit in (rnd, auto):
+        np.testing.assert_allclose(np.sort_complex(np.asarray(fit.eigs)), np.sort_complex(np.asarray(full.eigs)),
+                                   atol=1e-9)
+        np.testing.assert_allclose(np.asarray(fit.predict(Z[:, 5], 10)), np.asarray(full.predict(Z[:, 5], 10)),
+                                   atol=1e-9 * float(jnp.max(jnp.abs(Z))))
+    # full rank (white noise, 120 pairs): the rank found fills the 48-column sketch, so auto takes the full SVD
+    W = jnp.asarray(rng.normal(size=(150, 121)))
+    assert fit_dmd(W).eigs.shape[0] == fit_dmd(W, svd="full").eigs.shape[0] == 120
+    with pytest.raises(ValueError, match="svd"):
+        fit_dmd(Z, svd="qr")

@@ -1,0 +1,60 @@
+"""DMD on one configuration, as ``jaxbelt reduce SCENE --method dmd --train-steps 400`` runs it:
+does it pay off against our fastest full run?
+
+Scene ``three-roller-t72`` (5000 steps; the fastest full mode that reproduces the scene's own, as
+``reduce`` picks it). In one process, for the exact DMD of 400 pre-transport snapshots with the
+randomized SVD (``fit_dmd(svd="auto")``, the default) and with the full thin SVD: the offline
+time (snapshot steps and fit), the online time (the prediction of the remaining 4600 steps), the
+full run's time, the total speedup ``full / (offline + online)``, the RMSE of the tracers and,
+for scale, the time of the 400 snapshot steps as a plain run. Best of three ``reduce`` calls per
+variant (each call times its parts as the best of several). Run:
+``OPENBLAS_NUM_THREADS=1 python benchmarks/dmd_one_run.py``. Writes ``results/dmd_one_run.json``.
+"""
+
+import dataclasses
+import time
+from unittest import mock
+
+import jax
+from _common import write
+
+import jaxbelt as jb
+from jaxbelt import rom
+from jaxbelt.rom import dmd
+
+SCENE, TRAIN = "three-roller-t72", 400
+
+
+def main():
+    jb.enable_x64()
+    sc = jb.load_scene(SCENE)
+    model, opts = jb.build_model(sc), jb.RunOptions.from_scene(sc)
+    config = rom.ReduceConfig(method="dmd", n_steps=opts.n_steps, dt=opts.dt, solver=opts.solver, train_steps=TRAIN,
+                              stride=0)
+    fastest = jb.DirectBackwardEuler(jb.Reuse())
+    jax.block_until_ready(jb.simulate(model, fastest, n_steps=TRAIN, dt=opts.dt))
+    snap_s = min(_clock(lambda: jax.block_until_ready(jb.simulate(model, fastest, n_steps=TRAIN, dt=opts.dt)))
+                 for _ in range(5))
+    out = dict(scene=SCENE, train_steps=TRAIN, n_steps=opts.n_steps, snapshot_steps_s=snap_s, variants={})
+    full_fit = dmd.fit_dmd
+    for name, svd in (("randomized", "auto"), ("full", "full")):
+        with mock.patch.object(rom.pipeline, "fit_dmd", lambda X, rank=None, svd=svd: full_fit(X, rank=rank, svd=svd)):
+            runs = [rom.reduce_and_compare(model, [model], config) for _ in range(3)]
+        best = min(runs, key=lambda r: r.timings.offline_s + r.timings.online_s)
+        t = dataclasses.asdict(best.timings)
+        row = dict(offline_s=t["offline_s"], online_s=t["online_s"], full_run_s=t["full_run_s"],
+                   full_mode=t["full_mode"], speedup_total=t["full_run_s"] / (t["offline_s"] + t["online_s"]),
+                   offline_over_snapshot_steps=t["offline_s"] / snap_s, rmse_mm=best.rmse_mm, modes=best.modes)
+        out["variants"][name] = row
+        print(name, row, flush=True)
+    write("dmd_one_run", out)
+
+
+def _clock(f):
+    t0 = time.perf_counter()
+    f()
+    return time.perf_counter() - t0
+
+
+if __name__ == "__main__":
+    main()
