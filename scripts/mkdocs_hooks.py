@@ -284,6 +284,10 @@ BENCHMARKS = {
                     "in one process, with the randomized and with the thin SVD: offline and online time, against "
                     "the fastest full run and against the 400 snapshot steps alone, and the tracer RMSE "
                     "([model order reduction](reduction.md))."),
+    "bandwidth_floor": ("The floor of a batched step", "On `three-roller-tolerance` with the reuse solver: the "
+                        "bytes a configuration-step streams against the read bandwidth measured in the same process, "
+                        "the step, the solve and one sweep's recurrence timed against it for batches of 1, 8 and 32 "
+                        "([scale](scale.md#how-fast-a-batch-can-go-on-a-cpu))."),
     "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene "
                           "(`--no-error-bars`), stage by stage, in a process with an empty compilation cache and in "
                           "a second one that reads it: start-up, model build, the aligned run, the Jacobian and a "
