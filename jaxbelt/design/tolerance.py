@@ -21,7 +21,9 @@ augmented Lagrangian (one multiplier per constraint row or corner); the result i
 onto the limit exactly. Components the metric does not feel are capped at ``h_max``
 (5 mm / 5 mrad by default: the range in which the linear model is trusted) and reported as
 *unconstrained*. Finally the box is **verified by full runs** at the worst corners and a few
-random ones; if the verified worst case is not within ``[0.97, 1.0] × limit`` the box is scaled
+random ones. The first box verified is the optimum scaled, under the linear model, onto the middle
+of the accepted band (0.985 × limit), so that the model's small nonlinearity does not push the
+first verification out of it; if the verified worst case is not within ``[0.97, 1.0] × limit`` the box is scaled
 (secant iteration on a uniform factor) and verified again.
 
 **Several limits at once** (``limits``, e.g. ``{"longitudinal_max": 20, "steering_max": 3}``
@@ -291,8 +293,11 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
     until the verified worst case lies in ``[0.97, 1] × limit``. ``evaluate_many`` returns the
     metric (m,), or with several limits (``names``: ``((metric, limit), ...)``) each limit's
     value in its own unit (m, n_limits). **Returns:** ``(h, worst, table, iterations)``."""
-    target, s, history, table = 0.985 * limit_um, 1.0, [], []
+    target, history, table = 0.985 * limit_um, [], []
     floor = float(aggregate(lin.kind, jnp.asarray(lin.r0)))
+    # the first box aims at the middle of the accepted band, not its edge: the linear model puts
+    # h_lin's worst case on the limit, and the excess over the floor scales with a uniform factor
+    s = (target - floor) / max(limit_um - floor, 1e-12) if floor < target else 1.0
     n_random = len(corners_random)
     for _ in range(max_iter):
         h = np.where(felt, s * h_lin, h_lin)
