@@ -188,6 +188,27 @@ def test_box_with_several_rows_and_rms_matches_scipy():
         assert tolerance.worst_case(lin, h) <= 10.0 + 1e-9
 
 
+def test_box_with_thousands_of_rows_satisfies_the_optimality_conditions():
+    """A max-type box over 3000 response rows: the Karush-Kuhn-Tucker conditions hold at the result
+    (w/h a non-negative combination of the active rows, by NNLS), and another start of the
+    Lagrangian gives the same box."""
+    from scipy.optimize import nnls
+
+    rng = np.random.default_rng(7)
+    J = rng.normal(size=(3000, 6)) * np.array([1.0, 3.0, 0.3, 10.0, 1.0, 0.05])
+    r0 = rng.normal(size=3000)
+    lin = tolerance.LinearResponse(r0, J, "max")
+    w = np.array([1.0, 1.0, 2.0, 1.0, 0.5, 1.0])
+    h = tolerance.optimise_box(lin, 20.0, w)
+    other = tolerance.optimise_box(lin, 20.0, w, outer=3, inner=20)
+    np.testing.assert_allclose(other, h, rtol=1e-6)
+    g = np.abs(r0) + np.abs(J) @ h
+    assert np.isclose(g.max(), 20.0, rtol=1e-9)
+    active, free = np.flatnonzero(g > 20.0 * (1 - 1e-6)), h < tolerance.H_MAX * (1 - 1e-9)
+    lam, residual = nnls(np.abs(J)[active][:, free].T, (w / h)[free])
+    assert residual <= 1e-6 * np.linalg.norm((w / h)[free])
+
+
 def test_rss_stackup_of_one_row():
     lin = tolerance.LinearResponse(np.zeros(1), np.array([[3.0, 4.0]]), "max")
     assert np.isclose(tolerance.rss_stackup(lin, [1.0, 1.0]).three_sigma_um, 15.0)
