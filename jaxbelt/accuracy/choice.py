@@ -267,9 +267,22 @@ def _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progr
     raise AssertionError("unreachable")  # pragma: no cover
 
 
-def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs_2d):
+def _judge(name, cheaper: TracerRun, reference: TracerRun, diff, value_um, accuracy_um, taken, beyond) -> ModelCheck:
+    """A cheaper run's :class:`ModelCheck`: taken (``why`` = ``taken``) where the answer's
+    ``value_um`` plus the measured difference ``diff`` meets the accuracy (else ``beyond``) and
+    the cheaper run is faster than the reference."""
+    if value_um + diff > accuracy_um:
+        return ModelCheck(name, diff, cheaper.run_s, reference.run_s, False, beyond)
+    if cheaper.run_s >= reference.run_s:
+        return ModelCheck(name, diff, cheaper.run_s, reference.run_s, False,
+                          f"not faster here ({cheaper.run_s:.3g} s against {reference.run_s:.3g} s)")
+    return ModelCheck(name, diff, cheaper.run_s, reference.run_s, True, taken)
+
+
+def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs_2d, runs_1d):
     """``(verified 1D grid or None, ModelCheck)``: the 1D counterpart where it is admissible,
-    cheaper and within the accuracy with the measured model difference added."""
+    faster and within the accuracy with the measured model difference added (``runs_1d`` keeps
+    its runs)."""
     s1, why = one_d_counterpart(scene)
     if s1 is None:
         return None, ModelCheck("1d", None, None, None, False, why)
@@ -278,22 +291,21 @@ def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, ru
     g = scene_grid(scene)
     if g not in runs_2d:
         runs_2d[g] = tracer_run(scene, solver)
-    ref, own = runs_2d[g], tracer_run(s1, solver)
+    ref = runs_2d[g]
+    own = runs_1d[scene_grid(s1)] = tracer_run(s1, solver)
     if own.u.shape != ref.u.shape:
         return None, ModelCheck("1d", None, own.run_s, ref.run_s, False, "the 1D counterpart records other tracers")
     diff = window_difference_um(own, ref, scene, quantities, t_from)
-    if own.run_s >= ref.run_s:
-        return None, ModelCheck("1d", diff, own.run_s, ref.run_s, False,
-                                f"the 1D run is not faster here ({own.run_s:.3g} s against {ref.run_s:.3g} s)")
-    if diff >= accuracy_um:
-        return None, ModelCheck("1d", diff, own.run_s, ref.run_s, False,
-                                f"the 1D and 2D models differ by {diff:.3g} µm, not within the accuracy")
+    check = _judge("1d", own, ref, diff, 0.0, accuracy_um, why,
+                   f"the 1D and 2D models differ by {diff:.3g} µm, not within the accuracy")
+    if not check.used:
+        return None, check
     try:
-        v = _verified_grid(s1, accuracy_um - diff, quantities, solver, t_from, rounds, progress, {})
+        v = _verified_grid(s1, accuracy_um - diff, quantities, solver, t_from, rounds, progress, runs_1d)
     except AccuracyError:
-        return None, ModelCheck("1d", diff, own.run_s, ref.run_s, False,
-                                f"no 1D grid meets the accuracy less the model difference ({diff:.3g} µm)")
-    return v, ModelCheck("1d", diff, own.run_s, ref.run_s, True, why)
+        return None, dataclasses.replace(
+            check, used=False, why=f"no 1D grid meets the accuracy less the model difference ({diff:.3g} µm)")
+    return v, check
 
 
 def _try_reuse(scene, value_um, accuracy_um, quantities, t_from, reference: TracerRun):
@@ -306,14 +318,10 @@ def _try_reuse(scene, value_um, accuracy_um, quantities, t_from, reference: Trac
     sc = scene.replace(solver=dataclasses.replace(scene.solver, linear_solver="reuse"))
     r = tracer_run(sc)
     diff = window_difference_um(r, reference, scene, quantities, t_from)
-    if value_um + diff > accuracy_um:
-        return None, ModelCheck("reuse", diff, r.run_s, reference.run_s, False,
-                                f"it differs by {diff:.3g} µm, beyond the accuracy")
-    if r.run_s >= reference.run_s:
-        return None, ModelCheck("reuse", diff, r.run_s, reference.run_s, False,
-                                f"not faster here ({r.run_s:.3g} s against {reference.run_s:.3g} s)")
-    return (sc, r), ModelCheck("reuse", diff, r.run_s, reference.run_s, True,
-                               f"it reproduces the {scene.solver.linear_solver} solver to {diff:.3g} µm and is faster")
+    check = _judge("reuse", r, reference, diff, value_um, accuracy_um,
+                   f"it reproduces the {scene.solver.linear_solver} solver to {diff:.3g} µm and is faster",
+                   f"it differs by {diff:.3g} µm, beyond the accuracy")
+    return ((sc, r) if check.used else None), check
 
 
 def _try_float32(scene, value_um, accuracy_um, quantities, solver, t_from, reference: TracerRun) -> ModelCheck:
@@ -324,14 +332,9 @@ def _try_float32(scene, value_um, accuracy_um, quantities, solver, t_from, refer
     except (NonFiniteStateError, FloatingPointError) as e:
         return ModelCheck("float32", None, None, reference.run_s, False, f"the float32 run failed: {e}")
     diff = window_difference_um(r32, reference, scene, quantities, t_from)
-    if value_um + diff > accuracy_um:
-        why = f"its rounding ({diff:.3g} µm) on top of the estimate exceeds the accuracy"
-    elif r32.run_s >= reference.run_s:
-        why = f"not faster here ({r32.run_s:.3g} s against {reference.run_s:.3g} s)"
-    else:
-        return ModelCheck("float32", diff, r32.run_s, reference.run_s, True,
-                          f"its rounding ({diff:.3g} µm, measured) leaves the answer within the accuracy")
-    return ModelCheck("float32", diff, r32.run_s, reference.run_s, False, why)
+    return _judge("float32", r32, reference, diff, value_um, accuracy_um,
+                  f"its rounding ({diff:.3g} µm, measured) leaves the answer within the accuracy",
+                  f"its rounding ({diff:.3g} µm) on top of the estimate exceeds the accuracy")
 
 
 def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, *, t_from: float = 0.0,
@@ -351,10 +354,10 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     if unknown:
         raise ValueError(f"quantities {unknown}: unknown (one of {', '.join(QUANTITIES)})")
     automatic = [f"solver {scene.solver.integrator}/{scene.solver.linear_solver} (the scene's)"]
-    checks, runs = [], {}
+    checks, runs, runs_1d = [], {}, {}
     v, model_diff = None, 0.0
     if allow_1d and scene.kind == "2d":
-        v1, check = _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs)
+        v1, check = _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs, runs_1d)
         checks.append(check)
         if v1 is not None:
             v, model_diff = v1, check.difference_um
@@ -370,7 +373,7 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     reference = None
     if solver is None or allow_float32:
         g = scene_grid(v.scene)
-        reference = runs.get(g) if v.scene.kind == scene.kind else None
+        reference = (runs if v.scene.kind == scene.kind else runs_1d).get(g)
         reference = reference if reference is not None else tracer_run(v.scene, solver)
     if solver is None:
         taken, check = _try_reuse(v.scene, value, accuracy_um, quantities, t_from, reference)

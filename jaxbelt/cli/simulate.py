@@ -9,11 +9,11 @@ from types import SimpleNamespace
 import numpy as np
 
 from .. import plot
+from ..accuracy import precision_scope
 from ..control import loop_summary
 from ..prestress import slack_message, slack_spans
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, TRANSPORT_RULES
 from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
-from ..accuracy import precision_scope
 from ._accuracy import add_accuracy_arguments, choose_accuracy, error_estimate, print_accuracy
 from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, rebuild
 

@@ -114,15 +114,16 @@ def fit_dmd(X, Y=None, rank: int | None = None, svd: str = "auto") -> DMDModel:
     U, s, Vh = randomized_svd(X, min(k, min(X.shape))) if sketch else _pairs_svd(X)
     if rank is not None:  # no look at the values: a given rank stays differentiable
         return _exact_dmd(U, s, Vh, Y, min(int(rank), s.shape[0]))
-    r = _numerical_rank(s, X.shape)
+    r = numerical_rank(s, X.shape)
     if sketch and svd == "auto" and r > s.shape[0] - SKETCH_MARGIN:
         U, s, Vh = _pairs_svd(X)
-        r = _numerical_rank(s, X.shape)
+        r = numerical_rank(s, X.shape)
     return _exact_dmd(U, s, Vh, Y, r)
 
 
-def _numerical_rank(s, shape) -> int:
-    """The singular values above ``σ₁ max(N, m) ε``."""
+def numerical_rank(s, shape) -> int:
+    """How many singular values ``s`` of a matrix of ``shape`` lie above ``σ₁ max(N, m) ε``
+    (the rest are round-off)."""
     sv = np.asarray(s)
     return int(np.sum(sv > sv[0] * max(shape) * np.finfo(sv.dtype).eps))
 
@@ -161,8 +162,7 @@ def dmd_coordinates(Z, fit, x_start, k: int) -> BasisTrajectory:
     an orthonormal basis of the training snapshots ``Z`` (exact DMD modes lie in their span), so
     the full states are never formed. ``x_start`` is a full-order state: no initial error."""
     U, s, _ = jnp.linalg.svd(jnp.asarray(Z), full_matrices=False)
-    sv = np.asarray(s)
-    Q = U[:, : int(np.sum(sv > sv[0] * max(Z.shape) * np.finfo(sv.dtype).eps))]
+    Q = U[:, : numerical_rank(s, Z.shape)]
     b = fit.amplitudes(x_start)
     powers = fit.eigs[None, :] ** jnp.arange(1, k + 1)[:, None]
     coords = jnp.real((powers * b[None, :]) @ (Q.T.astype(fit.modes.dtype) @ fit.modes).T)

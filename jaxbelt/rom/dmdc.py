@@ -51,15 +51,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .dmd import DMDModel, fit_dmd
+from .dmd import DMDModel, fit_dmd, numerical_rank
 from .pod import choose_modes
 
 
 def _rank(s, shape, rank):
     if rank is not None:
         return int(min(rank, s.shape[0]))
-    sv = np.asarray(s)
-    return int(np.sum(sv > sv[0] * max(shape) * np.finfo(sv.dtype).eps))
+    return numerical_rank(s, shape)
 
 
 class DMDcModel(eqx.Module):
