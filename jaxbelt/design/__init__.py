@@ -26,6 +26,11 @@ Every result is a frozen dataclass with documented fields (:class:`SweepResult`,
 from ..misalignment import COMPONENTS as COMPONENTS
 from ..misalignment import ParameterSpace as ParameterSpace
 from ..misalignment import parameter_space as parameter_space
+from .linear_box import LinearResponse as LinearResponse
+from .linear_box import Stackup as Stackup
+from .linear_box import optimise_box as optimise_box
+from .linear_box import rss_stackup as rss_stackup
+from .linear_box import worst_case as worst_case
 from .metrics import METRICS as METRICS
 from .metrics import Study as Study
 from .metrics import evaluate as evaluate
@@ -56,10 +61,5 @@ from .sharding import config_mesh as config_mesh
 from .sharding import distributed_map as distributed_map
 from .sweep import SweepResult as SweepResult
 from .sweep import run_sweep as run_sweep
-from .tolerance import LinearResponse as LinearResponse
-from .tolerance import Stackup as Stackup
 from .tolerance import ToleranceBox as ToleranceBox
-from .tolerance import optimise_box as optimise_box
-from .tolerance import rss_stackup as rss_stackup
 from .tolerance import tolerance_box as tolerance_box
-from .tolerance import worst_case as worst_case

@@ -39,7 +39,7 @@ from .sampling import (Distribution, check_distribution, evaluate_configs, evalu
 from .sensitivity import response_jacobian
 from .store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from .surrogate import Surrogate, fit_surrogate
-from .tolerance import LinearResponse, rss_stackup
+from .linear_box import LinearResponse, rss_stackup
 
 ROM_TRUST_FRACTION = 0.10  # the surrogate's validated error bound must stay below this × limit
 ROM_STEERED = ("the POD surrogate does not carry the steering loop (use the response surface, --rom-method response); "
