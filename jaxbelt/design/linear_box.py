@@ -143,12 +143,9 @@ def optimise_box(lin: LinearResponse, limit: float, weights=None, h_max: float =
         outer, inner = min(outer, 10), min(inner, 100)
     settings = dict(kind=lin.kind, outer=outer, inner=inner, learning_rate=learning_rate)
 
-    def solve(a_, B_, S_):
-        y = _augmented_lagrangian(jnp.asarray(a_), jnp.asarray(B_), None if S_ is None else jnp.asarray(S_), wn, y0,
-                                  float(np.log(h_max)), float(limit), **settings)
-        return np.exp(np.minimum(np.asarray(y), np.log(h_max)))
-
-    h = solve(a, B, S)
+    y = _augmented_lagrangian(jnp.asarray(a), jnp.asarray(B), None if S is None else jnp.asarray(S), wn, y0,
+                              float(np.log(h_max)), float(limit), **settings)
+    h = np.exp(np.minimum(np.asarray(y), np.log(h_max)))
     if lin.kind == "max" and felt.any():
         h = _barrier_newton(a, B, w, limit, h_max, felt, h)
     return _scale_onto_limit(lin, h, limit, h_max, felt)
