@@ -2,8 +2,10 @@
 programs freed after each module, and the ``--runslow`` option.
 
 The default run (``python -m pytest``; ``pyproject.toml`` adds ``-m 'not slow' -n 2 --dist
-loadfile``) leaves out the tests marked ``@pytest.mark.slow``: full-size scenes, long runs and
-fine-grid convergence studies, each of which has a small fast sibling in the default run.
+loadfile``) leaves out the tests marked ``@pytest.mark.slow``: full-size scenes, long runs,
+fine-grid convergence studies, and the integration tests whose code the default run already
+reaches through cheaper tests (chosen by per-test line coverage against cost: a greedy cover,
+with one check against each dense, analytic or finite-difference reference kept by default).
 ``python -m pytest --runslow`` runs everything (slow tests included); ``python -m pytest -m slow``
 runs only the slow ones.
 """
@@ -63,16 +65,18 @@ def pytest_addoption(parser):
 # turns off xdist's own reordering by test count). Seconds per module from a --durations run (a
 # stale or missing entry, default 5, only costs balance).
 MODULE_SECONDS = {
-    "test_accuracy": 55, "test_steering": 35, "test_tune": 30, "test_design_steered": 45, "test_control": 35, "test_control_law": 10,
-    "test_design": 37, "test_validation": 36, "test_grad": 36, "test_model2d": 28, "test_simulate_api": 26,
-    "test_kept_interior": 26, "test_stability": 25, "test_cli_reduce": 22, "test_sharding": 20,
-    "test_cli_design": 20, "test_design_surrogate": 18, "test_rom_reduced": 18, "test_linalg": 17,
-    "test_rom_indicator": 15, "test_linear_solvers": 13, "test_cli": 11, "test_bench": 10, "test_rom_dmdc": 10,
-    "test_transport": 9, "test_reuse": 8, "test_plot_fields": 8, "test_rom_modal": 8, "test_lateral_theory": 8,
-    "test_integrators": 6, "test_rom_ranks": 6, "test_rom_pod": 6, "test_vmap": 6, "test_rom_training": 6,
-    "test_readme": 5, "test_invariants": 4, "test_scene": 4, "test_rom_snapshots": 4,
-    "test_pymor_reference": 3, "test_timeloop": 2, "test_elements": 2, "test_reference": 2, "test_rom_dmd": 2,
-    "test_prestress": 1, "test_notebooks": 1, "test_docs": 1, "test_layers": 1, "test_geometry": 1,
+    "test_cli_design": 26, "test_steering": 25, "test_tune": 24, "test_design_steered": 17,
+    "test_linalg": 16, "test_model2d": 16, "test_cli_reduce": 16, "test_simulate_api": 16,
+    "test_reuse": 14, "test_design": 13, "test_validation": 11, "test_plot_fields": 11,
+    "test_lateral_theory": 11, "test_accuracy": 9, "test_bench": 9, "test_linear_solvers": 8,
+    "test_design_surrogate": 8, "test_stability": 7, "test_scene": 6, "test_rom_dmdc": 6,
+    "test_cli": 6, "test_invariants": 6, "test_kept_interior": 5, "test_rom_dmd": 5,
+    "test_rom_indicator": 5, "test_rom_pod": 4, "test_integrators": 3, "test_timeloop": 3,
+    "test_grad": 3, "test_elements": 3, "test_rom_modal": 3, "test_rom_ranks": 3,
+    "test_rom_training": 3, "test_control_law": 3, "test_transport": 3, "test_pymor_reference": 3,
+    "test_vmap": 2, "test_reference": 2, "test_prestress": 1, "test_rom_snapshots": 1,
+    "test_layers": 1, "test_notebooks": 1, "test_readme": 1, "test_docs": 1, "test_sharding": 1,
+    "test_accuracy_richardson": 1, "test_control_scene": 1, "test_geometry": 1,
 }
 
 

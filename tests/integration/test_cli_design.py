@@ -36,6 +36,7 @@ def _json(capsys, argv):
     return json.loads(capsys.readouterr().out)
 
 
+@pytest.mark.slow
 def test_sensitivity_json_and_plot(files, capsys):
     r = _json(capsys, ["sensitivity", str(files / "small.toml"), "--metric", "lateral_max", "--solver", "reuse",
                        "--json", "--plot", str(files / "s.png")])

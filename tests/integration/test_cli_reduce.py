@@ -69,6 +69,7 @@ def test_dmdc_and_pdmd_predict_a_held_out_configuration(method, held_out, capsys
     assert r["error_estimate_mm"] is None and r["effectivity"] is None  # --stride 0: no estimate
 
 
+@pytest.mark.slow
 def test_pod_multi_configuration_with_indicator(held_out, capsys):
     r = _reduce([held_out, "--method", "pod", *TRAIN, *SHORT, "--modes", "20", "--stride", "20"], capsys)
     _check_common(r, "pod")
@@ -156,6 +157,7 @@ rotation_mrad = [0.5, 0.0, 0.0]
 """
 
 
+@pytest.mark.slow
 def test_pdmd_2d_trains_from_the_step_after_the_start_up(tmp_path, capsys):
     """2D parametric DMD: the per-configuration DMDs start at step 1 (the start-up jump from the
     static state is no linear recurrence of the later states). On this coarse belt (idle roller

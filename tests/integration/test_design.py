@@ -59,6 +59,7 @@ def metric_fn(study):
 # ----------------------------------------------------------------------------- parameters
 
 
+@pytest.mark.slow
 def test_parameter_space_excludes_structural_zeros(model2d):
     sp = design.parameter_space(model2d)
     assert sp.size == 15 and all(not lab.endswith(":az") for lab in sp.labels())
@@ -89,6 +90,7 @@ def test_study_rejects_bad_metric_and_time(loaded2d):
         design.make_study(model1, "lateral_max", t_eval=0.05, dt=opts1.dt)
 
 
+@pytest.mark.slow
 def test_metrics_are_zero_for_the_aligned_machine_and_match_their_definitions(study):
     du, dv = design.tracer_deviation(study, jnp.zeros(study.space.size))
     k = study.n_steps - 1
@@ -135,12 +137,14 @@ def test_gradient_2d_drive_idle_tension_translations_and_rotations():
     assert float(jnp.min(jnp.abs(grad))) > 0
 
 
+@pytest.mark.slow
 def test_gradient_1d_translations():
     model, opts = load("two-roller-1d-idle-translated")
     st = design.make_study(model, "longitudinal_rms", t_eval=0.1, dt=opts.dt, integrator=opts.solver)
     _fd_check(st, jnp.zeros(st.space.size), 1e-4)
 
 
+@pytest.mark.slow
 def test_jacobian_forward_matches_the_reverse_gradient(study):
     """Forward-mode Jacobian J of the response r and the reverse-mode gradient of RMS(r) agree
     through the chain rule: ∇ = Jᵀ r / (n · RMS)."""
@@ -237,6 +241,7 @@ def _dist(study, kinds=("normal", "uniform", "normal", "uniform"), scales=(0.2, 
     return sampling.Distribution(tuple(study.space.labels()), kinds[: study.space.size], scales[: study.space.size])
 
 
+@pytest.mark.slow
 def test_monte_carlo_equals_a_brute_force_loop(study, metric_fn):
     dist = _dist(study)
     limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
@@ -284,6 +289,7 @@ def limit_13(study):
     return limit, design.monte_carlo(study, _dist(study), 400, limit, seed=11, chunk=CHUNK)
 
 
+@pytest.mark.slow
 def test_form_and_importance_sampling_agree_with_monte_carlo(study, limit_13):
     dist = _dist(study)
     limit, mc = limit_13
@@ -294,6 +300,7 @@ def test_form_and_importance_sampling_agree_with_monte_carlo(study, limit_13):
     assert is_.ci95[0] - 0.03 <= mc.yield_ <= is_.ci95[1] + 0.03
 
 
+@pytest.mark.slow
 def test_sweep_store_resumes_and_extends(study, tmp_path):
     dist = _dist(study)
     limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
@@ -309,6 +316,7 @@ def test_sweep_store_resumes_and_extends(study, tmp_path):
         design.run_sweep(study, dist, 8, 2 * limit, chunk=CHUNK, out=out, with_form=False)
 
 
+@pytest.mark.slow
 def test_monte_carlo_and_form_match_openturns(study, metric_fn, limit_13):
     """The same limit state (metric > limit under the same input laws) through OpenTURNS' FORM
     (Abdo–Rackwitz) and its Monte Carlo."""

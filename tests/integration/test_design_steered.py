@@ -44,6 +44,7 @@ def _batch(rows):
     return th
 
 
+@pytest.mark.slow
 def test_window_and_reference(study):
     assert study.steered and study.window == 20 and study.t_window == pytest.approx((1.6, 2.0))
     assert study.range_mrad == pytest.approx(3.0)
@@ -53,6 +54,7 @@ def test_window_and_reference(study):
     assert 0 < out["steering_mrad"][0] < 0.1  # the loop answers the sensor noise and the edge profile
 
 
+@pytest.mark.slow
 def test_closed_loop_metrics_are_linear_below_saturation(study):
     rows = [[0.0, 0.0], [0.05, 0.0], [0.1, 0.0], [0.0, 0.02], [0.0, 0.04]]
     out = design.evaluate_configs(study, _batch(rows), CHUNK)
@@ -65,6 +67,7 @@ def test_closed_loop_metrics_are_linear_below_saturation(study):
     assert s[2] - s[0] == pytest.approx(2 * (s[1] - s[0]), rel=0.05)
 
 
+@pytest.mark.slow
 def test_box_with_several_limits_verified_by_closed_loop_runs(study):
     box = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 3.0})
     assert box.verified and 0.97 * 20 <= box.worst_case_um <= 20
@@ -103,6 +106,7 @@ def test_sweep_counts_saturation_as_failure(study):
     assert pod.saturated == res.saturated
 
 
+@pytest.mark.slow
 def test_response_surface_stands_in_with_the_loop_closed(study):
     """``--rom auto`` on the steered machine: the surrogate, trained and validated by closed-loop
     runs, predicts the metric and the actuator angle of fresh configurations as the full runs do."""

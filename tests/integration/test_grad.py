@@ -44,6 +44,7 @@ def test_grad_wrt_roller_translation_matches_central_differences(loaded, k):
     assert abs(float(g - fd)) / abs(float(fd)) < 1e-5
 
 
+@pytest.mark.slow
 def test_grad_through_eliminated_and_naive():
     """Reverse mode through the eliminated integrator (dense condensation, ``jnp.linalg.solve``)
     gives the direct one's gradient. The direct gradient is case 1d-drive-idle-kept-interior of
@@ -192,6 +193,7 @@ _FD_PARAMS = [pytest.param(case, solver, id=f"{case}-{solver}", marks=[pytest.ma
               for solver in ("kept-interior", "reuse") for case in _FD_CASES]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case,solver", _FD_PARAMS)
 def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, solver):
     """Reverse mode through the whole run (custom adjoint solve, checkpointed scan) against
@@ -218,6 +220,7 @@ def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, s
             assert abs(float(g[k])) <= 1e-12 * gmax and abs(fd) <= 1e-9 * gmax, (k, float(g[k]), fd)
 
 
+@pytest.mark.slow
 def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
     """Chunked ``jax.checkpoint`` with ``every = 3`` and a tail of 2 steps: 1-step chunks (nested
     inside each record interval, the tail's padded interval too) give the same trajectory and
@@ -245,6 +248,7 @@ def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
     check(metric(t0, 6)[1], ref)
 
 
+@pytest.mark.slow
 def test_checkpointing_bounds_reverse_mode_memory():
     """XLA's temporary memory for the gradient of a 400-step run: the checkpointed scan (20-step
     chunks) needs a fraction of what storing every step's residuals takes."""

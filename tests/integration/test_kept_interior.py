@@ -30,6 +30,7 @@ def _random_bordered(rng, n=7, b=4, q=5):
                                C=g(n, b, q), D=g(n, q, b), E=g(q, q) + 8 * jnp.eye(q))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["thomas", "cyclic-reduction"])
 def test_refactorise_border_is_the_exact_factorisation(method):
     rng = np.random.default_rng(3)
@@ -78,6 +79,7 @@ def moved(walking, dt):
     return jax.jit(lambda m: run(m, FullFactorisation(), jb.initial_state(m), dt, 4)[0])(walking)
 
 
+@pytest.mark.slow
 def test_lever_columns_and_dynamic_rows(walking):
     cols, rows = lever_columns(walking)
     d = len(walking.dofs)
@@ -109,6 +111,7 @@ def test_kept_factors_solve_as_a_full_factorisation(walking, dt, moved):
     assert float(jnp.max(jnp.abs(frozen - dense))) > 1e-8 * scale  # the test can fail
 
 
+@pytest.mark.slow
 def test_run_equals_a_full_factorisation_every_step(walking, dt):
     """The kept interior against the full factorisation of every step's matrix, over a run whose
     lever arms move."""
@@ -126,6 +129,7 @@ def test_run_equals_a_full_factorisation_every_step(walking, dt):
     assert float(jnp.max(jnp.abs(s_full.u[:, 1::2] - s0.u[:, 1::2]))) > 1e-7
 
 
+@pytest.mark.slow
 def test_gradient_through_the_kept_interior(walking, dt, moved):
     """Reverse mode through one step (its adjoint solve is the transposed kept-interior solve)
     equals reverse mode through the full factorisation."""
@@ -149,6 +153,7 @@ def test_gradient_through_the_kept_interior(walking, dt, moved):
     assert float(jnp.max(jnp.abs(g_full))) > 0
 
 
+@pytest.mark.slow
 def test_reuse_factors_come_from_the_start_state_of_the_run(walking, dt, moved):
     """:class:`jaxbelt.Reuse` factors the matrix of the state a run starts from (its ``init``,
     inside the run): without refinement, its first step from a state whose lever arms have moved
@@ -164,6 +169,7 @@ def test_reuse_factors_come_from_the_start_state_of_the_run(walking, dt, moved):
     assert float(jnp.max(jnp.abs(stale.u_dot - exact.u_dot))) > 1e-9 * scale  # the test can fail
 
 
+@pytest.mark.slow
 def test_source_transport_factors_every_step(walking, dt):
     s0 = jb.initial_state(walking)
     assert DirectBackwardEuler(KeptInterior(), transport="source").init(walking, s0, dt).linear is None
@@ -171,6 +177,7 @@ def test_source_transport_factors_every_step(walking, dt):
     assert FullFactorisation().init(walking, s0, dt).linear is None
 
 
+@pytest.mark.slow
 def test_stencil_product_equals_the_block_product(walking):
     from jaxbelt.assembly import free_belt_matvec, free_belt_stencil, stencil_matvec
 
@@ -186,6 +193,7 @@ def test_stencil_product_equals_the_block_product(walking):
     assert free_belt_stencil(jb.build_model(jb.load_scene("two-roller-1d"))) is None
 
 
+@pytest.mark.slow
 def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking, dt):
     from jaxbelt.timeloop import make_step
 
@@ -198,6 +206,7 @@ def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking, dt)
     assert float(jnp.max(jnp.abs(r_all))) > 1.0  # the supports do carry load
 
 
+@pytest.mark.slow
 def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     """Blocks with zero couplings break the chain: the rearranged sweeps give the same solve,
     and its transpose (the adjoint solve) equals the plain one's."""
@@ -230,6 +239,7 @@ def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     assert float(jnp.max(jnp.abs(x_wrong - x_p))) > 1e-6
 
 
+@pytest.mark.slow
 def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
     """With the roller columns known, ``T⁻¹`` of block 0's border columns is kept on the free
     spans next to block 0 only; the solve, its transpose and a border refactorisation with it

@@ -110,6 +110,7 @@ def _env(**extra):
     return env
 
 
+@pytest.mark.slow
 def test_batched_map_over_four_cpu_devices_equals_vmap():
     env = _env(XLA_FLAGS=_devices(4))
     r = subprocess.run([sys.executable, "-c", FOUR_DEVICES], env=env, capture_output=True,

@@ -53,6 +53,7 @@ def test_dt_just_below_the_cfl_limit_runs_and_just_above_is_rejected():
         jb.simulate(model, opts.solver, n_steps=opts.n_steps, dt=1.01 * dt_max)
 
 
+@pytest.mark.slow
 def test_nonfinite_state_stops_with_step_and_cause():
     model, opts = load(scene_1d(time={"t_end_s": 0.1}))
     run = dict(solver=opts.solver, dt=opts.dt)
@@ -71,6 +72,7 @@ def test_nonfinite_state_stops_with_step_and_cause():
     assert not np.any(np.asarray(tr.nonfinite))
 
 
+@pytest.mark.slow
 def test_long_run_keeps_mass_and_mean_displacement():
     """10 000 steps (50 s; the 100 000-step version is marked slow): no drift of the belt mass or
     of the mean tracer displacement once the belt has settled."""
@@ -180,6 +182,7 @@ def test_rotation_beyond_the_linear_range_is_refused_and_near_it_warned():
         assert len(hits) == (outcome == "warn")
 
 
+@pytest.mark.slow
 def test_linearity_error_grows_with_the_skew_as_measured():
     """The figure behind the range: on a coarse three-roller the skew response's linearity error at
     10 mrad is 0.3–1 % and at 1 mrad ten times smaller."""
@@ -203,6 +206,7 @@ def test_linearity_error_grows_with_the_skew_as_measured():
 
 # --- float32 and the reduced models at the edges -------------------------------------------------
 
+@pytest.mark.slow
 def test_float32_end_to_end_error_is_small():
     """Without :func:`jaxbelt.enable_x64` the whole model runs in float32 (a subprocess: x64 is
     process-wide); on two-roller-1d-train1 over 400 steps the tracers differ from float64 by
@@ -240,6 +244,7 @@ def _linear_trajectory(n=8, m=60, seed=1, growth=None):
     return A, lam, X
 
 
+@pytest.mark.slow
 def test_dmd_on_duplicated_rank_deficient_and_noisy_snapshots():
     from jaxbelt.rom import fit_dmd
 
@@ -299,6 +304,7 @@ def t72_default_grid():
     return _t72_run(18)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n_eta", [2, pytest.param(33, marks=pytest.mark.slow)])
 def test_very_coarse_and_very_fine_grids_across_the_width(n_eta, t72_default_grid):
     """three-roller-t72 with 2 and 33 points across (N = 1266 … 6882), 20 steps: finite, mass

@@ -65,6 +65,7 @@ def test_shift_transport_mesh_independent():
     np.testing.assert_allclose(eps[0], 1e-3 / (0.275 + np.pi * 0.05), rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_source_transport_depends_on_dt():
     """eq. 3.56 as written: the steady strain drifts with Δt (numbers quoted in jaxbelt.transport)."""
     eps5, w5 = _steady_strain("source", 0.005)
@@ -74,6 +75,7 @@ def test_source_transport_depends_on_dt():
     assert abs(w5[1] / w5[0] - 1) < 1e-3  # still within the 0.1 % speed tolerance at 1 mm
 
 
+@pytest.mark.slow
 def test_plain_interpolation_on_arcs_erases_a_translation(monkeypatch):
     """Why the arcs carry w = u - R_r χ: interpolating u itself (eq. 3.55) lets the span strain
     of a translated idle roller decay to zero; with the roller-relative transport it persists."""

@@ -49,6 +49,7 @@ def test_gradient_matches_central_differences(setup):
         assert grad[i] == pytest.approx(fd, rel=1e-4)
 
 
+@pytest.mark.slow
 def test_tuning_lowers_the_objective_within_the_margins(result):
     r = result
     assert r.tuned.objective < r.start.objective and r.improvement > 0
@@ -72,6 +73,7 @@ def _control_margins(plant: SteeringPlant, kp, ki):
     return 20 * np.log10(gm), pm
 
 
+@pytest.mark.slow
 def test_margins_match_python_control(result):
     plant = result.plant
     assert plant.recirculating
@@ -101,6 +103,7 @@ def test_cli_json(setup, capsys):
             "response_gain_margin_db", "feasible"} <= set(r["tuned"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [["tune", "--objective", "max"], ["tune", "--iterations", "-1"],
                                   ["tune", "two-roller-1d"], ["tune", "--t-end", "0.2"]])
 def test_cli_bad_input_exits_2(argv, capsys):
