@@ -23,7 +23,6 @@ def first_python_block(text: str) -> str:
     return first_block(text, "python")
 
 
-@pytest.mark.slow
 def test_readme_first_python_example_runs():
     code = first_python_block(README.read_text())
     assert "jb.simulate" in code  # the API quick start, not some other snippet

@@ -103,7 +103,6 @@ def test_cli_json(setup, capsys):
             "response_gain_margin_db", "feasible"} <= set(r["tuned"])
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("argv", [["tune", "--objective", "max"], ["tune", "--iterations", "-1"],
                                   ["tune", "two-roller-1d"], ["tune", "--t-end", "0.2"]])
 def test_cli_bad_input_exits_2(argv, capsys):
