@@ -1,7 +1,6 @@
 """Closed-loop runs (jaxbelt.control inside the time loop): the records, the loop doing its job,
 gradients and vmap through the gains, no recompile for new gains, and the command line's report."""
 
-import contextlib
 import json
 
 import jax

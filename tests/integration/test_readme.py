@@ -3,7 +3,6 @@ install meets), it stays short, it opens with the two set-up commands, and neith
 pages talk about how the project was developed or point outside the repository."""
 
 import re
-from pathlib import Path
 
 import pytest
 from helpers import REPO

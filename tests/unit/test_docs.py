@@ -8,7 +8,6 @@ import argparse
 import importlib.util
 import json
 import re
-from pathlib import Path
 
 import pytest
 from helpers import REPO

@@ -10,7 +10,6 @@ checks against scikit-fem's ``ElementQuad1``. On rectangles Q6 and Taylor's QM6 
 """
 
 import sys
-from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np

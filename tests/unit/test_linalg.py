@@ -10,7 +10,7 @@ import pytest
 
 from helpers import load, random_bordered
 from jaxbelt.assembly import dae_matrices
-from jaxbelt.linalg import BorderedBlockCyclic, bordered_solve, dense_solve, join
+from jaxbelt.linalg import bordered_solve, dense_solve, join
 
 
 solve = jax.jit(bordered_solve, static_argnums=3)

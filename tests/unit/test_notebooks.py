@@ -8,7 +8,6 @@ minutes each. ``python -m pytest --runslow tests/unit/test_notebooks.py`` runs a
 ``-m slow -k "executes and not full_size"`` the small runs alone."""
 
 import json
-from pathlib import Path
 
 import pytest
 from helpers import REPO
