@@ -12,6 +12,7 @@ import numpy as np
 
 from .. import plot, rom
 from ..build import build_model
+from ..integrators import DirectBackwardEuler, Reuse
 from ..design.sampling import distribution_from_dict
 from ..rom.results import METHODS as REDUCE_METHODS
 from ..rom.results import FullRunDivergedError, ReducedRunDivergedError
@@ -78,6 +79,12 @@ def add_parser(subparsers):
     r.add_argument("--train-ranges", default=None, metavar="FILE.toml",
                    help="train over a box of misalignments around SCENE's aligned machine (the sweep's --dist "
                         "format; uniform half-widths give the box, normal laws ±3σ): the axial design, 2P + 1 runs")
+    r.add_argument("--tol-mm", type=float, default=0.02, metavar="MM",
+                   help="with --train-ranges and dmdc: train until the error estimate on held-out configurations "
+                        "is below a tenth of this tolerance (default 0.02 mm, the source's)")
+    r.add_argument("--held-out", type=int, default=10, metavar="K",
+                   help="with --train-ranges and dmdc: configurations drawn from the box the estimate is checked "
+                        "on (default 10)")
     r.add_argument("--modes", type=int, default=None, metavar="N",
                    help="reduced dimension (default: pod 20, dmdc/pdmd 30, dmd all non-negligible)")
     r.add_argument("--train-steps", type=int, default=None, metavar="N", help="full-order steps per training scene "
@@ -97,24 +104,29 @@ def run(args):
     _check_args(args)
     scene = scene_from_args(args.scene)
     test, opts = build_model(scene), RunOptions.from_scene(scene)
-    train_names, train, train_solvers = _training_set(args, scene, test, opts)
+    train_names, train, train_solvers, box = _training_set(args, scene, test, opts)
     n = int(args.steps or opts.n_steps)
-    m_train = int(args.train_steps or min(200, n // 2))
+    trained = None
+    if box is not None and args.method == "dmdc" and args.train_steps is None and args.modes is None:
+        trained = _sized_training(test, box, n, opts, args)
+        train_names = [train_names[0] + f", sized to {args.tol_mm:g} mm on {args.held_out} held-out configurations"]
+    m_train = trained.train_steps if trained is not None else int(args.train_steps or min(200, n // 2))
     if m_train < (2 if args.method == "dmd" else 1):
         raise UsageError(f"--steps = {n}: too few steps to train on (--train-steps = {m_train})")
     if args.method == "dmd" and m_train >= n:
         raise UsageError(f"--train-steps = {m_train} with --steps = {n}: dmd predicts the steps after the "
                          "training window, so --train-steps must be smaller than --steps")
     config = rom.ReduceConfig(method=args.method, n_steps=n, dt=opts.dt, solver=opts.solver,
-                              every=opts.saveat.every, train_steps=m_train, modes=args.modes, stride=args.stride,
+                              every=opts.saveat.every, train_steps=m_train,
+                              modes=trained.modes if trained is not None else args.modes, stride=args.stride,
                               spectra=bool(args.plot))
     try:
-        result = rom.reduce_and_compare(test, train, config, train_solvers)
+        result = rom.reduce_and_compare(test, train, config, train_solvers, trained=trained)
     except FullRunDivergedError:
         raise SimulationError(f"the full simulation of {scene.name} diverged; nothing to compare with") from None
     except ReducedRunDivergedError as e:
         raise SimulationError(str(e)) from None
-    report = _report(result, scene.name, train_names, args.stride)
+    report = _report(result, scene.name, train_names, args.stride, trained)
     if args.plot:
         _plot(result, report, args.plot)
 
@@ -133,6 +145,9 @@ def _check_args(args):
     check_at_least("--steps", args.steps)
     check_at_least("--train-steps", args.train_steps, 2 if method == "dmd" else 1)
     check_at_least("--stride", args.stride, 0)
+    check_at_least("--held-out", args.held_out)
+    if not (np.isfinite(args.tol_mm) and args.tol_mm > 0):
+        raise UsageError(f"--tol-mm {args.tol_mm}: must be a positive number of millimetres")
     train = list(args.train or [])
     if args.train_ranges is not None:
         if train:
@@ -166,7 +181,9 @@ def _training_set(args, scene, test, opts):
                           f"half-width" + (f"; not varied: {', '.join(unvaried)}" if unvaried else "") + ")")
         names = [f"axial design over {args.train_ranges} ({len(models)} runs, {space.size} components)"]
         runs = [(names[0], m, opts) for m in models]
+        box_spec = (tuple(dist.labels), box)
     else:
+        box_spec = None
         names = list(args.train or [args.scene])
         runs = [(t, test, opts) if t == args.scene else _scene_run(t) for t in names]
     for name, m, o in runs:
@@ -178,7 +195,37 @@ def _training_set(args, scene, test, opts):
             raise UsageError(f"--train {name}: dt = {o.dt:g} s, {scene.name} has dt = {opts.dt:g} s")
         if args.method == "pod" and o.solver.transport != "shift":
             raise UsageError(f"--method pod needs the 'shift' transport rule; {name} uses {o.solver.transport!r}")
-    return names, [m for _, m, _ in runs], [o.solver for _, _, o in runs]
+    return names, [m for _, m, _ in runs], [o.solver for _, _, o in runs], box_spec
+
+
+def _sized_training(test, box, n_steps, opts, args):
+    """The DMDc model over the box trained until its held-out estimate meets the tolerance
+    (:func:`jaxbelt.rom.train_over_box`), each level reported on stderr. The training runs and
+    estimates use the reuse mode of a direct scene solver (factors frozen at each run's start;
+    ``reduce`` checks that the mode reproduces the scene's own on the predicted run)."""
+    import sys
+
+    labels, half_widths = box
+    solver = opts.solver
+    if isinstance(solver, DirectBackwardEuler):
+        solver = DirectBackwardEuler(Reuse(), transport=solver.transport)
+
+    def progress(level):
+        worst = max(level.estimate_mm)
+        print(f"  sizing: {level.train_steps} steps × {len(labels) * 2 + 1} runs, {level.modes} modes: "
+              f"estimate {worst:.3g} mm on held-out {len(level.estimate_mm)}/{args.held_out} "
+              f"({'meets' if level.passed else 'misses'} {args.tol_mm / 10:g} mm; {level.seconds:.1f} s)",
+              file=sys.stderr, flush=True)
+
+    trained = rom.train_over_box(test, labels, half_widths, n_steps, opts.dt, solver, tol_mm=args.tol_mm,
+                                 held_out=args.held_out, stride=max(args.stride, 1), progress=progress)
+    if not trained.converged:
+        why = {"stalled": "more training stopped lowering the estimate", "horizon": "its window reached the horizon",
+               "schedule": "at its largest level"}[trained.stop]
+        warnings.warn(f"the sized training stopped ({why}: {trained.train_steps} steps, {trained.modes} modes) with a "
+                      f"held-out estimate of {max(trained.levels[-1].estimate_mm):.3g} mm, above the target "
+                      f"{trained.target_mm:g} mm")
+    return trained
 
 
 def _scene_run(name):
@@ -186,9 +233,13 @@ def _scene_run(name):
     return name, build_model(scene), RunOptions.from_scene(scene)
 
 
-def _report(r: rom.ReductionResult, scene_name: str, train_names, stride: int) -> dict:
+def _report(r: rom.ReductionResult, scene_name: str, train_names, stride: int, trained=None) -> dict:
     """The command's JSON report of a result (what ``--json`` prints and the table shows)."""
     extra = dict(offline_first_call_s=r.timings.offline_first_call_s)
+    if trained is not None:
+        extra["sizing"] = dict(target_mm=trained.target_mm, converged=trained.converged, stop=trained.stop,
+                               held_out=len(trained.held_out), seconds=trained.seconds,
+                               levels=[dataclasses.asdict(lv) for lv in trained.levels])
     if r.modes_discarded is not None:
         extra["modes_discarded"] = r.modes_discarded
     if r.training_starts_at_step is not None:
@@ -243,6 +294,11 @@ def print_reduce(r):
                             f"{fmt(r['error_estimate']['safety_factor'])})") if r.get("error_estimate_mm") is not None
          else "-" if r["stride"] == 0 else "nan"),
     ]
+    if "sizing" in r:
+        sz, last = r["sizing"], r["sizing"]["levels"][-1]
+        rows.append(("sized", f"{len(sz['levels'])} level(s) in {sz['seconds']:.3g} s; held-out estimate "
+                              f"{fmt(max(last['estimate_mm']), ' mm')} on {len(last['estimate_mm'])}/{sz['held_out']} "
+                              f"({'meets' if sz['converged'] else 'misses'} {fmt(sz['target_mm'], ' mm')})"))
     tm = r["timings"]
     modes = ", ".join(f"{k} {v:.4g} s" for k, v in tm["full_runs_s"].items())
     rows += [("full run", f"{tm['full_run_s']:.4g} s ({tm['full_mode']}, the fastest; {modes})"),

@@ -139,11 +139,7 @@ def fit_dmdc(X, Y, U, rank: int | None = None, rank_out: int | None = None, meth
     if method == "pod":
         Vb, sb, _ = jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), full_matrices=False)
         r = _rank(sb, (N, 2 * X.shape[1]), rank)
-        V = Vb[:, :r]
-        Xi, Yi = V.T @ X, V.T @ Y
-        scale = _input_scale(U, Xi) if scale_inputs else jnp.ones(U.shape[0], X.dtype)
-        AB = Yi @ jnp.linalg.pinv(jnp.concatenate([Xi, U * scale[:, None]], axis=0), rtol=rtol)
-        return DMDcModel(V, AB[:, :r], AB[:, r:] * scale[None, :])
+        return fit_dmdc_in_basis(Vb[:, :r], X, Y, U, rtol=rtol, scale_inputs=scale_inputs)
     if method != "proctor":
         raise ValueError(f"unknown DMDc method {method!r} (use 'pod' or 'proctor')")
     scale = _input_scale(U, X) if scale_inputs else jnp.ones(U.shape[0], X.dtype)
@@ -157,6 +153,19 @@ def fit_dmdc(X, Y, U, rank: int | None = None, rank_out: int | None = None, meth
     A = Uh.T @ YVS @ (Ut[:N].T @ Uh)
     B = Uh.T @ YVS @ Ut[N:].T * scale[None, :]
     return DMDcModel(Uh, A, B)
+
+
+def fit_dmdc_in_basis(V, X, Y, U, rtol: float = 1e-8, scale_inputs: bool = True) -> DMDcModel:
+    """DMD with control in a given orthonormal basis ``V`` (N, r) (:func:`fit_dmdc`'s ``"pod"``
+    method after its SVD): ``[Ã B̃] = VᵀY [VᵀX; Υ]⁺``, the pseudo-inverse truncated at ``rtol``
+    and the input rows scaled as there."""
+    X, Y = jnp.asarray(X), jnp.asarray(Y)
+    U = jnp.asarray(U, X.dtype)
+    r = V.shape[1]
+    Xi, Yi = V.T @ X, V.T @ Y
+    scale = _input_scale(U, Xi) if scale_inputs else jnp.ones(U.shape[0], X.dtype)
+    AB = Yi @ jnp.linalg.pinv(jnp.concatenate([Xi, U * scale[:, None]], axis=0), rtol=rtol)
+    return DMDcModel(V, AB[:, :r], AB[:, r:] * scale[None, :])
 
 
 def belt_inputs(mu, n_steps: int):
@@ -250,5 +259,5 @@ def stack_controlled(trajectories, inputs):
     return X, Y, jnp.concatenate(list(inputs), axis=1)
 
 
-__all__ = ["DMDcModel", "fit_dmdc", "ParametricDMD", "fit_parametric_dmd", "interpolation_weights",
+__all__ = ["DMDcModel", "fit_dmdc", "fit_dmdc_in_basis", "ParametricDMD", "fit_parametric_dmd", "interpolation_weights",
            "belt_inputs", "stack_controlled", "DMDModel"]

@@ -182,13 +182,15 @@ def _chunked(fn, X, chunk, axis):
     return np.concatenate(out, axis=axis)
 
 
-@jax.jit
 def _remainder_svd(W, X):
-    """``‖X‖₂`` and the SVD of ``X`` minus its projection on ``span(W)`` (twice Gram-Schmidt)."""
-    scale = jnp.linalg.norm(X, 2)
+    """``‖X‖₂`` and the SVD of ``X`` minus its projection on ``span(W)`` (twice Gram-Schmidt), in
+    NumPy: ``X``'s column count changes from call to call, and a compiled program per shape
+    costs more than the LAPACK calls themselves."""
+    W, X = np.asarray(W), np.asarray(X)
+    scale = float(np.linalg.norm(X, 2))
     for _ in range(2):
         X = X - W @ (W.T @ X)
-    U, s, _ = jnp.linalg.svd(X, full_matrices=False)
+    U, s, _ = np.linalg.svd(X, full_matrices=False)
     return scale, U, s
 
 

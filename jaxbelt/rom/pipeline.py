@@ -39,6 +39,7 @@ from ..integrators import AbstractIntegrator, DirectBackwardEuler, Reuse, solver
 from ..state import initial_state
 from ..timeloop import SaveAt, simulate
 from .dmd import dmd_coordinates, fit_dmd
+from .box import fit_over_trajectories
 from .dmdc import belt_inputs, fit_dmdc, fit_parametric_dmd, stack_controlled
 from .calibration import calibrate
 from .indicator import BasisTrajectory, error_rom
@@ -61,6 +62,7 @@ class _Context:
     snapshot_solvers: tuple  # per training model: its solver in the fastest full mode
     test_solver: AbstractIntegrator  # the predicted model's solver in the fastest full mode
     fit_solvers: tuple  # per training model: its own solver (the fully reduced step's linearisation)
+    trained: object = None  # a BoxTraining whose runs and fit dmdc takes instead of training
 
     @property
     def dt(self):
@@ -118,7 +120,7 @@ class _Fit:
     training_starts_at_step: int | None = None
 
 
-def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None) -> ReductionResult:
+def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, trained=None) -> ReductionResult:
     """Train a reduced model of ``config.method`` on the ``train`` models (dmd: ``model`` itself),
     predict ``model`` over ``config.n_steps`` steps and compare with its full-order run (module
     docstring).
@@ -126,12 +128,20 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None) -
     **Arguments:** ``model`` the configuration predicted; ``train`` the training configurations
     (same mesh; pod is linearised at the first; dmdc/pdmd need at least two: the nominal
     configuration plus one run per varied parameter); ``config`` (:class:`ReduceConfig`);
-    ``train_solvers`` each training model's own integrator (default ``config.solver``).
+    ``train_solvers`` each training model's own integrator (default ``config.solver``);
+    ``trained`` (dmdc only) a :class:`~jaxbelt.rom.box.BoxTraining` sized to a tolerance: its
+    training runs and fit are used as they are (``train`` is then its models, the training steps
+    and modes its own), and its loop's time, compilation included, is the offline time.
 
     **Raises:** ``ValueError`` on an unusable training set, :class:`FullRunDivergedError`,
     :class:`ReducedRunDivergedError`.
     """
     solver = config.full_solver
+    if trained is not None:
+        if config.method != "dmdc":
+            raise ValueError(f"a sized training (trained=) is a DMDc model; method is {config.method!r}")
+        train = trained.models
+        config = dataclasses.replace(config, train_steps=trained.train_steps, modes=trained.modes)
     train = tuple(train) if train else (model,)
     train_solvers = tuple(train_solvers) if train_solvers is not None else (solver,) * len(train)
     _check_training(model, train, train_solvers, config)
@@ -148,7 +158,7 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None) -
         return DirectBackwardEuler(Reuse(), transport=s.transport)
 
     ctx = _Context(model=model, train=train, config=config, snapshot_solvers=tuple(fastest(s) for s in train_solvers),
-                   test_solver=fastest(solver), fit_solvers=train_solvers)
+                   test_solver=fastest(solver), fit_solvers=train_solvers, trained=trained)
     fit = _FITS[config.method](ctx)
 
     pred = np.asarray(fit.prediction)
@@ -174,7 +184,8 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None) -
         n_steps=n, predict_from_step=fit.start, compared=fit.compared, n_unknowns=model.n_unknowns,
         n_tracers=model.n_tracers, rmse_mm=float(rmse(truth, pred)) * 1e3, rrmse=float(rrmse(truth, pred)),
         max_rmse_over_time_mm=float(np.max(err_t)) if err_t.size else None, t=steps_full[rows] * float(dt),
-        error_mm=err_t, estimate=estimate, timings=timings, spectra=fit.spectra() if config.spectra else None)
+        error_mm=err_t, estimate=estimate, timings=timings, spectra=fit.spectra() if config.spectra else None,
+        sizing=None if trained is None else trained.levels)
 
 
 def _check_training(model, train, train_solvers, config):
@@ -265,8 +276,11 @@ def _estimate(ctx: _Context, fit: _Fit, at) -> ReductionEstimate:
     est = error_rom(ctx.model, traj.basis, traj.coords, ctx.dt, traj.z_true0, stride=config.stride, order=fit.order,
                     integrator=ctx.test_solver, options=config.estimate)
     test_s = time.perf_counter() - t0
-    cal = calibrate(fit.calibration_cases(max(1, ctx.m_train // 2)), ctx.dt, stride=config.stride, order=fit.order,
-                    options=config.estimate)
+    if ctx.trained is not None:  # calibrated on the same fit and training runs already
+        cal = ctx.trained.calibration
+    else:
+        cal = calibrate(fit.calibration_cases(max(1, ctx.m_train // 2)), ctx.dt, stride=config.stride,
+                        order=fit.order, options=config.estimate)
     kappa = cal.safety_factor
     est_t = kappa * np.asarray(est.error_mm)[at]
     some = bool(est_t.size)
@@ -358,13 +372,20 @@ def _fit_dmdc(ctx: _Context) -> _Fit:
 
     def fit_on(trajs):
         X, Y, U = stack_controlled(trajs, [belt_inputs(p, Z.shape[1] - 1) for p, Z in zip(params, trajs)])
+        if ctx.trained is not None:  # the sized training's own fit
+            return X, Y, fit_over_trajectories(trajs, params, ctx.trained.modes)
         return X, Y, fit_dmdc(X, Y, U, rank=modes)
 
     def train():
         trajs = _trajectories(ctx)
         return trajs, fit_on(trajs)
 
-    (trajs, (X, Y, fit)), offline_s, first_s = ctx.offline(train)
+    if ctx.trained is not None:
+        trajs, fit = list(ctx.trained.trajectories), ctx.trained.fit
+        X, Y, _ = stack_controlled(trajs, [belt_inputs(p, Z.shape[1] - 1) for p, Z in zip(params, trajs)])
+        offline_s = first_s = ctx.trained.seconds
+    else:
+        (trajs, (X, Y, fit)), offline_s, first_s = ctx.offline(train)
     u = belt_inputs(parameters(ctx.model), 1)[:, 0]
     pred, online_s = _timed(jax.jit(lambda f, z, u: f.predict(z, u, n, observe=Cz)), fit, z0, u)
 

@@ -156,7 +156,9 @@ class ReductionResult:
     ``n_tracers``; ``rmse_mm``, ``rrmse`` and ``max_rmse_over_time_mm`` (``None`` without compared
     steps) of the prediction; ``t`` (k,) the compared steps' times and ``error_mm`` (k,) the tracer
     RMSE at each; ``estimate`` (:class:`ReductionEstimate`, ``None`` with ``stride = 0``);
-    ``timings`` (:class:`Timings`); ``spectra`` (:class:`Spectra`, where asked for).
+    ``timings`` (:class:`Timings`); ``spectra`` (:class:`Spectra`, where asked for); ``sizing``
+    the sizing loop's levels (:class:`~jaxbelt.rom.box.SizingLevel`) where the training was sized
+    to a tolerance (:func:`~jaxbelt.rom.box.train_over_box`), else ``None``.
     """
 
     method: str
@@ -178,6 +180,7 @@ class ReductionResult:
     estimate: ReductionEstimate | None
     timings: Timings
     spectra: Spectra | None
+    sizing: tuple | None = None
 
     @property
     def predict_steps(self) -> int:
