@@ -280,6 +280,11 @@ BENCHMARKS = {
                      "`three-roller` against its 2D run, and float32 against float64 on `three-roller-t72` and "
                      "`two-roller-1d`: the tracer differences and both run times ([accuracy on demand]"
                      "(accuracy.md#the-model-and-the-precision))."),
+    "rom_box_sized": ("A reduced model sized to the tolerance", "`jaxbelt reduce three-roller --method dmdc "
+                      "--train-ranges BOX.toml --steps 1500` over the 15 free components (±3 mm, ±0.5 mrad), timed "
+                      "as its own process with an empty and with a warm compilation cache, its sizing levels, and the "
+                      "sized model's error estimate against full runs of fresh configurations from the box "
+                      "(effectivity = estimate / true tracer RMSE; [model order reduction](reduction.md))."),
     "dmd_one_run": ("DMD on one configuration", "`jaxbelt reduce three-roller-t72 --method dmd --train-steps 400` "
                     "in one process, with the randomized and with the thin SVD: offline and online time, against "
                     "the fastest full run and against the 400 snapshot steps alone, and the tracer RMSE "

@@ -40,7 +40,11 @@ methods:
 the file has the sweep's --dist format (uniform half-widths give the box, a normal law ±3σ), the
 box is centred on SCENE's aligned machine, and the training runs are the axial design — the
 aligned machine and each component at ± its half-width (jaxbelt.rom.axial_design); SCENE's own
-misalignment is the configuration predicted (a warning if it lies outside the box).
+misalignment is the configuration predicted (a warning if it lies outside the box). With dmdc
+(and neither --train-steps nor --modes given) the training is sized to the question: training
+steps and modes grow in levels until the calibrated error estimate on --held-out configurations
+drawn from the box is below a tenth of --tol-mm (jaxbelt.rom.train_over_box); the levels are
+reported on stderr and in the JSON (sizing).
 
 dmdc and pdmd predict a configuration they have not seen: --train needs at least two scenes,
 the nominal configuration plus one run per varied parameter, e.g. for a two-roller-1d-* scene

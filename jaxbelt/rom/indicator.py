@@ -81,15 +81,19 @@ from ..transport import transport_step
 from .snapshots import state_to_z, tracer_operator, z_to_state
 
 
-def full_step_map(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post"):
+def full_step_map(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post", run_data=None):
     """``z -> F(z)``: one full-order step of size ``dt`` (``integrator``, default
     :func:`jaxbelt.make_solver`'s, and its transport rule) on scaled first-order states.
     ``order="post"``: states after transport (solve, then transport); ``"pre"``: states before
-    transport (transport, then solve), as for DMD on pre-transport snapshots."""
+    transport (transport, then solve), as for DMD on pre-transport snapshots. ``run_data``: what
+    ``integrator.init`` gives at the model's initial state (computed here when ``None``; a
+    caller that applies ``F`` many times passes it once, see :func:`run_data_at_start`)."""
     if order not in ("post", "pre"):
         raise ValueError("order must be 'post' or 'pre'")
     integrator = make_solver() if integrator is None else integrator
-    step = make_step(model, integrator, dt, integrator.init(model, initial_state(model), dt), SaveAt(solved=True))
+    if run_data is None:
+        run_data = integrator.init(model, initial_state(model), dt)
+    step = make_step(model, integrator, dt, run_data, SaveAt(solved=True))
 
     def post(z):
         return state_to_z(model, step(z_to_state(model, z, dt))[0], dt)
@@ -136,10 +140,18 @@ def residual_indicator(model, states, dt, stride: int = 10, integrator: Abstract
 # --------------------------------------------------------------------------- the error ROM
 
 
-def _step_map(model, dt, integrator, order: str, steps: int):
+@eqx.filter_jit
+def run_data_at_start(model, integrator, dt):
+    """``integrator.init`` at ``model``'s initial state (the static solve and, for the reuse
+    solver, its factors): computed once per estimate and passed to every batch of full steps,
+    instead of again inside each compiled batch."""
+    return integrator.init(model, initial_state(model), dt)
+
+
+def _step_map(model, dt, integrator, order: str, steps: int, run_data=None):
     """``z -> F^steps(z)``: ``steps`` full-order steps (a reduced model whose one step spans
     several full ones, e.g. DMDc fitted on every 4th snapshot)."""
-    F = full_step_map(model, dt, integrator, order)
+    F = full_step_map(model, dt, integrator, order, run_data)
 
     def Fs(z):
         for _ in range(steps):
@@ -150,15 +162,15 @@ def _step_map(model, dt, integrator, order: str, steps: int):
 
 
 @eqx.filter_jit
-def _apply_steps(model, dt, integrator, order, steps, Z):
+def _apply_steps(model, dt, integrator, order, steps, Z, run_data=None):
     """``F`` on each row of ``Z`` (b, 2N), one compiled program per batch shape."""
-    return jax.vmap(_step_map(model, dt, integrator, order, steps))(Z)
+    return jax.vmap(_step_map(model, dt, integrator, order, steps, run_data))(Z)
 
 
 @eqx.filter_jit
-def _jvp_columns(model, dt, integrator, order, steps, z_ref, V):
+def _jvp_columns(model, dt, integrator, order, steps, z_ref, V, run_data=None):
     """``J V``: the step's Jacobian at ``z_ref`` on each column of ``V`` (2N, b)."""
-    F = _step_map(model, dt, integrator, order, steps)
+    F = _step_map(model, dt, integrator, order, steps, run_data)
     return jax.vmap(lambda v: jax.jvp(F, (z_ref,), (v,))[1], in_axes=1, out_axes=1)(V)
 
 
@@ -221,9 +233,9 @@ def _stabilised(A):
 
 
 @eqx.filter_jit
-def _jvp_one(model, dt, integrator, order, steps, z_ref, v):
+def _jvp_one(model, dt, integrator, order, steps, z_ref, v, run_data=None):
     """``J v`` for one vector (the quasi-static solve's iterations, one after the other)."""
-    return jax.jvp(_step_map(model, dt, integrator, order, steps), (z_ref,), (v,))[1]
+    return jax.jvp(_step_map(model, dt, integrator, order, steps, run_data), (z_ref,), (v,))[1]
 
 
 def _quasi_static_response(J, r, rtol: float, max_iter: int):
@@ -393,8 +405,10 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     obs = np.asarray(tracer_operator(model) if observe is None else observe)
     obs = np.concatenate([obs, np.zeros_like(obs)], axis=1)
 
+    run_data = run_data_at_start(model, integrator, dt)
+
     def F(Z):
-        return _chunked(lambda X: _apply_steps(model, dt, integrator, order, steps, X), Z, options.chunk, 0)
+        return _chunked(lambda X: _apply_steps(model, dt, integrator, order, steps, X, run_data), Z, options.chunk, 0)
 
     starts, D, evaluated = _window_residuals(F, basis, coords, stride, options)
     edges = np.concatenate([starts, [n]])
@@ -403,10 +417,11 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     z0_j = jnp.asarray(z0)
 
     def J(V):
-        return _chunked(lambda X: _jvp_columns(model, dt, integrator, order, steps, z0_j, X), V, options.chunk, 1)
+        return _chunked(lambda X: _jvp_columns(model, dt, integrator, order, steps, z0_j, X, run_data), V,
+                        options.chunk, 1)
 
     def Jv(v):
-        return _jvp_one(model, dt, integrator, order, steps, z0_j, v)
+        return _jvp_one(model, dt, integrator, order, steps, z0_j, v, run_data)
 
     W, JW, qs_iter, settled = _error_subspace(J, Jv, basis, D, e0, edges, options)
     A, rho = _stabilised(W.T @ JW)
