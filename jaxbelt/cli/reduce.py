@@ -83,10 +83,10 @@ def add_parser(subparsers):
     r.add_argument("--train-ranges", default=None, metavar="FILE.toml",
                    help="train over a box of misalignments around SCENE's aligned machine (the sweep's --dist "
                         "format; uniform half-widths give the box, normal laws ±3σ): the axial design, 2P + 1 runs")
-    r.add_argument("--tol-mm", type=float, default=0.02, metavar="MM",
+    r.add_argument("--tol-mm", type=float, default=None, metavar="MM",
                    help="with --train-ranges and dmdc: train until the error estimate on held-out configurations "
                         "is below a tenth of this tolerance (default 0.02 mm, the source's)")
-    r.add_argument("--held-out", type=int, default=10, metavar="K",
+    r.add_argument("--held-out", type=int, default=None, metavar="K",
                    help="with --train-ranges and dmdc: configurations drawn from the box the estimate is checked "
                         "on (default 10)")
     r.add_argument("--modes", type=int, default=None, metavar="N",
@@ -150,8 +150,15 @@ def _check_args(args):
     check_at_least("--train-steps", args.train_steps, 2 if method == "dmd" else 1)
     check_at_least("--stride", args.stride, 0)
     check_at_least("--held-out", args.held_out)
-    if not (np.isfinite(args.tol_mm) and args.tol_mm > 0):
+    if args.tol_mm is not None and not (np.isfinite(args.tol_mm) and args.tol_mm > 0):
         raise UsageError(f"--tol-mm {args.tol_mm}: must be a positive number of millimetres")
+    sized = args.train_ranges is not None and method == "dmdc" and args.train_steps is None and args.modes is None
+    for name, v in (("--tol-mm", args.tol_mm), ("--held-out", args.held_out)):
+        if v is not None and not sized:
+            raise UsageError(f"{name} sizes the training of --method dmdc --train-ranges (without --train-steps or "
+                             "--modes); it has no effect here")
+    args.tol_mm = 0.02 if args.tol_mm is None else args.tol_mm
+    args.held_out = 10 if args.held_out is None else args.held_out
     train = list(args.train or [])
     if args.train_ranges is not None:
         if train:

@@ -119,6 +119,7 @@ def test_cli_sizes_the_training_to_the_tolerance(tmp_path, capsys):
     assert "sized to 1 mm on 2 held-out" in r["train"][0]
     assert r["rmse_mm"] < 0.1 and r["error_estimate"]["safety_factor"] == pytest.approx(last["safety_factor"])
     assert r["timings"]["offline_s"] == pytest.approx(sz["seconds"])
-    for bad, word in ((["--held-out", "0"], "--held-out"), (["--tol-mm", "-1"], "--tol-mm")):
+    for bad, word in ((["--held-out", "0"], "--held-out"), (["--tol-mm", "-1"], "--tol-mm"),
+                      (["--tol-mm", "0.1", "--modes", "8"], "no effect")):
         assert main(argv + bad) == 2
         assert word in capsys.readouterr().err
