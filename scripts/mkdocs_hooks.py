@@ -287,8 +287,9 @@ BENCHMARKS = {
                       "(effectivity = estimate / true tracer RMSE; [model order reduction](reduction.md))."),
     "dmd_one_run": ("DMD on one configuration", "`jaxbelt reduce three-roller-t72 --method dmd --train-steps 400` "
                     "in one process, with the randomized and with the thin SVD: offline and online time, against "
-                    "the fastest full run and against the 400 snapshot steps alone, and the tracer RMSE "
-                    "([model order reduction](reduction.md))."),
+                    "the fastest full run and against the 400 snapshot steps alone, and the tracer RMSE; then "
+                    "snapshots, fit and forecast as one compiled program (`rom.dmd.dmd_forecast`) against the same "
+                    "full run ([model order reduction](reduction.md))."),
     "bandwidth_floor": ("The floor of a batched step", "On `three-roller-tolerance` with the reuse solver: the "
                         "bytes a configuration-step streams against the read bandwidth measured in the same process, "
                         "the step, the solve and one sweep's recurrence timed against it for batches of 1, 8 and 32 "

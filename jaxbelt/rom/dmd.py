@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .indicator import BasisTrajectory
+from .snapshots import collect_first_order
 
 
 class DMDModel(eqx.Module):
@@ -142,6 +143,51 @@ def randomized_svd(X, k: int, power_iterations: int = 1):
         Q, _ = jnp.linalg.qr(X @ Q)
     Ub, s, Vh = jnp.linalg.svd(Q.T @ X, full_matrices=False)
     return Q @ Ub, s, Vh
+
+
+class DMDForecast(eqx.Module):
+    """:func:`dmd_forecast`'s result: ``observed`` (n_predict, o) the forecast observations of
+    steps ``n_train + 1 … n_train + n_predict``; ``rank`` the numerical rank used; ``sketch_full``
+    whether that rank reached the sketch less :data:`SKETCH_MARGIN` (where :func:`fit_dmd`
+    would have taken the full SVD instead: the forecast may then miss directions, and the
+    caller should fit with the full SVD)."""
+
+    observed: jax.Array
+    rank: jax.Array
+    sketch_full: jax.Array
+
+
+@functools.partial(eqx.filter_jit)
+def dmd_forecast(model, integrator, dt, n_train: int, n_predict: int, observe, tol: float = 1e-5) -> DMDForecast:
+    """Snapshots, fit and forecast of single-configuration DMD as one compiled program.
+
+    Runs ``n_train`` full steps of ``integrator`` from ``model``'s initial state, fits exact DMD
+    to the pre-transport first-order snapshots with the randomized range finder (a sketch of
+    :data:`SKETCH` columns, :func:`randomized_svd`), keeps the modes with ``|λ| ≤ 1 + tol``
+    (:meth:`DMDModel.stable`) and forecasts ``n_predict`` steps after the last snapshot,
+    observed by ``observe`` (o, 2N). The numerical rank (:func:`numerical_rank`) is a mask here,
+    not a shape: the directions below it get a zero inverse singular value, so their columns of
+    ``Ã`` vanish, their eigenvalues are 0 and their modes zero; the other eigenpairs and modes are
+    those of the rank-``r`` fit, and the least-squares amplitudes of the kept modes are unchanged.
+    The forecast equals ``fit_dmd(Z).stable().predict(...)`` to round-off (where ``sketch_full``
+    is false). ``n_train`` and ``n_predict`` are static (scan lengths).
+    """
+    _, Z, _ = collect_first_order(model, n_train, dt, integrator)
+    X, Y = Z[:, :-1], Z[:, 1:]
+    k = min(SKETCH, *X.shape)
+    U, s, Vh = randomized_svd(X, k)
+    keep = s > s[0] * max(X.shape) * jnp.finfo(s.dtype).eps
+    s_inv = jnp.where(keep, 1.0 / jnp.where(keep, s, 1.0), 0.0)
+    YVS = Y @ Vh.conj().T * s_inv[None, :]
+    eigs, W = jax.lax.linalg.eig(U.conj().T @ YVS, compute_left_eigenvectors=False)
+    modes = YVS.astype(W.dtype) @ W
+    stable = (jnp.abs(eigs) <= 1 + tol) & (jnp.linalg.norm(modes, axis=0) > 0)
+    modes = jnp.where(stable[None, :], modes, 0.0)
+    b = jnp.linalg.lstsq(modes, Z[:, -1].astype(modes.dtype))[0]  # minimum norm: zero on the zero columns
+    powers = eigs[None, :] ** jnp.arange(1, n_predict + 1)[:, None]
+    observed = jnp.real((powers * b[None, :]) @ (observe.astype(modes.dtype) @ modes).T)
+    rank = jnp.sum(keep)
+    return DMDForecast(observed, rank, rank > k - SKETCH_MARGIN)
 
 
 @jax.jit
