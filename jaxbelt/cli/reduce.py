@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from concurrent.futures import ThreadPoolExecutor
 import warnings
 from pathlib import Path
 
@@ -213,7 +214,10 @@ def _sized_training(test, box, n_steps, opts, args):
     """The DMDc model over the box trained until its held-out estimate meets the tolerance
     (:func:`jaxbelt.rom.train_over_box`), each level reported on stderr. The training runs and
     estimates use the reuse mode of a direct scene solver (factors frozen at each run's start;
-    ``reduce`` checks that the mode reproduces the scene's own on the predicted run)."""
+    ``reduce`` checks that the mode reproduces the scene's own on the predicted run). The error
+    estimate's full-order programs and the full runs ``reduce`` times afterwards are compiled in a
+    background thread during the sizing (:func:`jaxbelt.rom.warm_error_rom`,
+    :func:`jaxbelt.rom.warm_full_runs`)."""
     import sys
 
     labels, half_widths = box
@@ -228,8 +232,15 @@ def _sized_training(test, box, n_steps, opts, args):
               f"({'meets' if level.passed else 'misses'} {args.tol_mm / 10:g} mm; {level.seconds:.1f} s)",
               file=sys.stderr, flush=True)
 
-    trained = rom.train_over_box(test, labels, half_widths, n_steps, opts.dt, solver, tol_mm=args.tol_mm,
-                                 held_out=args.held_out, stride=max(args.stride, 1), progress=progress)
+    def warm_up():  # on the other core meanwhile: the estimate's full-order programs, then the full runs
+        rom.warm_error_rom(test, opts.dt, solver)
+        rom.warm_full_runs(test, opts.solver, n_steps, opts.dt, opts.saveat.every)
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        warm = pool.submit(warm_up)
+        trained = rom.train_over_box(test, labels, half_widths, n_steps, opts.dt, solver, tol_mm=args.tol_mm,
+                                     held_out=args.held_out, stride=max(args.stride, 1), progress=progress)
+        warm.result()
     if not trained.converged:
         why = {"stalled": "more training stopped lowering the estimate", "horizon": "its window reached the horizon",
                "schedule": "at its largest level"}[trained.stop]

@@ -20,6 +20,7 @@ from .indicator import ErrorRomOptions as ErrorRomOptions
 from .calibration import calibrate as calibrate
 from .dmd import dmd_coordinates as dmd_coordinates
 from .indicator import error_rom as error_rom
+from .indicator import warm_error_rom as warm_error_rom
 from .indicator import residual_indicator as residual_indicator
 from .calibration import safety_factor as safety_factor
 from .calibration import snapshot_count as snapshot_count
@@ -29,6 +30,7 @@ from .modal import fit_modal as fit_modal
 from .modal import forcing_order as forcing_order
 from .modal import modal_basis as modal_basis
 from .pipeline import reduce_and_compare as reduce_and_compare
+from .pipeline import warm_full_runs as warm_full_runs
 from .results import ReduceConfig as ReduceConfig
 from .results import ReductionResult as ReductionResult
 from .pod import PODGalerkin as PODGalerkin

@@ -174,6 +174,23 @@ def _jvp_columns(model, dt, integrator, order, steps, z_ref, V, run_data=None):
     return jax.vmap(lambda v: jax.jvp(F, (z_ref,), (v,))[1], in_axes=1, out_axes=1)(V)
 
 
+def warm_error_rom(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post",
+                   options: "ErrorRomOptions | None" = None):
+    """Compile the full-order programs of :func:`error_rom` for ``model``'s shapes (its batched
+    full steps and Jacobian-vector products) by calling each once on zeros. Another configuration
+    of the same mesh reuses them; a caller with other work to do first runs this in a background
+    thread, so that the compilation overlaps that work."""
+    integrator = make_solver() if integrator is None else integrator
+    chunk = (ErrorRomOptions() if options is None else options).chunk
+    dt = jnp.asarray(dt, model.ell.dtype)
+    run_data = run_data_at_start(model, integrator, dt)
+    z = jnp.zeros(2 * model.n_unknowns, model.ell.dtype)
+    jax.block_until_ready(_apply_steps(model, dt, integrator, order, 1, jnp.zeros((chunk, z.size), z.dtype), run_data))
+    jax.block_until_ready(_jvp_columns(model, dt, integrator, order, 1, z, jnp.zeros((z.size, chunk), z.dtype),
+                                       run_data))
+    jax.block_until_ready(_jvp_one(model, dt, integrator, order, 1, z, z, run_data))
+
+
 def _chunked(fn, X, chunk, axis):
     """``fn`` on fixed-size chunks of ``X`` along ``axis`` (the last one zero-padded), concatenated
     (a NumPy array): one compiled program whatever the count, bounded memory. The chunks are cut

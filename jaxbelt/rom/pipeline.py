@@ -240,6 +240,18 @@ def _full_runs(model, solver, config):
     return traj, modes, fastest
 
 
+def warm_full_runs(model, solver, n_steps: int, dt, every: int = 1):
+    """Compile, by running each once, the full runs :func:`reduce_and_compare` times: in
+    ``solver``'s mode and, unless that is it already, in the reuse mode (the same arguments as
+    there, so the timed calls find the compiled programs). A caller with other work to do first
+    — the sized training of ``jaxbelt reduce --train-ranges`` — runs this in a background thread
+    and overlaps the compilation with that work; the timings themselves are taken later, alone."""
+    saveat = SaveAt(every=every)
+    modes = (solver,) if _is_reuse(solver) else (solver, DirectBackwardEuler(Reuse(), transport=solver.transport))
+    for s in modes:
+        jax.block_until_ready(simulate(model, s, n_steps=int(n_steps), dt=dt, saveat=saveat, check=False))
+
+
 def _timed(f, *args, repeat: int = 5, budget_s: float = 0.5):
     """``(result, seconds)`` of ``f(*args)`` with its outputs ready, after one untimed warm-up
     call (compilation): the fastest of up to ``repeat`` calls, fewer once ``budget_s`` is spent
