@@ -245,7 +245,7 @@ def _sized_training(test, box, n_steps, opts, args):
         why = {"stalled": "more training stopped lowering the estimate", "horizon": "its window reached the horizon",
                "schedule": "at its largest level"}[trained.stop]
         warnings.warn(f"the sized training stopped ({why}: {trained.train_steps} steps, {trained.modes} modes) with a "
-                      f"held-out estimate of {max(trained.levels[-1].estimate_mm):.3g} mm, above the target "
+                      f"held-out estimate of {max(trained.levels[trained.chosen].estimate_mm):.3g} mm, above the target "
                       f"{trained.target_mm:g} mm")
     return trained
 
@@ -260,6 +260,7 @@ def _report(r: rom.ReductionResult, scene_name: str, train_names, stride: int, t
     extra = dict(offline_first_call_s=r.timings.offline_first_call_s)
     if trained is not None:
         extra["sizing"] = dict(target_mm=trained.target_mm, converged=trained.converged, stop=trained.stop,
+                               chosen_level=trained.chosen,
                                held_out=len(trained.held_out), seconds=trained.seconds,
                                levels=[dataclasses.asdict(lv) for lv in trained.levels])
     if r.modes_discarded is not None:
@@ -317,7 +318,8 @@ def print_reduce(r):
          else "-" if r["stride"] == 0 else "nan"),
     ]
     if "sizing" in r:
-        sz, last = r["sizing"], r["sizing"]["levels"][-1]
+        sz = r["sizing"]
+        last = sz["levels"][sz["chosen_level"]]
         rows.append(("sized", f"{len(sz['levels'])} level(s) in {sz['seconds']:.3g} s; held-out estimate "
                               f"{fmt(max(last['estimate_mm']), ' mm')} on {len(last['estimate_mm'])}/{sz['held_out']} "
                               f"({'meets' if sz['converged'] else 'misses'} {fmt(sz['target_mm'], ' mm')})"))

@@ -31,7 +31,9 @@ It stops at the first level where every held-out estimate is below ``target_frac
 its first held-out estimate above the target, so a level that fails costs one estimate. It also
 stops, unconverged, when a level's estimate of the first held-out configuration is not below
 :data:`STALL` times the previous level's (more training has stopped paying: what is left is the
-floor of a linear model over this box), and when the training window reaches the horizon. The
+floor of a linear model over this box), and when the training window reaches the horizon; it
+then returns the level with the lowest estimate of the first held-out configuration (the one
+estimated at every level), calibrated on its own window. The
 training runs advance in chunks of the greatest common divisor of the levels' step counts, so
 every level reuses one compiled run.
 
@@ -92,6 +94,8 @@ class BoxTraining:
 
     **Fields:** ``fit`` the DMDc model of the last level; ``models`` the training configurations
     (aligned first) and ``trajectories`` their post-transport snapshots (2N, train_steps + 1);
+    ``chosen`` the index of the level whose model is returned (the last, unless the loop stopped
+    unconverged: then the level with the lowest estimate of the first held-out configuration);
     ``thetas`` (2P + 1, P) their deviations, mm / mrad; ``labels`` the components;
     ``held_out`` (K, P) the held-out deviations; ``levels`` (:class:`SizingLevel`);
     ``converged`` whether a level met the target; ``stop`` why the loop stopped (``"met"``,
@@ -108,6 +112,7 @@ class BoxTraining:
     labels: tuple[str, ...]
     held_out: np.ndarray
     levels: tuple[SizingLevel, ...]
+    chosen: int
     converged: bool
     stop: str
     target_mm: float
@@ -116,7 +121,7 @@ class BoxTraining:
 
     @property
     def train_steps(self) -> int:
-        return self.levels[-1].train_steps
+        return self.levels[self.chosen].train_steps
 
     @property
     def modes(self) -> int:
@@ -124,7 +129,7 @@ class BoxTraining:
 
     @property
     def safety_factor(self) -> float:
-        return self.levels[-1].safety_factor
+        return self.levels[self.chosen].safety_factor
 
 
 def held_out_configurations(half_widths, count: int, seed: int = 0) -> np.ndarray:
@@ -171,8 +176,8 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
     estimate is checked on (at least 1), drawn with ``seed``; ``stride`` the estimate's residual
     windows; ``schedule`` the levels ((steps, modes), …, increasing); ``progress`` an optional
     callable given each :class:`SizingLevel`.
-    **Returns:** :class:`BoxTraining` (``converged=False`` when the last level still misses the
-    target: the model of that level, with its estimates).
+    **Returns:** :class:`BoxTraining` (``converged=False`` when no level met the target: the model
+    of the level with the lowest estimate, ``chosen``, with its own calibrated factor).
     """
     if held_out < 1:
         raise ValueError(f"held_out = {held_out}: need at least one held-out configuration")
@@ -192,7 +197,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
     N = nominal.n_unknowns
     Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
     chunk = functools.reduce(math.gcd, [int(s) for s, _ in schedule])
-    levels, done = [], 0
+    levels, fits, done = [], [], 0
     fit = calibration = None
     kappa = SAFETY_MARGIN
     for steps, modes in schedule:
@@ -204,9 +209,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
             done += chunk
         steps = done
         fit = fit_over_trajectories(trajs, inputs, modes)
-
-        def calibrated():
-            return _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C, N, Cz)
+        fits.append((fit, steps, modes))
 
         raw = []
         for hm in held_models:
@@ -219,7 +222,8 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
                 break
         passed = len(raw) == len(held_models) and kappa * max(raw) < target
         if passed:  # the factor so far is a lower bound (SAFETY_MARGIN or an earlier level's): confirm it here
-            calibration = calibrated()
+            calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C, N,
+                                       Cz)
             kappa = calibration.safety_factor
             passed = kappa * max(raw) < target
         level = SizingLevel(train_steps=steps, modes=int(fit.A.shape[0]), safety_factor=kappa,
@@ -234,15 +238,21 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
             break
     else:
         stop = "schedule"
-    if not levels[-1].passed:  # the model returned is reported with its own calibrated estimates
-        calibration = calibrated()
-        scale = calibration.safety_factor / levels[-1].safety_factor
-        levels[-1] = dataclasses.replace(levels[-1], safety_factor=calibration.safety_factor,
-                                         estimate_mm=tuple(e * scale for e in levels[-1].estimate_mm),
-                                         seconds=time.perf_counter() - t0)
+    chosen = len(levels) - 1
+    if not levels[-1].passed:
+        # the level whose estimate of the first held-out configuration (estimated at every level) is
+        # the lowest, with its own window of the runs and its own calibrated factor
+        chosen = int(np.argmin([lv.estimate_mm[0] / lv.safety_factor for lv in levels]))
+        fit, steps, modes = fits[chosen]
+        trajs = [Z[:, : steps + 1] for Z in trajs]
+        calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C, N, Cz)
+        lv = levels[chosen]
+        scale = calibration.safety_factor / lv.safety_factor
+        levels[chosen] = dataclasses.replace(lv, safety_factor=calibration.safety_factor,
+                                             estimate_mm=tuple(e * scale for e in lv.estimate_mm))
     return BoxTraining(fit=fit, models=tuple(models), trajectories=tuple(trajs), thetas=thetas,
-                       labels=tuple(space.labels()), held_out=held, levels=tuple(levels),
-                       converged=levels[-1].passed, stop=stop, target_mm=target, calibration=calibration,
+                       labels=tuple(space.labels()), held_out=held, levels=tuple(levels), chosen=chosen,
+                       converged=levels[chosen].passed, stop=stop, target_mm=target, calibration=calibration,
                        seconds=time.perf_counter() - t0)
 
 

@@ -44,18 +44,25 @@ def sized(setup):
 
 def test_levels_grow_until_the_held_out_estimate_meets_the_target_or_stops_paying(sized):
     trained, levels = sized
-    assert 1 <= len(levels) <= len(SCHEDULE) and list(trained.levels[:-1]) == levels[:-1]
+    assert 1 <= len(levels) <= len(SCHEDULE) and len(trained.levels) == len(levels)
+    same = [i for i in range(len(levels)) if i != trained.chosen]  # only the chosen level is re-calibrated
+    assert [trained.levels[i] for i in same] == [levels[i] for i in same]
     assert [lv.train_steps for lv in levels] == [s for s, _ in SCHEDULE[: len(levels)]]
     assert len(trained.models) == 5 and all(Z.shape[1] == trained.train_steps + 1 for Z in trained.trajectories)
     assert trained.target_mm == pytest.approx(0.0002) and trained.held_out.shape == (3, 2)
     assert np.all(np.abs(trained.held_out) <= np.asarray(HALF_WIDTHS))
     for lv in levels[:-1]:  # every level before the last failed on some held-out configuration
         assert not lv.passed and max(lv.estimate_mm) >= trained.target_mm
-    last = trained.levels[-1]
+    last = trained.levels[trained.chosen]
     assert trained.stop in ("met", "stalled", "horizon", "schedule")
     assert trained.converged == (trained.stop == "met") == last.passed
     if last.passed:
+        assert trained.chosen == len(levels) - 1
         assert len(last.estimate_mm) == 3 and max(last.estimate_mm) < trained.target_mm
+    else:  # unconverged: the level with the lowest estimate of the first held-out configuration
+        first = [lv.estimate_mm[0] / lv.safety_factor for lv in trained.levels]
+        assert trained.chosen == int(np.argmin(first))
+    assert trained.train_steps == last.train_steps and trained.modes == last.modes
     # the returned model's factor is its own calibrated one, at least the margin
     assert last.safety_factor == trained.calibration.safety_factor >= 1.5
 
