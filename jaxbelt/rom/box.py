@@ -22,9 +22,9 @@ each level it:
 4. where they all pass, calibrates the safety factor on the training data
    (:func:`~jaxbelt.rom.calibration.calibrate`: the same fit on the first half of the window
    predicting the first training runs over all of it) and checks them again with it. Until
-   then the factor is the last one calibrated, or :data:`~jaxbelt.rom.calibration.SAFETY_MARGIN`,
-   the least any calibration gives: a level that fails with it would fail calibrated too, and
-   the calibration (a refit and three estimates) is spent only on a level that may pass.
+   then the factor is :data:`~jaxbelt.rom.calibration.SAFETY_MARGIN`, the least any calibration
+   gives: a level that fails with it would fail calibrated too, and the calibration (a refit and
+   three estimates) is spent only on a level that may pass.
 
 It stops at the first level where every held-out estimate is below ``target_fraction × tol``
 (a tenth by default). The held-out configurations are estimated in turn, and a level is left at
@@ -199,8 +199,8 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
     chunk = functools.reduce(math.gcd, [int(s) for s, _ in schedule])
     levels, fits, done = [], [], 0
     fit = calibration = None
-    kappa = SAFETY_MARGIN
     for steps, modes in schedule:
+        kappa = SAFETY_MARGIN  # a lower bound of this level's calibrated factor
         steps = min(int(steps), int(n_steps))
         while done < steps:
             for i, (m, st) in enumerate(zip(models, states)):
@@ -221,7 +221,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
             if kappa * raw[-1] >= target:
                 break
         passed = len(raw) == len(held_models) and kappa * max(raw) < target
-        if passed:  # the factor so far is a lower bound (SAFETY_MARGIN or an earlier level's): confirm it here
+        if passed:  # with the lower bound: calibrate this level and check again
             calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C, N,
                                        Cz)
             kappa = calibration.safety_factor
