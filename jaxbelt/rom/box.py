@@ -60,7 +60,7 @@ from ..misalignment import aligned, apply
 from ..state import initial_state
 from .calibration import SAFETY_MARGIN, Calibration, calibrate
 from .dmd import randomized_svd
-from .dmdc import DMDcModel, belt_inputs, fit_dmdc_in_basis
+from .dmdc import DMDcModel, belt_inputs, fit_dmdc_in_basis, stack_controlled
 from .indicator import BasisTrajectory, ErrorRomOptions, error_rom
 from .reduced import parameters
 from .results import CALIBRATION_RUNS
@@ -147,9 +147,7 @@ def fit_over_trajectories(trajectories, inputs, modes: int) -> DMDcModel:
     Z = jnp.concatenate(list(trajectories), axis=1)
     k = min(int(modes) + OVERSAMPLING, *Z.shape)
     U, _, _ = randomized_svd(Z, k, POWER_ITERATIONS)
-    X = jnp.concatenate([t[:, :-1] for t in trajectories], axis=1)
-    Y = jnp.concatenate([t[:, 1:] for t in trajectories], axis=1)
-    Ui = jnp.concatenate([belt_inputs(u, t.shape[1] - 1) for u, t in zip(inputs, trajectories)], axis=1)
+    X, Y, Ui = stack_controlled(trajectories, [belt_inputs(u, t.shape[1] - 1) for u, t in zip(inputs, trajectories)])
     return fit_dmdc_in_basis(U[:, : min(int(modes), k)], X, Y, Ui)
 
 
@@ -194,8 +192,6 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
     held = held_out_configurations(half_widths, held_out, seed)
     held_models = [apply(base, space, th, base=base.chi_static) for th in held]
     C = tracer_operator(nominal)
-    N = nominal.n_unknowns
-    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
     chunk = functools.reduce(math.gcd, [int(s) for s, _ in schedule])
     levels, fits, done = [], [], 0
     fit = calibration = None
@@ -222,8 +218,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
                 break
         passed = len(raw) == len(held_models) and kappa * max(raw) < target
         if passed:  # with the lower bound: calibrate this level and check again
-            calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C, N,
-                                       Cz)
+            calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C)
             kappa = calibration.safety_factor
             passed = kappa * max(raw) < target
         level = SizingLevel(train_steps=steps, modes=int(fit.A.shape[0]), safety_factor=kappa,
@@ -245,7 +240,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
         chosen = int(np.argmin([lv.estimate_mm[0] / lv.safety_factor for lv in levels]))
         fit, steps, modes = fits[chosen]
         trajs = [Z[:, : steps + 1] for Z in trajs]
-        calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C, N, Cz)
+        calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C)
         lv = levels[chosen]
         scale = calibration.safety_factor / lv.safety_factor
         levels[chosen] = dataclasses.replace(lv, safety_factor=calibration.safety_factor,
@@ -256,21 +251,28 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
                        seconds=time.perf_counter() - t0)
 
 
-def _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C, N, Cz) -> Calibration:
+def calibration_cases(cfit: DMDcModel, runs, steps: int, C):
+    """:func:`~jaxbelt.rom.calibration.calibrate`'s cases for a DMDc fit ``cfit`` predicting
+    training runs it has partly seen: for each ``(model, Z, μ, integrator)`` of ``runs`` (``Z``
+    the run's post-transport snapshots, (2N, steps + 1)), the run's tracers (``C`` (n_tr, N)),
+    the fit's prediction of them from ``Z[:, 0]`` over ``steps`` steps, that prediction as a
+    :class:`~jaxbelt.rom.indicator.BasisTrajectory`, and the integrator."""
+    N = C.shape[1]
+    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
+    for m, Z, mu, integrator in runs:
+        u = belt_inputs(mu, 1)[:, 0]
+        yield (m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], u, steps, observe=Cz),
+               prediction_trajectory(cfit, Z[:, 0], u, steps), integrator)
+
+
+def _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C) -> Calibration:
     """The error estimate's safety factor from the training data: DMDc fitted on the first half
     of the window predicts the first :data:`~jaxbelt.rom.results.CALIBRATION_RUNS` training runs
     over all of it (:func:`~jaxbelt.rom.calibration.calibrate`)."""
-    half = max(1, steps // 2)
-    cfit = fit_over_trajectories([Z[:, : half + 1] for Z in trajs], inputs, modes)
-
-    def cases():
-        for m, Z, mu in list(zip(models, trajs, inputs))[:CALIBRATION_RUNS]:
-            u = belt_inputs(mu, 1)[:, 0]
-            yield (m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], u, steps, observe=Cz),
-                   prediction_trajectory(cfit, Z[:, 0], u, steps), integrator)
-
-    return calibrate(cases(), dt, stride=stride, order="post", options=options)
+    cfit = fit_over_trajectories([Z[:, : max(1, steps // 2) + 1] for Z in trajs], inputs, modes)
+    runs = [(m, Z, mu, integrator) for m, Z, mu in zip(models, trajs, inputs)][:CALIBRATION_RUNS]
+    return calibrate(calibration_cases(cfit, runs, steps, C), dt, stride=stride, order="post", options=options)
 
 
 __all__ = ["SCHEDULE", "SizingLevel", "BoxTraining", "train_over_box", "held_out_configurations",
-           "fit_over_trajectories", "prediction_trajectory"]
+           "fit_over_trajectories", "prediction_trajectory", "calibration_cases"]

@@ -123,10 +123,16 @@ def fit_dmd(X, Y=None, rank: int | None = None, svd: str = "auto") -> DMDModel:
 
 
 def numerical_rank(s, shape) -> int:
-    """How many singular values ``s`` of a matrix of ``shape`` lie above ``σ₁ max(N, m) ε``
+    """How many singular values ``s`` of a matrix of ``shape`` lie above :func:`round_off_cut`
     (the rest are round-off)."""
     sv = np.asarray(s)
-    return int(np.sum(sv > sv[0] * max(shape) * np.finfo(sv.dtype).eps))
+    return int(np.sum(sv > round_off_cut(sv, shape)))
+
+
+def round_off_cut(s, shape):
+    """``σ₁ max(N, m) ε``: the level below which the singular values ``s`` (descending) of a
+    matrix of ``shape`` are round-off (NumPy or traced JAX arrays)."""
+    return s[0] * max(shape) * np.finfo(s.dtype).eps
 
 
 @functools.partial(jax.jit, static_argnums=(1, 2))
@@ -157,7 +163,7 @@ class DMDForecast(eqx.Module):
     sketch_full: jax.Array
 
 
-@functools.partial(eqx.filter_jit)
+@eqx.filter_jit
 def dmd_forecast(model, integrator, dt, n_train: int, n_predict: int, observe, tol: float = 1e-5) -> DMDForecast:
     """Snapshots, fit and forecast of single-configuration DMD as one compiled program.
 
@@ -176,7 +182,7 @@ def dmd_forecast(model, integrator, dt, n_train: int, n_predict: int, observe, t
     X, Y = Z[:, :-1], Z[:, 1:]
     k = min(SKETCH, *X.shape)
     U, s, Vh = randomized_svd(X, k)
-    keep = s > s[0] * max(X.shape) * jnp.finfo(s.dtype).eps
+    keep = s > round_off_cut(s, X.shape)
     s_inv = jnp.where(keep, 1.0 / jnp.where(keep, s, 1.0), 0.0)
     YVS = Y @ Vh.conj().T * s_inv[None, :]
     eigs, W = jax.lax.linalg.eig(U.conj().T @ YVS, compute_left_eigenvectors=False)

@@ -39,7 +39,8 @@ from ..integrators import AbstractIntegrator, DirectBackwardEuler, Reuse, solver
 from ..state import initial_state
 from ..timeloop import SaveAt, simulate
 from .dmd import dmd_coordinates, fit_dmd
-from .box import fit_over_trajectories
+from .box import calibration_cases as dmdc_calibration_cases
+from .box import prediction_trajectory
 from .dmdc import belt_inputs, fit_dmdc, fit_parametric_dmd, stack_controlled
 from .calibration import calibrate
 from .indicator import BasisTrajectory, error_rom
@@ -378,47 +379,41 @@ def _trajectories(ctx: _Context):
 
 
 def _fit_dmdc(ctx: _Context) -> _Fit:
-    m_train, modes, C, N, Cz, n = ctx.m_train, ctx.config.n_modes, ctx.C, ctx.N, ctx.Cz, ctx.config.n_steps
+    m_train, modes, C, Cz, n = ctx.m_train, ctx.config.n_modes, ctx.C, ctx.Cz, ctx.config.n_steps
     params = [parameters(m) for m in ctx.train]
     z0 = state_to_z(ctx.model, initial_state(ctx.model), ctx.dt)
 
+    def pairs(trajs):
+        return stack_controlled(trajs, [belt_inputs(p, Z.shape[1] - 1) for p, Z in zip(params, trajs)])
+
     def fit_on(trajs):
-        X, Y, U = stack_controlled(trajs, [belt_inputs(p, Z.shape[1] - 1) for p, Z in zip(params, trajs)])
-        if ctx.trained is not None:  # the sized training's own fit
-            return X, Y, fit_over_trajectories(trajs, params, ctx.trained.modes)
-        return X, Y, fit_dmdc(X, Y, U, rank=modes)
+        return fit_dmdc(*pairs(trajs), rank=modes)
 
     def train():
         trajs = _trajectories(ctx)
         return trajs, fit_on(trajs)
 
-    if ctx.trained is not None:
+    if ctx.trained is not None:  # the sized training's runs and fit (its calibration is taken too)
         trajs, fit = list(ctx.trained.trajectories), ctx.trained.fit
-        X, Y, _ = stack_controlled(trajs, [belt_inputs(p, Z.shape[1] - 1) for p, Z in zip(params, trajs)])
         offline_s = first_s = ctx.trained.seconds
     else:
-        (trajs, (X, Y, fit)), offline_s, first_s = ctx.offline(train)
+        (trajs, fit), offline_s, first_s = ctx.offline(train)
     u = belt_inputs(parameters(ctx.model), 1)[:, 0]
     pred, online_s = _timed(jax.jit(lambda f, z, u: f.predict(z, u, n, observe=Cz)), fit, z0, u)
 
-    def estimate_input(f, z, uu, steps):
-        return BasisTrajectory(f.basis, jnp.concatenate([(f.basis.T @ z)[None], f.predict(z, uu, steps,
-                                                                                        observe=f.basis.T)]), z)
-
     def calibration_cases(half):
-        cfit = fit_on([Z[:, :half + 1] for Z in trajs])[2]
-        for m, s, p, Z in ctx.calibration_subset(zip(ctx.train, ctx.snapshot_solvers, params, trajs)):
-            uu = belt_inputs(p, 1)[:, 0]
-            yield m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], uu, m_train, observe=Cz), \
-                estimate_input(cfit, Z[:, 0], uu, m_train), s
+        cfit = fit_on([Z[:, :half + 1] for Z in trajs])
+        runs = ctx.calibration_subset(zip(ctx.train, trajs, params, ctx.snapshot_solvers))
+        return dmdc_calibration_cases(cfit, runs, m_train, C)
 
     def spectra():
+        X, Y, _ = pairs(trajs)
         return Spectra(singular_values=np.asarray(jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), compute_uv=False)),
                        eigs=np.asarray(fit.eigs), eig_weights=np.asarray(fit.scaled_mode_norms(z0)))
 
     return _Fit(prediction=pred, start=0, compared="tracer_u", order="post", modes=int(fit.A.shape[0]),
                 offline_s=offline_s, offline_first_s=first_s, online_s=online_s,
-                estimate_input=lambda: estimate_input(fit, z0, u, n), calibration_cases=calibration_cases,
+                estimate_input=lambda: prediction_trajectory(fit, z0, u, n), calibration_cases=calibration_cases,
                 spectra=spectra)
 
 
