@@ -16,6 +16,17 @@ from jaxbelt.linalg import BorderedBlockCyclic
 REPO = Path(__file__).resolve().parent.parent  # the repository's root
 
 
+# A box of misalignments on the two-roller machine in the sweep's --dist format, for the reduced
+# models trained over a box (reduce --train-ranges): the drive ±12 mm and the idle roller ±6 mm
+# along x (a normal law, 3σ = 6 mm).
+TWO_ROLLER_BOX = """
+[roller."drive"]
+translation_mm = {dist = "uniform", half_width = [12.0, 0.0, 0.0]}
+[roller."idle"]
+translation_mm = {dist = "normal", sigma = [2.0, 0.0, 0.0]}
+"""
+
+
 # A coarse 2D belt on the two-roller machine (28 columns x 3 rows), shared by the test modules that
 # need a tiny 2D scene as TOML text (same mesh: their compiled programs are shared too); each adds
 # its own [time], [output] and [variant] sections.

@@ -112,7 +112,7 @@ def run(args):
     train_names, train, train_solvers, box = _training_set(args, scene, test, opts)
     n = int(args.steps or opts.n_steps)
     trained = None
-    if box is not None and args.method == "dmdc" and args.train_steps is None and args.modes is None:
+    if _sized(args):
         trained = _sized_training(test, box, n, opts, args)
         train_names = [train_names[0] + f", sized to {args.tol_mm:g} mm on {args.held_out} held-out configurations"]
     m_train = trained.train_steps if trained is not None else int(args.train_steps or min(200, n // 2))
@@ -153,9 +153,8 @@ def _check_args(args):
     check_at_least("--held-out", args.held_out)
     if args.tol_mm is not None and not (np.isfinite(args.tol_mm) and args.tol_mm > 0):
         raise UsageError(f"--tol-mm {args.tol_mm}: must be a positive number of millimetres")
-    sized = args.train_ranges is not None and method == "dmdc" and args.train_steps is None and args.modes is None
     for name, v in (("--tol-mm", args.tol_mm), ("--held-out", args.held_out)):
-        if v is not None and not sized:
+        if v is not None and not _sized(args):
             raise UsageError(f"{name} sizes the training of --method dmdc --train-ranges (without --train-steps or "
                              "--modes); it has no effect here")
     args.tol_mm = 0.02 if args.tol_mm is None else args.tol_mm
@@ -174,6 +173,12 @@ def _check_args(args):
                          "use dmdc or pdmd (or pod) to train on other scenes")
     if args.plot and not Path(args.plot).resolve().parent.is_dir():
         raise UsageError(f"--plot {args.plot}: the folder {Path(args.plot).parent} does not exist")
+
+
+def _sized(args) -> bool:
+    """Whether the training is sized to the tolerance: dmdc over --train-ranges, neither
+    --train-steps nor --modes given."""
+    return args.train_ranges is not None and args.method == "dmdc" and args.train_steps is None and args.modes is None
 
 
 def _training_set(args, scene, test, opts):

@@ -10,21 +10,16 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
+from helpers import TWO_ROLLER_BOX
 from jaxbelt.cli import main
 from jaxbelt.misalignment import aligned, apply, parameter_space
 from jaxbelt.rom import belt_inputs, error_rom, fit_dmdc, parameters, rmse, state_to_z, tracer_operator, train_over_box
 from jaxbelt.rom.box import held_out_configurations, prediction_trajectory
 from jaxbelt.rom.dmdc import fit_dmdc_in_basis
 
-COMPONENTS, HALF_WIDTHS = ["drive:dx", "idle:dx"], [12.0, 6.0]
+COMPONENTS, HALF_WIDTHS = ["drive:dx", "idle:dx"], [12.0, 6.0]  # the box of helpers.TWO_ROLLER_BOX
 STEPS = 150  # the horizon predicted
 SCHEDULE = ((25, 4), (50, 8), (100, 12))
-BOX = """
-[roller."drive"]
-translation_mm = {dist = "uniform", half_width = [12.0, 0.0, 0.0]}
-[roller."idle"]
-translation_mm = {dist = "uniform", half_width = [6.0, 0.0, 0.0]}
-"""
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +108,7 @@ def test_train_over_box_rejects_bad_input(setup):
 
 def test_cli_sizes_the_training_to_the_tolerance(tmp_path, capsys):
     box = tmp_path / "box.toml"
-    box.write_text(BOX)
+    box.write_text(TWO_ROLLER_BOX)
     argv = ["reduce", "two-roller-1d-train1", "--method", "dmdc", "--train-ranges", str(box), "--steps", str(STEPS),
             "--held-out", "2", "--json"]
     assert main(argv + ["--tol-mm", "1.0"]) == 0  # a loose tolerance: met within the horizon

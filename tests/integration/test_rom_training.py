@@ -7,21 +7,14 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
+from helpers import TWO_ROLLER_BOX
 from jaxbelt.cli import main
 from jaxbelt.rom import axial_design, box_from_distribution, position_in_box
-
-BOX = """
-[roller."drive"]
-translation_mm = {dist = "uniform", half_width = [12.0, 0.0, 0.0]}
-[roller."idle"]
-translation_mm = {dist = "normal", sigma = [2.0, 0.0, 0.0]}
-"""
-
 
 @pytest.fixture(scope="module")
 def box_file(tmp_path_factory):
     p = tmp_path_factory.mktemp("box") / "box.toml"
-    p.write_text(BOX)
+    p.write_text(TWO_ROLLER_BOX)
     return str(p)
 
 
