@@ -68,44 +68,14 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
 from ..integrators import AbstractIntegrator, make_solver
-from ..state import initial_state
-from ..timeloop import SaveAt, make_step
-from ..transport import transport_step
-from .snapshots import state_to_z, tracer_operator, z_to_state
-
-
-def full_step_map(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post", run_data=None):
-    """``z -> F(z)``: one full-order step of size ``dt`` (``integrator``, default
-    :func:`jaxbelt.make_solver`'s, and its transport rule) on scaled first-order states.
-    ``order="post"``: states after transport (solve, then transport); ``"pre"``: states before
-    transport (transport, then solve), as for DMD on pre-transport snapshots. ``run_data``: what
-    ``integrator.init`` gives at the model's initial state (computed here when ``None``; a
-    caller that applies ``F`` many times passes it once, see :func:`run_data_at_start`)."""
-    if order not in ("post", "pre"):
-        raise ValueError("order must be 'post' or 'pre'")
-    integrator = make_solver() if integrator is None else integrator
-    if run_data is None:
-        run_data = integrator.init(model, initial_state(model), dt)
-    step = make_step(model, integrator, dt, run_data, SaveAt(solved=True))
-
-    def post(z):
-        return state_to_z(model, step(z_to_state(model, z, dt))[0], dt)
-
-    def pre(z):
-        st = z_to_state(model, z, dt)
-        u, ud, chi, m_e = transport_step(model, st.u, st.u_dot, st.chi, st.m_e, rule=integrator.transport)
-        moved = st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=m_e, step=st.step)
-        _, rec = step(moved)
-        return jnp.concatenate([rec["x_solved"], dt * rec["v_solved"]])
-
-    return post if order == "post" else pre
+from .full_steps import apply_steps, full_step_map, in_chunks, jvp_columns, jvp_one, run_data_at_start
+from .snapshots import tracer_operator
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,7 +95,7 @@ def residual_indicator(model, states, dt, stride: int = 10, integrator: Abstract
 
     **Arguments:** ``states`` (n+1, 2N): lifted scaled first-order states ``z_0 … z_n`` of the
     reduced model (``ReducedStep.fields``, ``DMDModel.predict``, …) with time step ``dt``;
-    ``stride``: evaluate every ``stride``-th step; ``order``: see :func:`full_step_map`.
+    ``stride``: evaluate every ``stride``-th step; ``order``: see :func:`~jaxbelt.rom.full_steps.full_step_map`.
     """
     states = jnp.asarray(states)
     F = jax.jit(jax.vmap(full_step_map(model, dt, integrator, order)))
@@ -140,40 +110,6 @@ def residual_indicator(model, states, dt, stride: int = 10, integrator: Abstract
 # --------------------------------------------------------------------------- the error ROM
 
 
-@eqx.filter_jit
-def run_data_at_start(model, integrator, dt):
-    """``integrator.init`` at ``model``'s initial state (the static solve and, for the reuse
-    solver, its factors): computed once per estimate and passed to every batch of full steps,
-    instead of again inside each compiled batch."""
-    return integrator.init(model, initial_state(model), dt)
-
-
-def _step_map(model, dt, integrator, order: str, steps: int, run_data=None):
-    """``z -> F^steps(z)``: ``steps`` full-order steps (a reduced model whose one step spans
-    several full ones, e.g. DMDc fitted on every 4th snapshot)."""
-    F = full_step_map(model, dt, integrator, order, run_data)
-
-    def Fs(z):
-        for _ in range(steps):
-            z = F(z)
-        return z
-
-    return Fs
-
-
-@eqx.filter_jit
-def _apply_steps(model, dt, integrator, order, steps, Z, run_data=None):
-    """``F`` on each row of ``Z`` (b, 2N), one compiled program per batch shape."""
-    return jax.vmap(_step_map(model, dt, integrator, order, steps, run_data))(Z)
-
-
-@eqx.filter_jit
-def _jvp_columns(model, dt, integrator, order, steps, z_ref, V, run_data=None):
-    """``J V``: the step's Jacobian at ``z_ref`` on each column of ``V`` (2N, b)."""
-    F = _step_map(model, dt, integrator, order, steps, run_data)
-    return jax.vmap(lambda v: jax.jvp(F, (z_ref,), (v,))[1], in_axes=1, out_axes=1)(V)
-
-
 def warm_error_rom(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post",
                    options: "ErrorRomOptions | None" = None):
     """Compile the full-order programs of :func:`error_rom` for ``model``'s shapes (its batched
@@ -185,30 +121,10 @@ def warm_error_rom(model, dt, integrator: AbstractIntegrator | None = None, orde
     dt = jnp.asarray(dt, model.ell.dtype)
     run_data = run_data_at_start(model, integrator, dt)
     z = jnp.zeros(2 * model.n_unknowns, model.ell.dtype)
-    jax.block_until_ready(_apply_steps(model, dt, integrator, order, 1, jnp.zeros((chunk, z.size), z.dtype), run_data))
-    jax.block_until_ready(_jvp_columns(model, dt, integrator, order, 1, z, jnp.zeros((z.size, chunk), z.dtype),
+    jax.block_until_ready(apply_steps(model, dt, integrator, order, 1, jnp.zeros((chunk, z.size), z.dtype), run_data))
+    jax.block_until_ready(jvp_columns(model, dt, integrator, order, 1, z, jnp.zeros((z.size, chunk), z.dtype),
                                        run_data))
-    jax.block_until_ready(_jvp_one(model, dt, integrator, order, 1, z, z, run_data))
-
-
-def _chunked(fn, X, chunk, axis):
-    """``fn`` on fixed-size chunks of ``X`` along ``axis`` (the last one zero-padded), concatenated
-    (a NumPy array): one compiled program whatever the count, bounded memory. The chunks are cut
-    and joined in NumPy (on a CPU a copy; op by op in JAX each slice and join of a new shape is a
-    compile)."""
-    X = np.asarray(X)
-    n = X.shape[axis]
-    out = []
-    for i in range(0, n, chunk):
-        part = np.take(X, np.arange(i, min(i + chunk, n)), axis=axis)
-        pad = chunk - part.shape[axis]
-        if pad:
-            widths = [(0, 0)] * X.ndim
-            widths[axis] = (0, pad)
-            part = np.pad(part, widths)
-        res = np.asarray(fn(jnp.asarray(part)))
-        out.append(np.take(res, np.arange(chunk - pad), axis=axis))
-    return np.concatenate(out, axis=axis)
+    jax.block_until_ready(jvp_one(model, dt, integrator, order, 1, z, z, run_data))
 
 
 def _remainder_svd(W, X):
@@ -247,12 +163,6 @@ def _stabilised(A):
         return jnp.asarray(A), rho
     lam = lam / np.maximum(1.0, np.abs(lam))
     return jnp.asarray(np.real(P @ np.diag(lam) @ np.linalg.inv(P))), rho
-
-
-@eqx.filter_jit
-def _jvp_one(model, dt, integrator, order, steps, z_ref, v, run_data=None):
-    """``J v`` for one vector (the quasi-static solve's iterations, one after the other)."""
-    return jax.jvp(_step_map(model, dt, integrator, order, steps, run_data), (z_ref,), (v,))[1]
 
 
 def _quasi_static_response(J, r, rtol: float, max_iter: int):
@@ -400,7 +310,7 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     (``basis`` (2N, b) orthonormal, ``coords`` (n+1, b)); ``dt`` the time step of the full steps
     (s); ``z_true0`` the full model's state at step 0 (its difference from ``z_0`` is the initial
     error; ``None``: zero); ``model`` the configuration predicted; ``order``/``steps``: the
-    reduced model's step is ``steps`` full steps in ``order`` (:func:`full_step_map`) of
+    reduced model's step is ``steps`` full steps in ``order`` (:func:`~jaxbelt.rom.full_steps.full_step_map`) of
     ``integrator`` (default :func:`jaxbelt.make_solver`'s); ``observe`` (o, N) what the error is
     measured on (default the longitudinal tracers,
     :func:`~jaxbelt.rom.snapshots.tracer_operator`); ``stride``: residual windows of ``stride``
@@ -425,7 +335,7 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     run_data = run_data_at_start(model, integrator, dt)
 
     def F(Z):
-        return _chunked(lambda X: _apply_steps(model, dt, integrator, order, steps, X, run_data), Z, options.chunk, 0)
+        return in_chunks(lambda X: apply_steps(model, dt, integrator, order, steps, X, run_data), Z, options.chunk, 0)
 
     starts, D, evaluated = _window_residuals(F, basis, coords, stride, options)
     edges = np.concatenate([starts, [n]])
@@ -434,11 +344,11 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     z0_j = jnp.asarray(z0)
 
     def J(V):
-        return _chunked(lambda X: _jvp_columns(model, dt, integrator, order, steps, z0_j, X, run_data), V,
+        return in_chunks(lambda X: jvp_columns(model, dt, integrator, order, steps, z0_j, X, run_data), V,
                         options.chunk, 1)
 
     def Jv(v):
-        return _jvp_one(model, dt, integrator, order, steps, z0_j, v, run_data)
+        return jvp_one(model, dt, integrator, order, steps, z0_j, v, run_data)
 
     W, JW, qs_iter, settled = _error_subspace(J, Jv, basis, D, e0, edges, options)
     A, rho = _stabilised(W.T @ JW)
