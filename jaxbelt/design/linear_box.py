@@ -229,10 +229,10 @@ def _scale_onto_limit(lin, h, limit, h_max, felt):
     """Scale the felt components by one factor so the linear worst case equals ``limit``
     (bisection; max-type worst cases evaluated in closed form, ``max_i |r0_i| + |J_i|·h``)."""
     if lin.kind == "max":
-        a, B = np.abs(lin.r0), np.abs(lin.J)
+        a, B, _ = _constraint_data(lin, h)
 
         def W(x):
-            return float(np.max(a + B @ x))
+            return float(np.max(_g("max", a, B, None, x)))
     else:
         def W(x):
             return worst_case(lin, x)
