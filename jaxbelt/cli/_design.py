@@ -4,10 +4,12 @@ bad input into one line and exit code 2 before anything is computed or written."
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import sys
 import tomllib
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .. import plot
@@ -91,6 +93,20 @@ def finer_study(args, components=None):
     _, _, model, options = rebuild(fine)
     grid, grid_fine = (dataclasses.asdict(scene_grid(s)) for s in (scene, fine))
     return make_design_study(args, model, options, components), grid, grid_fine
+
+
+@contextlib.contextmanager
+def finer_study_meanwhile(args, components=None):
+    """:func:`finer_study` started on a second thread while the ``with`` block runs (the error
+    bars' finer model and its aligned reference run on the other core, beside the answer on the
+    scene's own grid). Yields a function that waits for it and returns ``(study, grid,
+    grid_fine)`` (its errors raised there), or ``None`` with ``--no-error-bars``."""
+    if args.no_error_bars:
+        yield None
+        return
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        future = pool.submit(finer_study, args, components)
+        yield future.result
 
 
 def metric_quantities(metric: str, scene) -> tuple[str, ...]:

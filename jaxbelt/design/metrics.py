@@ -91,7 +91,8 @@ class Study(eqx.Module):
     evaluation step); ``window`` the steps of the evaluation window (``lateral_peak``, and every
     windowed metric of a steered machine); ``limit_names`` the metrics of a study with several
     limits at once (module docstring), else ``()``, and ``limit_values`` (n_limits,) their limits
-    (an array: studies that differ in the limits only share compiled programs).
+    (an array: studies that differ in the limits only share compiled programs); ``ref_angle``
+    (n_steps, n_c) the aligned run's steering actuator angles, mrad (``None`` without a loop).
     """
 
     model: BeltModel
@@ -106,6 +107,7 @@ class Study(eqx.Module):
     window: int = eqx.field(static=True)
     limit_names: tuple = eqx.field(static=True, default=())
     limit_values: jax.Array | None = None
+    ref_angle: jax.Array | None = None
 
     @property
     def limits(self) -> tuple:
@@ -182,7 +184,8 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
     _, ref = simulate(aligned(model), integrator, n_steps=n_steps, dt=dt)
     return Study(model=model, integrator=integrator, dt=dt, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
                  base=model.chi_static, space=space, metric=metric, n_steps=n_steps,
-                 window=max(1, int(round(window_fraction * n_steps))))
+                 window=max(1, int(round(window_fraction * n_steps))),
+                 ref_angle=None if ref.control_u is None else ref.control_u * RAD_TO_MRAD)
 
 
 def with_limits(study: Study, limits) -> Study:
@@ -203,7 +206,8 @@ def with_limits(study: Study, limits) -> Study:
     return Study(model=study.model, integrator=study.integrator, dt=study.dt, ref_u=study.ref_u, ref_v=study.ref_v,
                  base=study.base, space=study.space, metric=study.metric, n_steps=study.n_steps, window=study.window,
                  limit_names=tuple(n for n, _ in pairs),
-                 limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None)
+                 limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None,
+                 ref_angle=study.ref_angle)
 
 
 def _evaluation_step(t_eval, dt, n_steps) -> int:
@@ -294,6 +298,20 @@ def limit_values(study: Study, theta):
     (n_limits,), each in its own unit, in the order of ``study.limits``."""
     du, dv, angle = run_deviation(study, theta)
     return jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, angle)) for n in study.limit_names])
+
+
+def aligned_values(study: Study):
+    """What :func:`metric_value` and (with several limits) :func:`limit_values` read on the aligned
+    run, from the reference the study keeps (no run): ``(metric, limits (n_limits,) or None)``.
+    The tracer deviations there are zero; a steering loop's angle is the reference's own."""
+    du = jnp.zeros(study.ref_u.shape)
+    dv = None if study.ref_v is None else jnp.zeros(study.ref_v.shape)
+    angle = study.ref_angle
+    metric = aggregate(study.aggregate, response_from_deviation(study, du, dv, angle))
+    if not study.limit_names:
+        return metric, None
+    return metric, jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, angle))
+                              for n in study.limit_names])
 
 
 def response_sizes(study: Study) -> list[int]:

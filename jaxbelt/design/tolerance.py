@@ -31,7 +31,8 @@ import numpy as np
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
-from .metrics import METRICS, Study, aggregate, limit_values, metric_unit, response_sizes, with_limits
+from .metrics import (METRICS, Study, aggregate, aligned_values, limit_values, metric_unit, response_sizes,
+                      with_limits)
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -243,7 +244,7 @@ class BoxDiscretisation:
     of every half-width the finer grid asks for (the box scaled until its worst corner is back at
     the verified level, the excess over the floor taken as linear in the scale);
     ``half_width_uncertainty`` (P,) its size per half-width, in their units; ``grid``/``grid_fine``
-    the two grids; ``runs`` the corners re-evaluated."""
+    the two grids; ``runs`` the full runs made on the finer grid."""
 
     worst_case_um: float
     worst_case_fine_um: float
@@ -271,22 +272,43 @@ def _box_values(study: Study, box: ToleranceBox, thetas) -> np.ndarray:
     return np.asarray(evaluate_metric(study, thetas))
 
 
+def _box_floor(box: ToleranceBox, kind: str) -> float:
+    """The box's measure at the scene's own misalignment on the box's grid, from the linear
+    response's ``r0`` (the full run at ``θ = 0`` the Jacobian was taken at)."""
+    return float(aggregate(kind, jnp.asarray(box.response0_um)))
+
+
+def _box_aligned_value(study: Study, box: ToleranceBox) -> float:
+    """The box's measure on ``study``'s aligned reference run (no run: :func:`aligned_values`)."""
+    if box.limit_names:
+        _, values = aligned_values(with_limits(study, box.limit_names))
+        return box.limit_um * float(np.max(np.asarray(values) / np.array([lim for _, lim in box.limit_names])))
+    return float(aligned_values(study)[0])
+
+
 def box_discretisation(box: ToleranceBox, study: Study, fine_study: Study, grid=None, grid_fine=None) -> BoxDiscretisation:
     """The box's worst corners (those of the last verification) and the scene's own misalignment
-    evaluated on ``study``'s grid and on ``fine_study``'s — the same scene one level finer (the
-    metric, components and evaluation time the same) — and the half-widths' relative change
-    that follows (:class:`BoxDiscretisation`)."""
-    thetas = np.concatenate([np.zeros((1, box.corners.shape[1])), box.corners])
-    coarse = _box_values(study, box, thetas)
+    on ``study``'s grid and on ``fine_study``'s — the same scene one level finer (the metric,
+    components and evaluation time the same) — and the half-widths' relative change that
+    follows (:class:`BoxDiscretisation`).
+
+    On the box's own grid the values are the box's: its last verification's full runs at the
+    worst corners and the response ``r0`` at the scene's misalignment. Only the finer grid runs,
+    as one batch; where the scene is aligned (its own misalignment zero) the run at ``θ = 0`` is
+    the fine study's aligned reference itself, read from the study, not repeated."""
+    worst_rows = [row["full_um"] for row in box.verification if row["kind"] == "worst corner"]
+    floor, worst = _box_floor(box, study.aggregate), float(np.max(worst_rows))
+    aligned_scene = not np.any(np.asarray(study.base))
+    thetas = box.corners if aligned_scene else np.concatenate([np.zeros((1, box.corners.shape[1])), box.corners])
     fine = _box_values(fine_study, box, thetas)
-    floor, floor_f = float(coarse[0]), float(fine[0])
-    worst, worst_f = float(np.max(coarse[1:])), float(np.max(fine[1:]))
+    floor_f = _box_aligned_value(fine_study, box) if aligned_scene else float(fine[0])
+    worst_f = float(np.max(fine if aligned_scene else fine[1:]))
     scale = (worst - floor_f) / (worst_f - floor_f) if worst_f > floor_f else 1.0
     return BoxDiscretisation(
         worst_case_um=worst, worst_case_fine_um=worst_f, floor_um=floor, floor_fine_um=floor_f,
         half_width_relative_change=float(scale - 1.0),
         half_width_uncertainty=np.abs(scale - 1.0) * np.asarray(box.half_widths),
-        grid=grid or {}, grid_fine=grid_fine or {}, runs=2 * len(thetas))
+        grid=grid or {}, grid_fine=grid_fine or {}, runs=len(thetas))
 
 
 def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:

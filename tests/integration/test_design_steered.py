@@ -83,6 +83,14 @@ def test_box_with_several_limits_verified_by_closed_loop_runs(study):
     assert tight.limits[2]["worst_case"] <= 0.02 and tight.limits[0]["worst_case"] < 20.0
     assert np.all(tight.half_widths <= box.half_widths * (1 + 1e-9))
     assert tight.to_dict()["binding_limit"] == "steering_max"
+    # the error bars against the box's own grid: its verification values and the aligned
+    # reference (the loop's steering angle in the floor) meet a re-run exactly, no change
+    from jaxbelt.design.tolerance import box_discretisation
+
+    same = box_discretisation(tight, study, study)
+    assert same.floor_um > 0 and same.floor_fine_um == pytest.approx(same.floor_um, rel=1e-9)
+    assert same.worst_case_fine_um == pytest.approx(same.worst_case_um, rel=1e-9)
+    assert abs(same.half_width_relative_change) < 1e-8 and same.runs == len(tight.corners)
 
 
 def test_sweep_counts_saturation_as_failure(study):
@@ -104,6 +112,23 @@ def test_sweep_counts_saturation_as_failure(study):
     pod = design.run_sweep(st, dist, CHUNK, limit_um=1e4, chunk=CHUNK, with_form=False, rom="auto", rom_method="pod")
     assert pod.rom == {"used": False, "reason": ROM_STEERED} and pod.full_runs == CHUNK
     assert pod.saturated == res.saturated
+
+
+def test_aligned_values_read_the_reference_without_a_run(study):
+    """What the metrics read on the aligned run, from the study's reference alone, equals a full
+    run at θ = 0 of the aligned scene: zero deviation, the loop's own steering angle (nonzero:
+    sensor noise and the wavy edge keep it working), and each limit's value with several
+    limits (the programs of the sweep above)."""
+    from jaxbelt.design.metrics import aligned_values
+
+    run = design.evaluate_configs(study, np.zeros((CHUNK, 2)), chunk=CHUNK)
+    metric, none = aligned_values(study)
+    assert none is None and float(metric) == 0.0  # the batched run at θ = 0 equals it to round-off
+    assert float(run["metric"][0]) == pytest.approx(0.0, abs=1e-9)
+    steer = float(run["steering_mrad"][0])
+    assert steer > 1e-3
+    _, values = aligned_values(design.with_limits(study, {"lateral_max": 20.0, "steering_max": 3.0}))
+    assert np.asarray(values) == pytest.approx([0.0, steer], rel=1e-9, abs=1e-9)
 
 
 @pytest.mark.slow
