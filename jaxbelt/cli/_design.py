@@ -4,12 +4,10 @@ bad input into one line and exit code 2 before anything is computed or written."
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import sys
 import tomllib
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .. import plot
@@ -84,29 +82,22 @@ def load_design_model(args):
     return model, options
 
 
-def finer_study(args, components=None):
-    """``(study, grid, grid_fine)``: the design study of ``args``' scene on the grid one level
-    finer in every direction (elements along and across ×2, Δt / 2: the CFL number kept), and the
-    two grids as dicts — for the design answers' discretisation error bars."""
+def finer_model(args):
+    """``(model, options, grid, grid_fine)``: ``args``' scene on the grid one level finer in every
+    direction (elements along and across ×2, Δt / 2: the CFL number kept), its run settings, and
+    the two grids as dicts — for the design answers' discretisation error bars."""
     scene = args.design_scene
     fine = refine(scene, n_xi=2.0, n_eta=2.0, dt=2.0)
     _, _, model, options = rebuild(fine)
     grid, grid_fine = (dataclasses.asdict(scene_grid(s)) for s in (scene, fine))
+    return model, options, grid, grid_fine
+
+
+def finer_study(args, components=None):
+    """``(study, grid, grid_fine)``: the design study of ``args``' scene on the grid one level
+    finer (:func:`finer_model`)."""
+    model, options, grid, grid_fine = finer_model(args)
     return make_design_study(args, model, options, components), grid, grid_fine
-
-
-@contextlib.contextmanager
-def finer_study_meanwhile(args, components=None):
-    """:func:`finer_study` started on a second thread while the ``with`` block runs (the error
-    bars' finer model and its aligned reference run on the other core, beside the answer on the
-    scene's own grid). Yields a function that waits for it and returns ``(study, grid,
-    grid_fine)`` (its errors raised there), or ``None`` with ``--no-error-bars``."""
-    if args.no_error_bars:
-        yield None
-        return
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        future = pool.submit(finer_study, args, components)
-        yield future.result
 
 
 def metric_quantities(metric: str, scene) -> tuple[str, ...]:

@@ -9,7 +9,7 @@ from ..design import distribution_from_dict, run_sweep
 from ..design.store import open_sweep
 from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finer_study_meanwhile, finish, load_design_model,
+from ._design import (add_design_arguments, check_limit, check_plot, finer_study, finish, load_design_model,
                       make_design_study, read_toml, stage)
 
 
@@ -54,14 +54,13 @@ def run(args):
             open_sweep(args.out, sweep_identity(study, dist, args.samples, args.limit_um, args.seed, args.scene))
         except ValueError as e:
             raise UsageError(str(e)) from None
-    with finer_study_meanwhile(args, list(dist.labels)) as finer:
-        res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
-                        rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
-        out = res.to_dict()
-        if finer is not None:
-            stage(args, "error bar: the samples nearest the limit on the grid one level finer")
-            fine, grid, grid_fine = finer()
-            out["discretisation"] = yield_discretisation(res, study, fine, dist, grid=grid, grid_fine=grid_fine).to_dict()
+    res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
+                    rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
+    out = res.to_dict()
+    if not args.no_error_bars:
+        stage(args, "error bar: the samples nearest the limit on the grid one level finer")
+        fine, grid, grid_fine = finer_study(args, list(dist.labels))
+        out["discretisation"] = yield_discretisation(res, study, fine, dist, grid=grid, grid_fine=grid_fine).to_dict()
     return finish(args, out, _print, "plot_yield", res.metric_values, args.limit_um, res)
 
 

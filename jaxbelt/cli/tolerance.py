@@ -9,7 +9,7 @@ from ..design import parameter_space, tolerance_box
 from ..design.metrics import metric_unit
 from ..design.tolerance import box_discretisation, weights_from_dict
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finer_study_meanwhile, finish, load_design_model,
+from ._design import (add_design_arguments, check_limit, check_plot, finer_model, finish, load_design_model,
                       make_design_study, read_toml, stage)
 
 
@@ -67,19 +67,20 @@ def run(args):
     study = make_design_study(args, model, options, args.components)
     limit, limits = limits_of(args, study)
     stage(args, "Jacobian, box optimisation and verification runs")
-    with finer_study_meanwhile(args, args.components) as finer:
-        try:
-            res = tolerance_box(study, limit, weights, limits=limits)
-        except ValueError as e:  # the scene's own misalignment already breaks the limit
-            raise UsageError(str(e)) from None
-        out = res.to_dict()
-        out["window_s"] = list(study.t_window) if study.steered else None
-        if finer is not None:
-            stage(args, "error bars: the verified corners on the grid one level finer")
-            bars = box_discretisation(res, study, *finer()).to_dict()
-            out["discretisation"] = bars
-            for row, u in zip(out["half_widths"], bars["half_width_uncertainty"]):
-                row["discretisation_uncertainty"] = u
+    try:
+        res = tolerance_box(study, limit, weights, limits=limits)
+    except ValueError as e:  # the scene's own misalignment already breaks the limit
+        raise UsageError(str(e)) from None
+    out = res.to_dict()
+    out["window_s"] = list(study.t_window) if study.steered else None
+    if not args.no_error_bars:
+        stage(args, "error bars: the verified corners on the grid one level finer")
+        fine, fine_options, grid, grid_fine = finer_model(args)
+        bars = box_discretisation(res, study, fine, dt=fine_options.dt, integrator=fine_options.solver, grid=grid,
+                                  grid_fine=grid_fine).to_dict()
+        out["discretisation"] = bars
+        for row, u in zip(out["half_widths"], bars["half_width_uncertainty"]):
+            row["discretisation_uncertainty"] = u
     return finish(args, out, _print, "plot_tolerance_box", res)
 
 

@@ -31,8 +31,8 @@ import numpy as np
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
-from .metrics import (METRICS, Study, aggregate, aligned_values, limit_values, metric_unit, response_sizes,
-                      with_limits)
+from .metrics import (METRICS, Study, aggregate, aligned_values, limit_values, make_study_at, metric_unit,
+                      response_sizes, with_limits)
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -244,7 +244,7 @@ class BoxDiscretisation:
     of every half-width the finer grid asks for (the box scaled until its worst corner is back at
     the verified level, the excess over the floor taken as linear in the scale);
     ``half_width_uncertainty`` (P,) its size per half-width, in their units; ``grid``/``grid_fine``
-    the two grids; ``runs`` the full runs made on the finer grid."""
+    the two grids; ``runs`` the full runs made on the finer grid (its aligned reference included)."""
 
     worst_case_um: float
     worst_case_fine_um: float
@@ -262,53 +262,54 @@ class BoxDiscretisation:
         return out
 
 
-def _box_values(study: Study, box: ToleranceBox, thetas) -> np.ndarray:
-    """The box's measure at the parameter vectors ``thetas`` on ``study``'s grid: the metric, or
-    with several limits the largest ratio to its limit times ``limit_um``."""
-    thetas = jnp.asarray(thetas, study.base.dtype)
-    if box.limit_names:
-        values = np.asarray(_limit_values_batch(with_limits(study, box.limit_names), thetas))
-        return box.limit_um * np.max(values / np.array([lim for _, lim in box.limit_names]), axis=1)
-    return np.asarray(evaluate_metric(study, thetas))
-
-
 def _box_floor(box: ToleranceBox, kind: str) -> float:
     """The box's measure at the scene's own misalignment on the box's grid, from the linear
     response's ``r0`` (the full run at ``θ = 0`` the Jacobian was taken at)."""
     return float(aggregate(kind, jnp.asarray(box.response0_um)))
 
 
-def _box_aligned_value(study: Study, box: ToleranceBox) -> float:
-    """The box's measure on ``study``'s aligned reference run (no run: :func:`aligned_values`)."""
-    if box.limit_names:
-        _, values = aligned_values(with_limits(study, box.limit_names))
-        return box.limit_um * float(np.max(np.asarray(values) / np.array([lim for _, lim in box.limit_names])))
-    return float(aligned_values(study)[0])
+def _on_limit_scale(box: ToleranceBox, values) -> np.ndarray:
+    """Each limit's values (m, n_limits) as the box measures them: the largest ratio to its
+    limit times ``limit_um``; a single metric's values (m,) as they are."""
+    values = np.asarray(values)
+    if not box.limit_names:
+        return values
+    return box.limit_um * np.max(values / np.array([lim for _, lim in box.limit_names]), axis=1)
 
 
-def box_discretisation(box: ToleranceBox, study: Study, fine_study: Study, grid=None, grid_fine=None) -> BoxDiscretisation:
+def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integrator=None,
+                       grid=None, grid_fine=None) -> BoxDiscretisation:
     """The box's worst corners (those of the last verification) and the scene's own misalignment
-    on ``study``'s grid and on ``fine_study``'s — the same scene one level finer (the metric,
-    components and evaluation time the same) — and the half-widths' relative change that
-    follows (:class:`BoxDiscretisation`).
+    on ``study``'s grid and on ``fine_model``'s — the same scene one level finer, run at ``dt``
+    with ``integrator`` (the metric, components, evaluation time and window those of ``study``)
+    — and the half-widths' relative change that follows (:class:`BoxDiscretisation`).
 
     On the box's own grid the values are the box's: its last verification's full runs at the
-    worst corners and the response ``r0`` at the scene's misalignment. Only the finer grid runs,
-    as one batch; where the scene is aligned (its own misalignment zero) the run at ``θ = 0`` is
-    the fine study's aligned reference itself, read from the study, not repeated."""
+    worst corners and the response ``r0`` at the scene's misalignment. The finer grid runs them
+    as one batch with its aligned reference (:func:`jaxbelt.design.metrics.make_study_at`);
+    where the scene is aligned (its own misalignment zero) the run at ``θ = 0`` is that
+    reference itself, read from it (:func:`jaxbelt.design.metrics.aligned_values`), not
+    repeated."""
     worst_rows = [row["full_um"] for row in box.verification if row["kind"] == "worst corner"]
     floor, worst = _box_floor(box, study.aggregate), float(np.max(worst_rows))
     aligned_scene = not np.any(np.asarray(study.base))
     thetas = box.corners if aligned_scene else np.concatenate([np.zeros((1, box.corners.shape[1])), box.corners])
-    fine = _box_values(fine_study, box, thetas)
-    floor_f = _box_aligned_value(fine_study, box) if aligned_scene else float(fine[0])
-    worst_f = float(np.max(fine if aligned_scene else fine[1:]))
+    fine_study, values = make_study_at(fine_model, study.metric, thetas, t_eval=study.t_eval, dt=dt,
+                                       components=list(study.space.labels()), integrator=integrator,
+                                       window_fraction=study.window / study.n_steps, limits=box.limit_names or ())
+    fine = _on_limit_scale(box, values)
+    if aligned_scene:
+        metric, per_limit = aligned_values(fine_study)
+        floor_f = float(_on_limit_scale(box, np.asarray(per_limit)[None])[0]) if box.limit_names else float(metric)
+        worst_f = float(np.max(fine))
+    else:
+        floor_f, worst_f = float(fine[0]), float(np.max(fine[1:]))
     scale = (worst - floor_f) / (worst_f - floor_f) if worst_f > floor_f else 1.0
     return BoxDiscretisation(
         worst_case_um=worst, worst_case_fine_um=worst_f, floor_um=floor, floor_fine_um=floor_f,
         half_width_relative_change=float(scale - 1.0),
         half_width_uncertainty=np.abs(scale - 1.0) * np.asarray(box.half_widths),
-        grid=grid or {}, grid_fine=grid_fine or {}, runs=len(thetas))
+        grid=grid or {}, grid_fine=grid_fine or {}, runs=len(thetas) + 1)
 
 
 def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:

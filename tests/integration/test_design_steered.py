@@ -84,13 +84,13 @@ def test_box_with_several_limits_verified_by_closed_loop_runs(study):
     assert np.all(tight.half_widths <= box.half_widths * (1 + 1e-9))
     assert tight.to_dict()["binding_limit"] == "steering_max"
     # the error bars against the box's own grid: its verification values and the aligned
-    # reference (the loop's steering angle in the floor) meet a re-run exactly, no change
+    # reference (the loop's steering angle in the floor) meet a re-run, no change but round-off
     from jaxbelt.design.tolerance import box_discretisation
 
-    same = box_discretisation(tight, study, study)
+    same = box_discretisation(tight, study, study.model, dt=study.dt, integrator=study.integrator)
     assert same.floor_um > 0 and same.floor_fine_um == pytest.approx(same.floor_um, rel=1e-9)
     assert same.worst_case_fine_um == pytest.approx(same.worst_case_um, rel=1e-9)
-    assert abs(same.half_width_relative_change) < 1e-8 and same.runs == len(tight.corners)
+    assert abs(same.half_width_relative_change) < 1e-8 and same.runs == len(tight.corners) + 1
 
 
 def test_sweep_counts_saturation_as_failure(study):
