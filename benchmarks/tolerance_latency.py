@@ -1,11 +1,15 @@
 """Where the main job's time goes: ``jaxbelt tolerance`` on the default design scene, stage by
-stage, with an empty compilation cache and with a warm one.
+stage, with an empty compilation cache and with a warm one, and the whole command as a user
+runs it.
 
 Each measurement is its own process (the CLI's persistent compilation cache in a fresh
-directory: the first process fills it, the second reads it), ``--no-error-bars``. Stages: imports
-and start-up, the model build (mesh, static solve), the aligned reference run, the Jacobian
-(first call: compile and run; second call: run alone), one batch of eight verification runs
-(first and second call) and the whole box (optimisation and verification). Run:
+directory: the first process fills it, the second reads it). Stages: imports and start-up, the
+model build (mesh, static solve), the aligned reference run, the Jacobian (first call: compile
+and run; second call: run alone), one batch of eight verification runs (first and second call),
+the whole box (optimisation and verification), then the error bars: the scene one level finer
+built, and its aligned reference and the box's worst corners run as one batch. ``command``: the
+wall time of ``jaxbelt tolerance --json`` (error bars on, the default) and of ``--no-error-bars``,
+each with an empty cache and again with the cache it filled. Run:
 ``OPENBLAS_NUM_THREADS=1 python benchmarks/tolerance_latency.py``. Writes
 ``results/tolerance_latency.json``.
 """
@@ -15,6 +19,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 
 from _common import write
 
@@ -33,6 +38,8 @@ from jaxbelt.design import tolerance as tol
 from jaxbelt.design.metrics import with_limits
 from jaxbelt.design.sensitivity import response_jacobian
 from jaxbelt.cli._design import DESIGN_SCENE
+from jaxbelt.accuracy import refine
+from jaxbelt.cli._common import rebuild
 jb.enable_x64(); enable_compilation_cache()
 mark("imports_s")
 scene, mesh, model, opts = load_run(DESIGN_SCENE)
@@ -47,20 +54,37 @@ th = jnp.zeros((8, study.space.size))
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_first_s")
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_again_s")
 res = tol.tolerance_box(study, 20.0, limits=limits); mark("tolerance_box_s")
+_, _, fine, fine_opts = rebuild(refine(scene, n_xi=2.0, n_eta=2.0, dt=2.0))
+jax.block_until_ready(fine.chi_static); mark("finer_model_build_s")
+bars = tol.box_discretisation(res, study, fine, dt=fine_opts.dt, integrator=fine_opts.solver); mark("error_bars_s")
 marks["total_s"] = time.perf_counter() - T0
 print(json.dumps(dict(scene=DESIGN_SCENE, n_unknowns=int(model.n_unknowns), n_steps=int(opts.n_steps),
                       parameters=int(study.space.size), iterations=int(res.iterations), stages=marks)))
 """
 
 
+def _command(argv, env):
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "jaxbelt.cli", "tolerance", "--json", *argv], env=env, check=True,
+                   capture_output=True)
+    return time.perf_counter() - t0
+
+
 def main():
     out = {}
+    base = {**os.environ, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1"}
     with tempfile.TemporaryDirectory() as cache:
-        env = {**os.environ, "JAXBELT_CACHE_DIR": cache, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1"}
+        env = {**base, "JAXBELT_CACHE_DIR": cache}
         for label in ("empty_cache", "warm_cache"):
             r = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, check=True)
             out[label] = json.loads(r.stdout.strip().splitlines()[-1])
             print(label, json.dumps(out[label]["stages"]), flush=True)
+    out["command"] = {}
+    for name, argv in (("error_bars", []), ("no_error_bars", ["--no-error-bars"])):
+        with tempfile.TemporaryDirectory() as cache:
+            env = {**base, "JAXBELT_CACHE_DIR": cache}
+            out["command"][name] = {"empty_cache_s": _command(argv, env), "warm_cache_s": _command(argv, env)}
+        print(name, out["command"][name], flush=True)
     write("tolerance_latency", out)
 
 

@@ -294,10 +294,12 @@ BENCHMARKS = {
                         "bytes a configuration-step streams against the read bandwidth measured in the same process, "
                         "the step, the solve and one sweep's recurrence timed against it for batches of 1, 8 and 32 "
                         "([scale](scale.md#how-fast-a-batch-can-go-on-a-cpu))."),
-    "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene "
-                          "(`--no-error-bars`), stage by stage, in a process with an empty compilation cache and in "
-                          "a second one that reads it: start-up, model build, the aligned run, the Jacobian and a "
-                          "batch of eight verification runs (first call and again), the whole box."),
+    "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene, "
+                          "stage by stage, in a process with an empty compilation cache and in a second one that "
+                          "reads it: start-up, model build, the aligned run, the Jacobian and a batch of eight "
+                          "verification runs (first call and again), the whole box, and the error bars (the scene "
+                          "one level finer, its aligned reference and the box's worst corners as one batch); then "
+                          "the whole command with and without error bars, empty cache and warm."),
     "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
                           "each built-in design scene's grid and one level finer, as a share of the 20 µm limit "
                           "(the rule: at most 5 %), and the half-widths' relative change "

@@ -363,6 +363,21 @@ def test_worst_case_equals_enumerating_every_corner(kind, offset):
     assert np.isclose(lin.metric(signs[0] * h), brute, rtol=1e-12) and np.all(np.diff(vals) <= 0)
 
 
+def test_study_and_its_values_in_one_batch_equal_the_reference_run_and_single_runs(study, metric_fn, model2d):
+    """make_study_at: the aligned reference and the configurations as one vmap batch give the
+    study make_study builds (its reference run apart) and the metric of a run per configuration
+    (on the misaligned base: the run at θ = 0 is not the reference)."""
+    from jaxbelt.design.metrics import make_study_at
+
+    thetas = np.array([[0.0, 0.0, 0.0, 0.0], [0.05, -0.1, 0.2, -0.3]])
+    st, values = make_study_at(model2d, "lateral_rms", thetas, t_eval=0.24, dt=study.dt,
+                               components="roller 2:rotation,roller 3:dx,roller 3:dz", integrator=study.integrator)
+    assert st.n_steps == study.n_steps and st.window == study.window and st.space == study.space
+    assert np.allclose(st.ref_u, study.ref_u, rtol=0, atol=1e-15) and np.allclose(st.ref_v, study.ref_v, rtol=0, atol=1e-15)
+    single = [float(metric_fn(jnp.asarray(t))) for t in thetas]
+    assert values.shape == (2,) and single[0] > 0 and values == pytest.approx(single, rel=1e-9)
+
+
 def test_response_is_linear_in_small_misalignments(study):
     """What the tolerance box relies on: r(θ) = r0 + J θ to 1e-6 relative at 0.05 mm / mrad."""
     r0, J = design.response_jacobian(study)
