@@ -93,13 +93,6 @@ def finer_model(args):
     return model, options, grid, grid_fine
 
 
-def finer_study(args, components=None):
-    """``(study, grid, grid_fine)``: the design study of ``args``' scene on the grid one level
-    finer (:func:`finer_model`)."""
-    model, options, grid, grid_fine = finer_model(args)
-    return make_design_study(args, model, options, components), grid, grid_fine
-
-
 def metric_quantities(metric: str, scene) -> tuple[str, ...]:
     """The tracer quantities whose discretisation error a design metric carries: the lateral
     deviation, the longitudinal one, or (the steering angle, which answers the lateral walk, and a

@@ -9,7 +9,7 @@ from ..design import distribution_from_dict, run_sweep
 from ..design.store import open_sweep
 from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finer_study, finish, load_design_model,
+from ._design import (add_design_arguments, check_limit, check_plot, finer_model, finish, load_design_model,
                       make_design_study, read_toml, stage)
 
 
@@ -59,8 +59,10 @@ def run(args):
     out = res.to_dict()
     if not args.no_error_bars:
         stage(args, "error bar: the samples nearest the limit on the grid one level finer")
-        fine, grid, grid_fine = finer_study(args, list(dist.labels))
-        out["discretisation"] = yield_discretisation(res, study, fine, dist, grid=grid, grid_fine=grid_fine).to_dict()
+        fine, fine_options, grid, grid_fine = finer_model(args)
+        out["discretisation"] = yield_discretisation(res, study, fine, dist, dt=fine_options.dt,
+                                                     integrator=fine_options.solver, grid=grid,
+                                                     grid_fine=grid_fine).to_dict()
     return finish(args, out, _print, "plot_yield", res.metric_values, args.limit_um, res)
 
 

@@ -33,8 +33,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import SATURATION_FRACTION, Study
-from .sampling import (Distribution, check_distribution, evaluate_configs, evaluate_metric, form, importance_sampling,
+from .metrics import SATURATION_FRACTION, Study, make_study_at
+from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
 from .store import MODEL_CODES, append_chunk, load_sweep, open_sweep
@@ -238,18 +238,22 @@ class YieldDiscretisation:
         return dataclasses.asdict(self)
 
 
-def yield_discretisation(res: SweepResult, study: Study, fine_study: Study, dist: Distribution, k: int = 16,
-                         grid=None, grid_fine=None) -> YieldDiscretisation:
+def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distribution, k: int = 16, *, dt,
+                         integrator=None, grid=None, grid_fine=None) -> YieldDiscretisation:
     """Re-evaluate the ``k`` samples of ``res`` whose metric is nearest the limit on
-    ``fine_study`` (the same scene one level finer) and count the verdicts that change: the
-    yield's discretisation bias beside its sampling interval. Samples are those of
-    :func:`run_sweep` (the same seed and distribution); a steered machine's saturation verdicts
-    are kept."""
+    ``fine_model`` (the same scene one level finer, run at ``dt`` with ``integrator``; the
+    metric, components, evaluation time and window those of ``study``) and count the verdicts
+    that change: the yield's discretisation bias beside its sampling interval. Samples are those
+    of :func:`run_sweep` (the same seed and distribution); a steered machine's saturation verdicts
+    are kept. The finer grid's aligned reference runs in the same ``vmap`` batch as the samples
+    (:func:`jaxbelt.design.metrics.make_study_at`)."""
     n = res.samples
     thetas = sweep_samples(study, dist, n, res.seed)
     values = np.asarray(res.metric_values)
     pick = np.argsort(np.abs(values - res.limit_um))[: min(k, n)]
-    fine = np.asarray(evaluate_metric(fine_study, jnp.asarray(thetas[pick], fine_study.base.dtype)))
+    _, fine = make_study_at(fine_model, study.metric, thetas[pick], t_eval=study.t_eval, dt=dt,
+                            components=list(study.space.labels()), integrator=integrator,
+                            window_fraction=study.window / study.n_steps)
     before, after = values[pick] <= res.limit_um, fine <= res.limit_um
     rel = np.abs(fine - values[pick]) / np.maximum(np.abs(values[pick]), 1e-12)
     return YieldDiscretisation(

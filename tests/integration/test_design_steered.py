@@ -112,6 +112,13 @@ def test_sweep_counts_saturation_as_failure(study):
     pod = design.run_sweep(st, dist, CHUNK, limit_um=1e4, chunk=CHUNK, with_form=False, rom="auto", rom_method="pod")
     assert pod.rom == {"used": False, "reason": ROM_STEERED} and pod.full_runs == CHUNK
     assert pod.saturated == res.saturated
+    # the yield's error bar against the sweep's own grid: the samples and the aligned reference in
+    # one batch meet the sweep's runs, no verdict changes
+    from jaxbelt.design.sweep import yield_discretisation
+
+    same = yield_discretisation(res, st, st.model, dist, dt=st.dt, integrator=st.integrator)
+    assert same.samples == CHUNK and same.flipped == 0 and same.bias == 0.0
+    assert same.metric_relative_change < 1e-9
 
 
 def test_aligned_values_read_the_reference_without_a_run(study):
