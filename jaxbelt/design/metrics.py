@@ -210,8 +210,7 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
                   window_fraction: float | None = None, limits=()):
     """:func:`make_study` and the study's values at ``thetas`` (m, P) from one ``vmap`` batch of
     m + 1 runs, the aligned reference among them. On a CPU a batch of m + 1 costs far less than
-    a reference run and then a batch of m: one run's sequential sweeps leave the cores idle
-    (on the finer grid of ``three-roller-steered`` one run alone takes ~2/3 of a batch of four).
+    a reference run and then a batch of m: one run's sequential sweeps leave the cores idle.
 
     **Arguments:** as :func:`make_study`; ``limits`` ``((metric, limit), ...)`` as
     :func:`with_limits` (then the study is the one with the limits). **Returns:** ``(study,
@@ -225,16 +224,16 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
     study = Study(**frame, ref_u=u[0], ref_v=None if v is None else v[0], ref_angle=None if angle is None else angle[0])
     if limits:
         study = with_limits(study, limits)
-    rows = []
-    for k in range(1, thetas.shape[0] + 1):
-        du = (u[k] - u[0]) * M_TO_UM
-        dv = None if v is None else (v[k] - v[0]) * M_TO_UM
-        a = None if angle is None else angle[k]
+
+    def values(uk, vk, ak):
+        du = (uk - study.ref_u) * M_TO_UM
+        dv = None if vk is None else (vk - study.ref_v) * M_TO_UM
         if study.limit_names:
-            rows.append([aggregate(METRICS[n][0], _single_response(study, n, du, dv, a)) for n in study.limit_names])
-        else:
-            rows.append(aggregate(study.aggregate, response_from_deviation(study, du, dv, a)))
-    return study, np.asarray(rows, dtype=float)
+            return jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, ak)) for n in study.limit_names])
+        return aggregate(study.aggregate, response_from_deviation(study, du, dv, ak))
+
+    rest = lambda a: None if a is None else a[1:]  # noqa: E731
+    return study, np.asarray(jax.vmap(values)(u[1:], rest(v), rest(angle)), dtype=float)
 
 
 def with_limits(study: Study, limits) -> Study:
