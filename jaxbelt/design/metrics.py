@@ -229,7 +229,7 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
         du = (uk - study.ref_u) * M_TO_UM
         dv = None if vk is None else (vk - study.ref_v) * M_TO_UM
         if study.limit_names:
-            return jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, ak)) for n in study.limit_names])
+            return _limit_values_from_deviation(study, du, dv, ak)
         return aggregate(study.aggregate, response_from_deviation(study, du, dv, ak))
 
     rest = lambda a: None if a is None else a[1:]  # noqa: E731
@@ -344,7 +344,11 @@ def metric_value(study: Study, theta, smooth: bool = False):
 def limit_values(study: Study, theta):
     """Every limited metric of a study with several limits (:func:`with_limits`) at ``theta``:
     (n_limits,), each in its own unit, in the order of ``study.limits``."""
-    du, dv, angle = run_deviation(study, theta)
+    return _limit_values_from_deviation(study, *run_deviation(study, theta))
+
+
+def _limit_values_from_deviation(study: Study, du, dv, angle):
+    """Each limited metric's value (n_limits,) from the deviations and the actuator angles."""
     return jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, angle)) for n in study.limit_names])
 
 
@@ -356,10 +360,7 @@ def aligned_values(study: Study):
     dv = None if study.ref_v is None else jnp.zeros(study.ref_v.shape)
     angle = study.ref_angle
     metric = aggregate(study.aggregate, response_from_deviation(study, du, dv, angle))
-    if not study.limit_names:
-        return metric, None
-    return metric, jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, angle))
-                              for n in study.limit_names])
+    return metric, _limit_values_from_deviation(study, du, dv, angle) if study.limit_names else None
 
 
 def response_sizes(study: Study) -> list[int]:

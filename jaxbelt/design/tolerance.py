@@ -129,10 +129,7 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
         signs, pred = worst_corners(lin, h, n_corners)
         corners = np.concatenate([signs, corners_random])
         values = np.asarray(evaluate_many(corners * h))
-        if names:  # each limit's value over its limit, on the scale of limit_um
-            full = limit_um * np.max(values / np.array([lim for _, lim in names]), axis=1)
-        else:
-            full = values
+        full = _on_limit_scale(values, limit_um, names)
         pred_all = np.concatenate([pred, [lin.metric(c * h) for c in corners_random]])
         kinds = ["worst corner"] * len(signs) + ["random corner"] * n_random
         table = [{"kind": k, "corner": space.per_roller(c * h), "predicted_um": float(p), "full_um": float(f)}
@@ -268,13 +265,14 @@ def _box_floor(box: ToleranceBox, kind: str) -> float:
     return float(aggregate(kind, jnp.asarray(box.response0_um)))
 
 
-def _on_limit_scale(box: ToleranceBox, values) -> np.ndarray:
-    """Each limit's values (m, n_limits) as the box measures them: the largest ratio to its
-    limit times ``limit_um``; a single metric's values (m,) as they are."""
+def _on_limit_scale(values, limit_um: float, names=None) -> np.ndarray:
+    """The measure of a box with several limits (``names``: ``((metric, limit), ...)``): each
+    limit's value over its limit (m, n_limits), the largest, on the scale of ``limit_um``; a
+    single metric's values (m,) (``names`` empty) as they are."""
     values = np.asarray(values)
-    if not box.limit_names:
+    if not names:
         return values
-    return box.limit_um * np.max(values / np.array([lim for _, lim in box.limit_names]), axis=1)
+    return limit_um * np.max(values / np.array([lim for _, lim in names]), axis=1)
 
 
 def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integrator=None,
@@ -297,10 +295,11 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integ
     fine_study, values = make_study_at(fine_model, study.metric, thetas, t_eval=study.t_eval, dt=dt,
                                        components=list(study.space.labels()), integrator=integrator,
                                        window_fraction=study.window / study.n_steps, limits=box.limit_names or ())
-    fine = _on_limit_scale(box, values)
+    fine = _on_limit_scale(values, box.limit_um, box.limit_names)
     if aligned_scene:
         metric, per_limit = aligned_values(fine_study)
-        floor_f = float(_on_limit_scale(box, np.asarray(per_limit)[None])[0]) if box.limit_names else float(metric)
+        floor_f = float(metric) if per_limit is None else float(
+            _on_limit_scale(per_limit[None], box.limit_um, box.limit_names)[0])
         worst_f = float(np.max(fine))
     else:
         floor_f, worst_f = float(fine[0]), float(np.max(fine[1:]))
