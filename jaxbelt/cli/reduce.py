@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from concurrent.futures import ThreadPoolExecutor
+import sys
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -223,8 +224,6 @@ def _sized_training(test, box, n_steps, opts, args):
     estimate's full-order programs and the full runs ``reduce`` times afterwards are compiled in a
     background thread during the sizing (:func:`jaxbelt.rom.warm_error_rom`,
     :func:`jaxbelt.rom.warm_full_runs`)."""
-    import sys
-
     labels, half_widths = box
     solver = opts.solver
     if isinstance(solver, DirectBackwardEuler):

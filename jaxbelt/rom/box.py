@@ -191,6 +191,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
     trajs = [None] * len(models)
     held = held_out_configurations(half_widths, held_out, seed)
     held_models = [apply(base, space, th, base=base.chi_static) for th in held]
+    held_starts = [None] * len(held_models)
     C = tracer_operator(nominal)
     chunk = functools.reduce(math.gcd, [int(s) for s, _ in schedule])
     levels, fits, done = [], [], 0
@@ -208,10 +209,10 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
         fits.append((fit, steps, modes))
 
         raw = []
-        for hm in held_models:
-            z0 = state_to_z(hm, initial_state(hm), dt)
-            u = belt_inputs(parameters(hm), 1)[:, 0]
-            traj = prediction_trajectory(fit, z0, u, n_steps)
+        for j, hm in enumerate(held_models):
+            if held_starts[j] is None:  # the held-out start and input, computed the first time they are estimated
+                held_starts[j] = (state_to_z(hm, initial_state(hm), dt), belt_inputs(parameters(hm), 1)[:, 0])
+            traj = prediction_trajectory(fit, *held_starts[j], n_steps)
             raw.append(error_rom(hm, traj.basis, traj.coords, dt, traj.z_true0, stride=stride, order="post",
                                  integrator=integrator, options=options).rmse_mm)
             if kappa * raw[-1] >= target:

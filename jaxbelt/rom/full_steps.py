@@ -28,7 +28,7 @@ def full_step_map(model, dt, integrator: AbstractIntegrator | None = None, order
         raise ValueError("order must be 'post' or 'pre'")
     integrator = make_solver() if integrator is None else integrator
     if run_data is None:
-        run_data = integrator.init(model, initial_state(model), dt)
+        run_data = run_data_at_start(model, integrator, dt)
     step = make_step(model, integrator, dt, run_data, SaveAt(solved=True))
 
     def post(z):
