@@ -378,6 +378,18 @@ def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_st
     return out
 
 
+def compile_simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,
+                     saveat: SaveAt = SaveAt(), adjoint: Checkpointed = Checkpointed(), y0: BeltState | None = None):
+    """Compile, without running it, the program :func:`simulate` runs for these arguments; a later
+    :func:`simulate` call with the same shapes and settings finds it. Nothing executes, so a
+    background thread can compile while the caller runs other programs (two XLA:CPU executions at
+    once can wedge its thread pool; compiling beside one cannot)."""
+    solver = make_solver() if solver is None else solver
+    check_time_step(model, dt)
+    _simulate.lower(model, solver, y0, jnp.asarray(dt, dtype=model.ell.dtype), int(n_steps), saveat, adjoint,
+                    None).compile()
+
+
 @dataclasses.dataclass(frozen=True)
 class ChunkedRun:
     """A run made in compiled chunks (:func:`simulate_in_chunks`).

@@ -1,5 +1,6 @@
 """Shared test helpers: scenes and their run options, finite differences, random structured matrices."""
 
+import contextlib
 import copy
 import tomllib
 from importlib import resources
@@ -14,6 +15,25 @@ import jaxbelt as jb
 from jaxbelt.linalg import BorderedBlockCyclic
 
 REPO = Path(__file__).resolve().parent.parent  # the repository's root
+
+COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"  # an XLA compile, or a load from the cache
+TRACE_EVENT = "/jax/core/compile/jaxpr_trace_duration"  # a function traced to a jaxpr
+
+
+@contextlib.contextmanager
+def counting_compiles():
+    """The names of the compile and trace events JAX reports inside the block (a list)."""
+    events = []
+
+    def listener(event, duration, **kwargs):
+        if event in (COMPILE_EVENT, TRACE_EVENT):
+            events.append(event)
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        yield events
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
 
 
 # A box of misalignments on the two-roller machine in the sweep's --dist format, for the reduced

@@ -221,9 +221,9 @@ def _sized_training(test, box, n_steps, opts, args):
     (:func:`jaxbelt.rom.train_over_box`), each level reported on stderr. The training runs and
     estimates use the reuse mode of a direct scene solver (factors frozen at each run's start;
     ``reduce`` checks that the mode reproduces the scene's own on the predicted run). The error
-    estimate's full-order programs and the full runs ``reduce`` times afterwards are compiled in a
-    background thread during the sizing (:func:`jaxbelt.rom.warm_error_rom`,
-    :func:`jaxbelt.rom.warm_full_runs`)."""
+    estimate's full-order programs and the full runs ``reduce`` times afterwards are compiled, not
+    run, in a background thread during the sizing (:func:`jaxbelt.rom.warm_error_rom`,
+    :func:`jaxbelt.rom.warm_full_runs`): only one thread executes programs at a time."""
     labels, half_widths = box
     solver = opts.solver
     if isinstance(solver, DirectBackwardEuler):
@@ -236,7 +236,7 @@ def _sized_training(test, box, n_steps, opts, args):
               f"({'meets' if level.passed else 'misses'} {args.tol_mm / 10:g} mm; {level.seconds:.1f} s)",
               file=sys.stderr, flush=True)
 
-    def warm_up():  # on the other core meanwhile: the estimate's full-order programs, then the full runs
+    def warm_up():  # compiled on the other core meanwhile: the estimate's full-order programs, the full runs
         rom.warm_error_rom(test, opts.dt, solver)
         rom.warm_full_runs(test, opts.solver, n_steps, opts.dt, opts.saveat.every)
 

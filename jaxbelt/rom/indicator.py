@@ -68,6 +68,7 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -112,19 +113,23 @@ def residual_indicator(model, states, dt, stride: int = 10, integrator: Abstract
 
 def warm_error_rom(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post",
                    options: "ErrorRomOptions | None" = None):
-    """Compile the full-order programs of :func:`error_rom` for ``model``'s shapes (its batched
-    full steps and Jacobian-vector products) by calling each once on zeros. Another configuration
-    of the same mesh reuses them; a caller with other work to do first runs this in a background
-    thread, so that the compilation overlaps that work."""
+    """Compile, without running them, the full-order programs of :func:`error_rom` for
+    ``model``'s shapes: the start data, the batched full steps and the Jacobian-vector products
+    (lowered on zero arrays of the shapes they take; :func:`error_rom`'s calls then find them).
+    Another configuration of the same mesh reuses them. Nothing executes, so a caller with other
+    work to do first runs this in a background thread and overlaps the compilation with that work
+    (two XLA:CPU executions at once can wedge its thread pool)."""
     integrator = make_solver() if integrator is None else integrator
     chunk = (ErrorRomOptions() if options is None else options).chunk
     dt = jnp.asarray(dt, model.ell.dtype)
-    run_data = run_data_at_start(model, integrator, dt)
-    z = jnp.zeros(2 * model.n_unknowns, model.ell.dtype)
-    jax.block_until_ready(apply_steps(model, dt, integrator, order, 1, jnp.zeros((chunk, z.size), z.dtype), run_data))
-    jax.block_until_ready(jvp_columns(model, dt, integrator, order, 1, z, jnp.zeros((z.size, chunk), z.dtype),
-                                       run_data))
-    jax.block_until_ready(jvp_one(model, dt, integrator, order, 1, z, z, run_data))
+    run_data_at_start.lower(model, integrator, dt).compile()
+    run_data = jax.tree.map(lambda x: np.zeros(x.shape, x.dtype) if isinstance(x, jax.ShapeDtypeStruct) else x,
+                            eqx.filter_eval_shape(run_data_at_start, model, integrator, dt))
+    n = 2 * model.n_unknowns
+    z, dtype = np.zeros(n, model.ell.dtype), model.ell.dtype
+    apply_steps.lower(model, dt, integrator, order, 1, np.zeros((chunk, n), dtype), run_data).compile()
+    jvp_columns.lower(model, dt, integrator, order, 1, z, np.zeros((n, chunk), dtype), run_data).compile()
+    jvp_one.lower(model, dt, integrator, order, 1, z, z, run_data).compile()
 
 
 def _remainder_svd(W, X):

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..integrators import AbstractIntegrator, DirectBackwardEuler, Reuse, solver_name
 from ..state import initial_state
-from ..timeloop import SaveAt, simulate
+from ..timeloop import SaveAt, compile_simulate, simulate
 from .dmd import dmd_coordinates, fit_dmd
 from .box import calibration_cases as dmdc_calibration_cases
 from .box import prediction_trajectory
@@ -242,15 +242,15 @@ def _full_runs(model, solver, config):
 
 
 def warm_full_runs(model, solver, n_steps: int, dt, every: int = 1):
-    """Compile, by running each once, the full runs :func:`reduce_and_compare` times: in
+    """Compile, without running them, the full runs :func:`reduce_and_compare` times: in
     ``solver``'s mode and, unless that is it already, in the reuse mode (the same arguments as
-    there, so the timed calls find the compiled programs). A caller with other work to do first
-    — the sized training of ``jaxbelt reduce --train-ranges`` — runs this in a background thread
-    and overlaps the compilation with that work; the timings themselves are taken later, alone."""
+    there, so the timed calls find the compiled programs; :func:`jaxbelt.timeloop.compile_simulate`).
+    A caller with other work to do first — the sized training of ``jaxbelt reduce --train-ranges``
+    — runs this in a background thread and overlaps the compilation with that work."""
     saveat = SaveAt(every=every)
     modes = (solver,) if _is_reuse(solver) else (solver, DirectBackwardEuler(Reuse(), transport=solver.transport))
     for s in modes:
-        jax.block_until_ready(simulate(model, s, n_steps=int(n_steps), dt=dt, saveat=saveat, check=False))
+        compile_simulate(model, s, n_steps=int(n_steps), dt=dt, saveat=saveat)
 
 
 def _timed(f, *args, repeat: int = 5, budget_s: float = 0.5):

@@ -7,6 +7,9 @@ no fit has seen: the drive moved -6 mm (and for POD, which takes the drive rate 
 turning at 0.9 of the nominal rate). Single-configuration DMD (pre-transport states) is checked
 through ``jaxbelt reduce`` in ``tests/integration/test_cli_reduce.py``."""
 
+import logging
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -15,7 +18,8 @@ import jaxbelt as jb
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, tracer_operator)
 from jaxbelt.rom.calibration import calibrate, safety_factor, snapshot_count
-from jaxbelt.rom.indicator import BasisTrajectory, _quasi_static_response, _split_changing_windows, error_rom, residual_indicator
+from jaxbelt.rom.indicator import (BasisTrajectory, ErrorRomOptions, _quasi_static_response, _split_changing_windows,
+                                  error_rom, residual_indicator, warm_error_rom)
 
 N_TRAIN, N_TEST = 100, 200
 DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene
@@ -132,6 +136,26 @@ def test_dmdc_effectivity_on_a_held_out_configuration(setup):
     est = error_rom(m, *inputs(f, Z[:, 0], u, N_TEST)[:2], DT, Z[:, 0]).rmse_mm
     assert 0.8 < est / true < 1.25
     assert 1.0 <= kappa * est / true <= 3.0
+
+
+def test_warm_up_compiles_what_the_estimate_runs(setup, caplog):
+    """warm_error_rom compiles error_rom's batched full steps and Jacobian products without
+    running them: error_rom then traces and compiles neither again. Against it, the same
+    estimate in chunks of another size, not warmed up, does."""
+    m, Z = setup["truth"]["same"]
+    B = np.linalg.qr(np.asarray(Z[:, :40]))[0][:, :5]
+    coords = (B.T @ np.asarray(Z[:, :41])).T
+    programs = ("apply_steps", "jvp_columns")
+    compiled = {}
+    for chunk, warm in ((7, True), (5, False)):  # batch shapes no other test compiles
+        options = ErrorRomOptions(chunk=chunk)
+        if warm:
+            warm_error_rom(m, DT, options=options)
+        caplog.clear()
+        with jax.log_compiles(), caplog.at_level(logging.WARNING, logger="jax"):
+            error_rom(m, B, coords, DT, stride=10, options=options)
+        compiled[warm] = {p for p in programs if any(p in r.getMessage() for r in caplog.records)}
+    assert compiled == {True: set(), False: set(programs)}
 
 
 def test_quasi_static_response_solves_i_minus_j_by_gmres():

@@ -8,7 +8,6 @@ one :class:`jaxbelt.RunOptions`; bad input fails with a clear message before any
 importing the package changes no process-wide setting; a run with a progress bar is the same run.
 """
 
-import contextlib
 import os
 import subprocess
 import sys
@@ -20,7 +19,7 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
-from helpers import COARSE_2D_TWO_ROLLER, load, scene_with
+from helpers import COARSE_2D_TWO_ROLLER, COMPILE_EVENT, TRACE_EVENT, counting_compiles, load, scene_with
 from jaxbelt.integrators import solver_name
 from jaxbelt.registry import INTEGRATORS, LINEAR_SOLVERS
 
@@ -29,9 +28,6 @@ from jaxbelt.registry import INTEGRATORS, LINEAR_SOLVERS
 SCENE_1D, N_1D = "two-roller-1d-train1", 30
 # the coarse 2D belt on the two-roller machine, 5 steps of 20 ms
 SCENE_2D = COARSE_2D_TWO_ROLLER + "[time]\ndt_s = 0.02\nt_end_s = 0.1\n"
-
-COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"  # an XLA compile, or a load from the cache
-TRACE_EVENT = "/jax/core/compile/jaxpr_trace_duration"  # a function traced to a jaxpr
 
 
 @pytest.fixture(scope="module")
@@ -44,26 +40,23 @@ def two_d():
     return load(jb.scene_from_dict(tomllib.loads(SCENE_2D)))
 
 
-@contextlib.contextmanager
-def counting_compiles():
-    """The names of the compile and trace events JAX reports inside the block (a list)."""
-    events = []
-
-    def listener(event, duration, **kwargs):
-        if event in (COMPILE_EVENT, TRACE_EVENT):
-            events.append(event)
-
-    jax.monitoring.register_event_duration_secs_listener(listener)
-    try:
-        yield events
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listener)
-
-
 def test_the_compile_counter_sees_a_compile():
     with counting_compiles() as events:
         jax.jit(lambda x: jnp.sin(x) * 2.25 + 0.125)(jnp.arange(7.0)).block_until_ready()
     assert events.count(COMPILE_EVENT) >= 1 and events.count(TRACE_EVENT) >= 1
+
+
+def test_compile_simulate_compiles_what_simulate_then_runs(one_d):
+    """compile_simulate compiles (or loads) the run without running it; simulate with the same
+    settings then traces and compiles nothing."""
+    model, opts = one_d
+    opts = opts.replace(n_steps=opts.n_steps + 7)  # a run length no other test compiles
+    with counting_compiles() as warm:
+        jb.timeloop.compile_simulate(model, opts.solver, n_steps=opts.n_steps, dt=opts.dt, saveat=opts.saveat)
+    assert COMPILE_EVENT in warm and TRACE_EVENT in warm
+    with counting_compiles() as events:
+        jb.simulate(model, **opts)
+    assert events == []
 
 
 def _misaligned(case, model):
