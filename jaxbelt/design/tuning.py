@@ -20,8 +20,9 @@ loop ``L = sign(k) G C`` on two descriptions of the plant:
 - the identified plant (:class:`~jaxbelt.design.plant.SteeringPlant` by
   :func:`jaxbelt.design.steering.identify_plant`, with the loop's recirculation;
   :meth:`~jaxbelt.design.plant.SteeringPlant.margins`);
-- the measured open-loop response of the full model (:class:`MeasuredResponse`: the step response
-  of the actuator angle, turned into ``G(iω)`` by a Fourier sum), unless
+- the measured open-loop response of the full model
+  (:class:`~jaxbelt.design.loop_response.MeasuredResponse`: the step response of the actuator
+  angle, turned into ``G(iω)`` by a Fourier sum), unless
   ``constrain_response=False`` (a check that does not rest on the fit). On ``two-roller-steered``
   the once-around resonance (near ``2π / T_loop``) is what limits the gain; a plant without the
   recirculation (``k e^{−θs}/(s(1+τs))``) misses it.
@@ -40,8 +41,8 @@ from the SIMC ratio ``k_i = k_p / (8 θ_eff)``). The result is the best iterate.
 **Classical tunings**, run through the same full model for comparison:
 
 - *SIMC* (Skogestad), PI, on the integrating-plus-delay fit the rule is made for
-  (:func:`fit_plant`: ``k e^{−θs}/(s(1+τs))``, no recirculation), the lag folded into the delay
-  by the half rule,
+  (:func:`~jaxbelt.design.loop_response.fit_plant`: ``k e^{−θs}/(s(1+τs))``, no
+  recirculation), the lag folded into the delay by the half rule,
   ``θ_eff = θ + τ / 2``, ``τ_c = θ_eff``, ``k_p = 1 / (|k| (τ_c + θ_eff))``,
   ``k_i = k_p / (4 (τ_c + θ_eff))``;
 - *Ziegler–Nichols* (ultimate point), PI: ``K_u`` and ``T_u = 2π / ω_u`` from the P-only loop on
@@ -64,6 +65,7 @@ import optax
 
 from ..model import BeltModel
 from ..timeloop import RunOptions, belt_speed, simulate
+from .loop_response import MeasuredResponse, fit_plant, frequency_grid, grid_margins, pid_response
 from .plant import SteeringPlant
 from .steering import identify_plant
 
@@ -148,77 +150,16 @@ def _log_value_and_grad(log_gains, kd, model, solver, dt, n_steps, kind, skip):
 
 # --------------------------------------------------------------------- measured response
 
-@dataclasses.dataclass(frozen=True)
-class MeasuredResponse:
-    """The full model's open-loop response of the sensor to the actuator angle.
-
-    **Fields:** ``t`` (n,) s, the record times; ``step`` (n,) m per rad, the sensor displacement
-    after a unit step of the actuator angle at ``t = 0`` (the run with the step minus the run
-    without, so the scene's own disturbance cancels); ``dt`` s; ``rate`` m/s per rad, the final
-    walk rate (the integrator's gain, signed)."""
-
-    t: np.ndarray
-    step: np.ndarray
-    dt: float
-    rate: float
-
-    def frequency_response(self, omega):
-        """``G(iω)`` (complex): ``rate / (iω) + Σ_j (h_j − rate) e^{−iω t_j} Δt`` with ``h_j`` the
-        step response's increments per Δt; exact for the sampled record where the response has
-        settled to a steady walk before its end."""
-        w = np.asarray(omega, float)
-        h = np.diff(np.concatenate([[0.0], self.step])) / self.dt - self.rate
-        tj = np.arange(h.size) * self.dt
-        return self.rate / (1j * w) + np.exp(-1j * np.outer(w, tj)) @ h * self.dt
-
-    def margins(self, kp, ki=0.0, kd=0.0, omega=None):
-        """``(gain_margin, phase_margin_deg, omega_pc, omega_gc)`` of ``L = sign(rate) G C``: the
-        smallest over every crossing (the response may cross more than once)."""
-        w = _grid(self.dt) if omega is None else np.asarray(omega, float)
-        return grid_margins(w, np.sign(self.rate) * self.frequency_response(w) * _pid(w, kp, ki, kd))
-
-
-def _grid(dt):
-    return np.logspace(-3, np.log10(np.pi / dt), 3000)
-
-
-def _pid(w, kp, ki, kd):
-    s = 1j * w
-    return kp + ki / s + kd * s
-
-
-def grid_margins(omega, L):
-    """``(gain_margin, phase_margin_deg, omega_pc, omega_gc)`` of a loop sampled at ``omega``:
-    the smallest ``1/|L|`` where ``L`` crosses the negative real axis and the smallest
-    ``180° − |arg L|`` where ``|L|`` crosses 1 (crossings linearly interpolated); ``inf``/``nan``
-    where there is none."""
-    L = np.asarray(L)
-    gm, w_pc, pm, w_gc = np.inf, np.nan, np.inf, np.nan
-    im = L.imag
-    for i in np.flatnonzero(im[:-1] * im[1:] < 0):
-        f = im[i] / (im[i] - im[i + 1])
-        Lc = L[i] + f * (L[i + 1] - L[i])
-        if Lc.real < 0 and 1 / abs(Lc) < gm:
-            gm, w_pc = 1 / abs(Lc), omega[i] + f * (omega[i + 1] - omega[i])
-    a = np.abs(L) - 1
-    for i in np.flatnonzero(a[:-1] * a[1:] <= 0):
-        f = a[i] / (a[i] - a[i + 1]) if a[i] != a[i + 1] else 0.0
-        Lc = L[i] + f * (L[i + 1] - L[i])
-        p = 180.0 - abs(np.degrees(np.angle(Lc)))
-        if p < pm:
-            pm, w_gc = p, omega[i] + f * (omega[i + 1] - omega[i])
-    return float(gm), float(pm), float(w_pc), float(w_gc)
-
-
 def open_loop_response(model: BeltModel, options: RunOptions, t_end: float | None = None,
                        amplitude: float = 1e-4) -> MeasuredResponse:
-    """The measured response (:class:`MeasuredResponse`): two runs of ``t_end`` s (default the run
-    of ``options``) from the static state, one with the loop open (gains 0) and one with the
-    actuator angle stepped to ``amplitude`` rad at ``t = 0`` through the loop's own actuator path
-    (the controller saturated: ``k_p = 1``, ``k_i = k_d = 0``, the setpoint 1 m away, the range
-    ``amplitude``, no rate limit), so the actuator's lag is part of the response. The same compiled
-    program as :func:`objective` where the length is the same. The run should be long enough for
-    the once-around echoes to die out (tens of seconds): the walk rate is the mean over its last 5 s."""
+    """The measured response (:class:`~jaxbelt.design.loop_response.MeasuredResponse`): two runs
+    of ``t_end`` s (default the run of ``options``) from the static state, one with the loop open
+    (gains 0) and one with the actuator angle stepped to ``amplitude`` rad at ``t = 0`` through
+    the loop's own actuator path (the controller saturated: ``k_p = 1``, ``k_i = k_d = 0``, the
+    setpoint 1 m away, the range ``amplitude``, no rate limit), so the actuator's lag is part of
+    the response. The same compiled program as :func:`objective` where the length is the same.
+    The run should be long enough for the once-around echoes to die out (tens of seconds): the
+    walk rate is the mean over its last 5 s."""
     loops = _loop(model)
     n = int(options.n_steps) if t_end is None else int(round(t_end / options.dt))
     dt = jnp.asarray(options.dt, model.ell.dtype)
@@ -233,23 +174,6 @@ def open_loop_response(model: BeltModel, options: RunOptions, t_end: float | Non
     last = min(int(round(5.0 / options.dt)), n - 1)
     rate = float(np.mean(np.diff(step[-last - 1:])) / options.dt)
     return MeasuredResponse(t=(np.arange(n) + 1) * float(options.dt), step=step, dt=float(options.dt), rate=rate)
-
-
-def fit_plant(response: MeasuredResponse) -> SteeringPlant:
-    """The least-squares fit of ``k e^{−θs}/(s(1+τs))`` to a measured step response: ``θ`` on a
-    0.01 s grid and ``τ`` on a 0.02 s grid (both 0–2 s), ``k`` linear."""
-    t, y = response.t, response.step
-    taus = np.arange(1, 100) * 0.02
-    best = (np.inf, 0.0, 0.0, 0.0)
-    for theta in np.arange(0.0, 2.0, 0.01):
-        tp = np.maximum(t - theta, 0.0)
-        B = np.vstack([tp, tp - taus[:, None] * -np.expm1(-tp / taus[:, None])])  # τ = 0, then taus
-        by, bb = B @ y, np.einsum("ij,ij->i", B, B)
-        r = y @ y - by**2 / np.where(bb > 0, bb, np.inf)
-        i = int(np.argmin(r))
-        if r[i] < best[0]:
-            best = (r[i], by[i] / bb[i], 0.0 if i == 0 else taus[i - 1], theta)
-    return SteeringPlant(gain=float(best[1]), lag=float(best[2]), delay=float(best[3]))
 
 
 # ---------------------------------------------------------------------------- results
@@ -360,12 +284,12 @@ class _Check:
     def __init__(self, plant, response, gm_min_db, pm_min_deg, constrain_response):
         self.plant, self.response, self.constrain = plant, response, constrain_response
         self.gm, self.pm = gm_min_db, pm_min_deg
-        self.w = _grid(response.dt)
+        self.w = frequency_grid(response.dt)
         self.G = np.sign(response.rate) * response.frequency_response(self.w)
 
     def margins(self, kp, ki, kd):
         gm, pm, _, w_gc = self.plant.margins(kp, ki, kd)
-        rgm, rpm, _, _ = grid_margins(self.w, self.G * _pid(self.w, kp, ki, kd))
+        rgm, rpm, _, _ = grid_margins(self.w, self.G * pid_response(self.w, kp, ki, kd))
         return _db(gm), pm, w_gc, _db(rgm), rpm
 
     def ok(self, kp, ki, kd):

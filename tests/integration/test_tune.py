@@ -12,7 +12,7 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.cli import main
-from jaxbelt.design import tuning
+from jaxbelt.design import loop_response, tuning
 from jaxbelt.design.plant import SteeringPlant
 
 T_END = 30.0
@@ -88,7 +88,7 @@ def test_measured_response_margins_match_the_plant_form(setup):
     plant = SteeringPlant(-0.0742, 0.05, 0.25)
     w = np.logspace(-3, 2, 20000)
     for kp, ki in ((1.0, 0.1), (3.0, 1.0)):
-        gm, pm, w_pc, w_gc = tuning.grid_margins(w, plant.loop_response(w, kp, ki))
+        gm, pm, w_pc, w_gc = loop_response.grid_margins(w, plant.loop_response(w, kp, ki))
         ref = plant.margins(kp, ki)
         assert gm == pytest.approx(ref[0], rel=1e-4) and pm == pytest.approx(ref[1], abs=1e-2)
 
