@@ -195,7 +195,7 @@ def belt_section(width, thickness, youngs_modulus, poisson_ratio, kappa=SHEAR_CO
 
 
 def scene_geometry(scene) -> tuple[LoopGeometry, float]:
-    """The :class:`LoopGeometry` of a :class:`jaxbelt.scene.Scene`'s belt path, and the path length (m)."""
+    """The :class:`LoopGeometry` of a :class:`jaxbelt.scene_spec.Scene`'s belt path, and the path length (m)."""
     rl = scene.rollers
     path = belt_path(np.array([r.center for r in rl]), np.array([r.radius for r in rl]),
                      np.array([r.external for r in rl]), scene.direction)
@@ -203,7 +203,7 @@ def scene_geometry(scene) -> tuple[LoopGeometry, float]:
 
 
 def scene_walk_rate(scene, rotation=None, tension=None, shear=True):
-    """:func:`walk_rate` for a compiled-from :class:`jaxbelt.scene.Scene`: geometry from its belt
+    """:func:`walk_rate` for a compiled-from :class:`jaxbelt.scene_spec.Scene`: geometry from its belt
     path, EI and κGA from its belt, tension ``E A ε₀`` from its pre-tension unless given, the
     drive speed as ``V``; ``rotation`` (p, 3) rad defaults to the scene's roller rotations."""
     rl = scene.rollers
@@ -261,7 +261,7 @@ def string_loop_transfer(geom: LoopGeometry, omega, rotation, speed, sensor_span
 
 def string_loop_response(scene, omega, loop: int = 0):
     """:func:`string_loop_transfer` for loop ``loop`` (a ``[[control]]`` table) of a
-    :class:`jaxbelt.scene.Scene`: the actuated roller and axis, the drive speed as ``V`` and the
+    :class:`jaxbelt.scene_spec.Scene`: the actuated roller and axis, the drive speed as ``V`` and the
     sensor's position along the path (which must lie on a free span). Returns ``G(iω)`` (m per
     rad) with the machine's own sign; its low-frequency limit is ``c / (iω)`` with ``c`` the
     string walk rate ``V Σ L σ_in / L_loop`` of :func:`walk_rate`'s string limit."""

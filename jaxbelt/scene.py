@@ -1,14 +1,13 @@
 """Scene files (TOML): loading, unit conversion and validation (model specification §1).
 
-A scene is read into plain frozen dataclasses in SI units. Every rejection raises
-:class:`SceneError`, whose message names the offending key and value; nothing is compiled or
-run for a scene that fails. Geometry- and mesh-dependent checks (belt path, CFL, elements on
+A scene is read into the frozen dataclasses of :mod:`jaxbelt.scene_spec`, in SI units. Every
+rejection raises :class:`SceneError`, whose message names the offending key and value; nothing
+is compiled or run for a scene that fails. Geometry- and mesh-dependent checks (belt path, CFL, elements on
 an arc) happen in :func:`jaxbelt.mesh.build_mesh`, which raises the same error type.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import tomllib
 from importlib import resources
@@ -19,125 +18,11 @@ import numpy as np
 
 from .registry import (DEFAULT_INTEGRATOR, DEFAULT_LINEAR_SOLVER, DEFAULT_TRANSPORT, INTEGRATORS, LINEAR_SOLVERS,
                        TRANSPORT_RULES)
+from .scene_spec import BeltSpec, ControlSpec, MeshSpec, OutputSpec, RollerSpec, Scene, SolverSpec, TimeSpec
 
 
 class SceneError(ValueError):
     """A scene that cannot be simulated; the message names the key and the value."""
-
-
-# ---------------------------------------------------------------------------- specs (SI units)
-
-
-@dataclasses.dataclass(frozen=True)
-class BeltSpec:
-    width: float  # m
-    thickness: float  # m
-    youngs_modulus: float  # Pa
-    poisson_ratio: float
-    density: float  # kg/m³
-    length: float | None = None  # m; None = path length
-
-    @property
-    def area(self) -> float:
-        return self.width * self.thickness
-
-    def pre_strain(self, path_length: float) -> float:
-        """Uniform pre-strain ``ε₀ = L_path / L_belt − 1`` of a belt shorter than its path (0 without
-        ``length``)."""
-        return 0.0 if self.length is None else path_length / self.length - 1.0
-
-
-@dataclasses.dataclass(frozen=True)
-class RollerSpec:
-    name: str
-    center: tuple[float, float]  # m
-    radius: float  # m
-    width: float  # m
-    mass: float  # kg
-    external: bool
-    role: str  # drive | idle | tension
-    speed: float  # belt surface speed for a drive roller, m/s
-    translation: tuple[float, float, float]  # m
-    rotation: tuple[float, float, float]  # rad, applied x → y → z
-    force: tuple[float, float, float]  # N; non-zero components are force-loaded (dynamic) DOFs
-    torque: tuple[float, float, float]  # N·m about x, y (z: idle/tension rollers are torque free)
-
-
-@dataclasses.dataclass(frozen=True)
-class MeshSpec:
-    n_eta: int = 1
-    n_xi: int | None = None
-    element_length: float | None = None  # m
-    roller_elements: tuple[int, ...] | None = None
-    free_elements: tuple[int, ...] | None = None
-    element: str = "qm6"  # 2D quad: qm6 (incompatible modes, no bending locking) | q4 (bilinear)
-
-
-@dataclasses.dataclass(frozen=True)
-class TimeSpec:
-    dt: float  # s
-    t_end: float  # s
-
-    @property
-    def n_steps(self) -> int:
-        return int(round(self.t_end / self.dt))
-
-
-@dataclasses.dataclass(frozen=True)
-class OutputSpec:
-    tracers_per_segment: int = 5
-    fields: str = "tracers"  # tracers | full
-    every: int = 1  # keep every k-th step
-    tracers: tuple[tuple[float, float], ...] = ()  # extra tracers (x along the path, z), m
-
-
-@dataclasses.dataclass(frozen=True)
-class SolverSpec:
-    integrator: str = DEFAULT_INTEGRATOR  # a name of jaxbelt.registry.INTEGRATORS
-    linear_solver: str = DEFAULT_LINEAR_SOLVER  # a name of jaxbelt.registry.LINEAR_SOLVERS
-    transport: str = DEFAULT_TRANSPORT  # a name of jaxbelt.registry.TRANSPORT_RULES
-    lateral_transport: bool = False  # 2D: also transport v (lets a skewed roller steer the belt)
-    tension_stiffening: bool = True  # 2D: initial-stress (geometric) stiffness of the membrane tension
-    accuracy_um: float | None = None  # run on the cheapest grid whose estimated error is at most this (jaxbelt.accuracy)
-
-
-@dataclasses.dataclass(frozen=True)
-class ControlSpec:
-    """One steering loop (``[[control]]``), SI units: an edge sensor feeding a PID controller
-    that tilts one roller (:mod:`jaxbelt.control`)."""
-
-    actuator: str  # roller name
-    axis: str  # "x" | "y": the rotation component it drives
-    sensor: tuple[float, float]  # (s along the path from roller 1's incoming contact line, z across), m
-    kp: float  # rad/m (= mrad/mm)
-    ki: float = 0.0  # rad/(m s)
-    kd: float = 0.0  # rad s/m
-    sample: float | None = None  # s; None: every step
-    limit: float = 5e-3  # rad, symmetric range
-    rate_limit: float | None = None  # rad/s
-    lag: float = 0.0  # s, actuator first-order lag
-    setpoint: float = 0.0  # m
-    noise: float = 0.0  # m, sensor noise σ
-    seed: int = 0
-    edge_profile: tuple[tuple[float, float, float], ...] = ()  # (harmonic per loop, amplitude m, phase rad)
-
-
-@dataclasses.dataclass(frozen=True)
-class Scene:
-    name: str
-    kind: str  # "1d" | "2d"
-    belt: BeltSpec
-    rollers: tuple[RollerSpec, ...]
-    mesh: MeshSpec
-    time: TimeSpec
-    output: OutputSpec
-    solver: SolverSpec
-    direction: int | None = None  # +1 ccw / -1 cw loop; None: from the layout
-    description: str = ""
-    control: tuple[ControlSpec, ...] = ()  # steering loops ([[control]] tables)
-
-    def replace(self, **kw) -> "Scene":
-        return dataclasses.replace(self, **kw)
 
 
 # ---------------------------------------------------------------------------- schema
