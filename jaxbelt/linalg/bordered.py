@@ -167,7 +167,13 @@ class BorderedFactorisation(eqx.Module):
     that are replaced (:func:`refactorise_border`). Kept apart, the per-step factors of the exact
     mode hold only the k changed columns — ``y_GR`` stays the run's reference array, shared by
     every step and every configuration of a ``vmap`` batch — instead of a fresh copy per step,
-    which reverse mode stores or recomputes."""
+    which reverse mode stores or recomputes.
+
+    ``H_blocks`` (static): the interior blocks the roller rows of ``H`` are kept on (empty: all).
+    :func:`with_chained_interior` narrows them to the roller columns and their neighbours, the only
+    belt columns a roller's force and torque balance couples to (the roller rows are ``Rᵀ`` times
+    belt rows, and ``R`` is zero off the rollers): on ``three-roller-t72`` 26 of the 103 blocks, a
+    quarter of the (q, (n-1) b) matrix, which a solve streams in full otherwise."""
 
     row_b: jax.Array
     row_r: jax.Array
@@ -180,6 +186,7 @@ class BorderedFactorisation(eqx.Module):
     y_G_cols: jax.Array | None = None
     y_G_index: tuple = eqx.field(static=True, default=())
     y_G0_rows: tuple = eqx.field(static=True, default=())
+    H_blocks: tuple = eqx.field(static=True, default=())
 
 
 def _to_interior(v, rows, m):
@@ -211,8 +218,10 @@ def with_chained_interior(F: BorderedFactorisation, contact_columns) -> Bordered
     the breaks at the belt's roller columns ``contact_columns`` (static; column ``i`` is interior
     block ``i - 1``), and ``y_G0`` narrowed to the free spans next to block 0 (the only blocks
     where ``T⁻¹`` of block 0's columns is non-zero: a roller column's rows couple to no belt
-    column, so ``T`` decouples there; the dropped entries are exact zeros). Unchanged for a
-    cyclic-reduction interior or unknown columns."""
+    column, so ``T`` decouples there; the dropped entries are exact zeros), and the roller rows of
+    ``H`` narrowed to the roller columns and their neighbours (``H_blocks``; the roller rows
+    ``D`` must vanish elsewhere, as the belt's do). Unchanged for a cyclic-reduction interior or
+    unknown columns."""
     if not isinstance(F.interior, ThomasFactors) or contact_columns is None:
         return F
     m = F.interior.inv.shape[0]
@@ -220,7 +229,31 @@ def with_chained_interior(F: BorderedFactorisation, contact_columns) -> Bordered
     breaks = [(k + 1) in on for k in range(m)]
     rows = _spans_through(breaks, (0, m - 1))
     y_G0 = _to_interior(F.y_G0, F.y_G0_rows, m)[np.asarray(rows, int)]
-    return dataclasses.replace(F, interior=chain_thomas(F.interior, breaks), y_G0=y_G0, y_G0_rows=rows)
+    H_blocks = roller_row_blocks(contact_columns, m + 1)
+    H = (F.H[0], F.H[1], _narrow_roller_rows(F.H[2], F.H_blocks, H_blocks, F.y_G0.shape[1]))
+    return dataclasses.replace(F, interior=chain_thomas(F.interior, breaks), y_G0=y_G0, y_G0_rows=rows, H=H,
+                               H_blocks=H_blocks)
+
+
+def roller_row_blocks(contact_columns, n: int) -> tuple:
+    """The interior blocks (column ``i`` is block ``i - 1``; column 0 is the border's) that the
+    roller rows ``D`` can couple to: the roller columns ``contact_columns`` and their neighbours
+    (``Rᵀ K_f`` reaches one column past the contact), of an ``n``-column belt loop."""
+    near = {(int(c) + d) % n for c in contact_columns for d in (-1, 0, 1)}
+    return tuple(sorted(c - 1 for c in near if c != 0))
+
+
+def _narrow_roller_rows(D_flat, blocks_from, blocks_to, b):
+    """Roller rows ``D_flat`` (q, len(blocks_from) b) kept on ``blocks_from`` (empty: all), narrowed
+    to ``blocks_to`` (a subset)."""
+    q = D_flat.shape[0]
+    D = D_flat.reshape(q, -1, b)
+    if blocks_from:
+        pos = {k: i for i, k in enumerate(blocks_from)}
+        D = D[:, np.asarray([pos[k] for k in blocks_to], int)]
+    else:
+        D = D[:, np.asarray(blocks_to, int)]
+    return D.reshape(q, -1)
 
 
 def _spans_through(breaks, blocks):
@@ -260,11 +293,13 @@ def _flat_roller_rows(D):
     return jnp.transpose(D, (1, 0, 2)).reshape(D.shape[1], -1)
 
 
-def _border_times(H, Y):
-    """``H Y`` for interior values ``Y`` (n-1, b, k) without forming ``H`` (:func:`_border_rows`)."""
+def _border_times(H, Y, blocks=()):
+    """``H Y`` for interior values ``Y`` (n-1, b, k) without forming ``H`` (:func:`_border_rows`);
+    ``blocks``: the interior blocks ``H``'s roller rows are kept on (empty: all)."""
     U0, L0, D_flat = H
     top = U0 @ Y[0] + L0 @ Y[-1]
-    rollers = D_flat @ Y.reshape(-1, Y.shape[-1])
+    Yr = Y[np.asarray(blocks, int)] if blocks else Y
+    rollers = D_flat @ Yr.reshape(-1, Y.shape[-1])
     return jnp.concatenate([top, rollers], axis=0)
 
 
@@ -301,7 +336,7 @@ def scaled_schur(A: BorderedBlockCyclic, F: BorderedFactorisation) -> jax.Array:
     """The (unfactored) ``(b + q)²`` Schur complement ``Z - H T⁻¹ G`` of ``A`` in ``F``'s row
     scaling (:func:`refactorise_border` updates it)."""
     G, Z = _border_parts(_scale_rows(A, F.row_b, F.row_r))
-    return Z - _border_times(F.H, _effective_y_G(F))
+    return Z - _border_times(F.H, _effective_y_G(F), F.H_blocks)
 
 
 def _scale_rows(A: BorderedBlockCyclic, row_b, row_r) -> BorderedBlockCyclic:
@@ -333,7 +368,8 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     cols, rws = jnp.asarray(columns, int), jnp.asarray(rows, int)
     C = A.C[:, :, cols] * row_b[:, :, None]  # (n, b, k) changed roller columns, scaled
     D = A.D * row_r[None, :, None]
-    H = (F_ref.H[0], F_ref.H[1], _flat_roller_rows(D[1:]))
+    blocks = F_ref.H_blocks
+    H = (F_ref.H[0], F_ref.H[1], _flat_roller_rows(D[1:][np.asarray(blocks, int)] if blocks else D[1:]))
     if F_ref.y_G_index:
         raise ValueError("refactorise_border: F_ref must be a reference factorisation (no replaced columns)")
     S = S_ref
@@ -341,19 +377,24 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     if len(columns):
         y_new = _apply_interior(F_ref.interior, C[1:])
         Z_cols = jnp.concatenate([C[0], A.E[:, cols] * row_r[:, None]], axis=0)
-        S = S.at[:, b + cols].set(Z_cols - _border_times(H, y_new))
+        S = S.at[:, b + cols].set(Z_cols - _border_times(H, y_new, blocks))
     if len(rows):
         Z_rows = jnp.concatenate([D[0, rws], A.E[rws] * row_r[rws, None]], axis=1)
-        H_r = H[2][rws]  # (k, (n-1) b)
-        rows0 = np.asarray(F_ref.y_G0_rows, int)
-        H_r0 = H_r.reshape(len(rows), -1, b)[:, rows0].reshape(len(rows), -1)
+        H_r = H[2][rws].reshape(len(rows), -1, b)  # (k, blocks, b)
+        kept = blocks or tuple(range(A.n_blocks - 1))
+        rows0 = {k: i for i, k in enumerate(F_ref.y_G0_rows)}
+        both = [k for k in kept if k in rows0]  # the blocks where both H's rows and T⁻¹ G₀ can be non-zero
+        H_r0 = H_r[:, np.asarray([kept.index(k) for k in both], int)].reshape(len(rows), -1)
+        Y0 = F_ref.y_G0[np.asarray([rows0[k] for k in both], int)]
         y_R = F_ref.y_GR if y_new is None else F_ref.y_GR.at[:, :, cols].set(y_new)
-        HY = jnp.concatenate([H_r0 @ F_ref.y_G0.reshape(-1, b), H_r @ y_R.reshape(-1, y_R.shape[-1])], axis=1)
+        y_R = y_R[np.asarray(blocks, int)] if blocks else y_R
+        HY = jnp.concatenate([H_r0 @ Y0.reshape(-1, b), H_r.reshape(len(rows), -1) @ y_R.reshape(-1, y_R.shape[-1])],
+                             axis=1)
         S = S.at[b + rws, :].set(Z_rows - HY)
     S_lu, S_piv = lu_factor(S)
     return BorderedFactorisation(row_b, row_r, F_ref.interior, F_ref.y_G0, F_ref.y_GR, H, S_lu, S_piv,
                                  y_new, tuple(int(c) for c in columns) if y_new is not None else (),
-                                 F_ref.y_G0_rows)
+                                 F_ref.y_G0_rows, blocks)
 
 
 def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
@@ -361,7 +402,7 @@ def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
     rb, rr = rhs_belt * F.row_b, rhs_roll * F.row_r
     b = rb.shape[1]
     y_r = _apply_interior(F.interior, rb[1:, :, None])[:, :, 0]
-    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - _border_times(F.H, y_r[:, :, None])[:, 0])
+    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - _border_times(F.H, y_r[:, :, None], F.H_blocks)[:, 0])
     x_0, x_roll = x_border[:b], x_border[b:]
     m = y_r.shape[0]
     x_int = y_r - _to_interior(jnp.einsum("nbs,s->nb", F.y_G0, x_0), F.y_G0_rows, m)

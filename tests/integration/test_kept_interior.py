@@ -242,34 +242,39 @@ def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
 @pytest.mark.slow
 def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
     """With the roller columns known, ``T⁻¹`` of block 0's border columns is kept on the free
-    spans next to block 0 only; the solve, its transpose and a border refactorisation with it
-    still equal dense solves."""
+    spans next to block 0 only, and the roller rows' couplings on the roller columns and their
+    neighbours only; the solve, its transpose and a border refactorisation with it still equal
+    dense solves."""
     from jaxbelt.linalg.bordered import factor_solve_transposed, with_chained_interior
 
     rng = np.random.default_rng(11)
     n, b, q = 14, 3, 4
     contact = (0, 1, 5, 6, 10)  # belt columns on rollers: their rows couple to no belt column
     on = np.isin(np.arange(n), contact)[:, None, None]
+    # the roller rows reach the contact columns and their neighbours only (Rᵀ K_f): 0, 1, 2, 4..7, 9..11, 13
+    near = (np.roll(on, 1, 0) | on | np.roll(on, -1, 0)).reshape(n, 1, 1)
     g = lambda *s: jnp.asarray(rng.normal(size=s))  # noqa: E731
     A = BorderedBlockCyclic(diag=g(n, b, b) + 8 * jnp.eye(b), lower=jnp.where(on, 0.0, g(n, b, b)),
-                            upper=jnp.where(on, 0.0, g(n, b, b)), C=g(n, b, q), D=g(n, q, b), E=g(q, q) + 8 * jnp.eye(q))
+                            upper=jnp.where(on, 0.0, g(n, b, b)), C=g(n, b, q), D=jnp.where(near, g(n, q, b), 0.0),
+                            E=g(q, q) + 8 * jnp.eye(q))
     rb, rr = g(n, b), g(q)
     cols, rows = (1, 2), (2,)
     A2 = BorderedBlockCyclic(A.diag, A.lower, A.upper, A.C.at[:, :, jnp.asarray(cols)].add(g(n, b, 2)),
-                             A.D.at[:, jnp.asarray(rows), :].add(g(n, 1, b)), A.E)
+                             A.D.at[:, jnp.asarray(rows), :].add(jnp.where(near, g(n, 1, b), 0.0)), A.E)
 
     @jax.jit  # one program (op by op, the many small sweeps' primitives compile one by one)
     def solves(A, A2, rb, rr):
         F = with_chained_interior(factorise(A, "thomas"), contact)
         F2 = refactorise_border(A2, F, scaled_schur(A, F), cols, rows)
-        rows0.append(F.y_G0_rows)  # static: recorded while tracing
+        rows0.append((F.y_G0_rows, F.H_blocks))  # static: recorded while tracing
         return (factor_solve(F, rb, rr), factor_solve_transposed(F, rb, rr), factor_solve(F2, rb, rr),
                 dense_solve(A, rb, rr), dense_solve(A.transpose(), rb, rr), dense_solve(A2, rb, rr))
 
     rows0 = []
     x, x_t, x2, d, d_t, d2 = solves(A, A2, rb, rr)
-    # interior blocks 0..12 are columns 1..13; columns 11..13 (blocks 10..12) form the span before column 0
-    assert rows0 == [(10, 11, 12)]
+    # interior blocks 0..12 are columns 1..13; columns 11..13 (blocks 10..12) form the span before column 0;
+    # the roller rows are kept on the roller columns and their neighbours only (columns 3, 8, 12 dropped)
+    assert rows0 == [((10, 11, 12), (0, 1, 3, 4, 5, 6, 8, 9, 10, 12))]
     for got, want in ((x, d), (x_t, d_t), (x2, d2)):
         for a, b_ in zip(got, want):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b_), rtol=1e-11, atol=1e-12)
