@@ -42,9 +42,11 @@ def _value_and_grad(study, theta):
 
 @eqx.filter_jit
 def _response_and_jacobian(study, theta, forward: bool):
-    r = response(study, theta)
+    """``(r, J)`` from one differentiated run: the response rides along as the Jacobian's auxiliary
+    output, the primal the tangents (or the cotangents) are taken at — not a second run."""
     jac = jax.jacfwd if forward else jax.jacrev
-    return r, jac(lambda t: response(study, t))(theta)
+    J, r = jac(lambda t: (response(study, t),) * 2, has_aux=True)(theta)
+    return r, J
 
 
 def _best_time(f, repeat: int):
