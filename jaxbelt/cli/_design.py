@@ -104,16 +104,17 @@ def metric_quantities(metric: str, scene) -> tuple[str, ...]:
     return ("lateral",)
 
 
-def make_design_study(args, model, options, components=None):
+def make_design_study(args, model, options, components=None, jacobian: bool = False):
     """:func:`jaxbelt.design.make_study` at ``--at`` (default the scene's end) with the scene's
-    time step and solver, its ``ValueError``s as usage errors."""
+    time step and solver (``jacobian``: its linearisation too, for a tolerance box), its
+    ``ValueError``s as usage errors."""
     if args.metric not in METRICS:
         raise UsageError(f"--metric = {args.metric!r}: unknown (one of {', '.join(METRICS)})")
     if args.at is not None and args.at > options.t_end + 1e-12:
         raise UsageError(f"--at = {args.at}: after the scene's end ({options.t_end:g} s); lengthen [time] t_end_s")
     try:
         return make_study(model, args.metric, t_eval=args.at, dt=options.dt, n_steps=options.n_steps,
-                          components=components, integrator=options.solver)
+                          components=components, integrator=options.solver, jacobian=jacobian)
     except ValueError as e:
         raise UsageError(str(e)) from None
 

@@ -42,6 +42,8 @@ box and the sweep see one constraint that holds all of them.
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -92,7 +94,12 @@ class Study(eqx.Module):
     windowed metric of a steered machine); ``limit_names`` the metrics of a study with several
     limits at once (module docstring), else ``()``, and ``limit_values`` (n_limits,) their limits
     (an array: studies that differ in the limits only share compiled programs); ``ref_angle``
-    (n_steps, n_c) the aligned run's steering actuator angles, mrad (``None`` without a loop).
+    (n_steps, n_c) the aligned run's steering actuator angles, mrad (``None`` without a loop);
+    ``linearisation`` ``None``, or (from :func:`make_study` with ``jacobian=True``) the
+    deviations of :func:`run_deviation` at ``θ = 0`` and their derivatives with respect to every
+    component of ``θ``: ``((d_u, d_v, angle), (∂d_u, ∂d_v, ∂angle))``, each derivative with a
+    trailing axis of length P — what :func:`jaxbelt.design.response_jacobian` reads at ``θ = 0``
+    instead of running again.
     """
 
     model: BeltModel
@@ -108,6 +115,7 @@ class Study(eqx.Module):
     limit_names: tuple = eqx.field(static=True, default=())
     limit_values: jax.Array | None = None
     ref_angle: jax.Array | None = None
+    linearisation: tuple | None = None
 
     @property
     def limits(self) -> tuple:
@@ -157,9 +165,15 @@ def _check_metric(model: BeltModel, metric: str):
 
 def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | None = None, *, dt,
                n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
-               window_fraction: float | None = None) -> Study:
+               window_fraction: float | None = None, jacobian: bool = False) -> Study:
     """Set up a study: validate the metric and time, select the components, run the aligned
     reference once.
+
+    With ``jacobian``, also the run's derivatives with respect to every component at the scene's
+    own misalignment (``Study.linearisation``), for the linear response at ``θ = 0``. On an
+    aligned scene that run is the reference itself: one forward-mode program gives both (the
+    reference is the primal the tangents ride on), where a study and then its Jacobian would run
+    the reference twice and compile two programs.
 
     **Arguments:** ``metric`` (one of :data:`METRICS`); ``t_eval`` evaluation time in s, rounded
     to whole steps of ``dt``; ``dt`` the time step, s; ``n_steps`` the evaluation step when
@@ -173,9 +187,41 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
     ``make_study(model, metric, dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)``.
     """
     frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
+    if jacobian and not np.any(np.asarray(frame["base"])):
+        (u, v, angle), (du, dv, dangle) = _reference_and_tangents(model, frame["space"], frame["integrator"],
+                                                                  frame["dt"], frame["n_steps"])
+        mrad = lambda a: None if a is None else a * RAD_TO_MRAD  # noqa: E731
+        zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
+        lin = ((zero(u), zero(v), mrad(angle)), (du * M_TO_UM, None if dv is None else dv * M_TO_UM, mrad(dangle)))
+        return Study(**frame, ref_u=u, ref_v=v, ref_angle=mrad(angle), linearisation=lin)
     _, ref = simulate(aligned(model), frame["integrator"], n_steps=frame["n_steps"], dt=frame["dt"])
-    return Study(**frame, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
-                 ref_angle=None if ref.control_u is None else ref.control_u * RAD_TO_MRAD)
+    study = Study(**frame, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
+                  ref_angle=None if ref.control_u is None else ref.control_u * RAD_TO_MRAD)
+    if jacobian:
+        study = dataclasses.replace(study, linearisation=_deviation_tangents(study))
+    return study
+
+
+@eqx.filter_jit
+def _reference_and_tangents(model, space, integrator, dt, n_steps):
+    """The tracer histories and actuator angles of ``model`` (aligned) and their derivatives
+    with respect to ``θ`` at ``θ = 0``, each with a trailing axis P: one forward-mode pass, the
+    run itself its primal."""
+
+    def run(theta):
+        _, tr = simulate(apply(model, space, theta), integrator, n_steps=n_steps, dt=dt)
+        return tr.tracer_u, tr.tracer_v, tr.control_u
+
+    J, primal = jax.jacfwd(lambda t: (run(t),) * 2, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
+    return primal, J
+
+
+@eqx.filter_jit
+def _deviation_tangents(study: Study):
+    """:func:`run_deviation` at ``θ = 0`` and its derivatives (``Study.linearisation``)."""
+    J, primal = jax.jacfwd(lambda t: (run_deviation(study, t),) * 2, has_aux=True)(
+        jnp.zeros(study.space.size, study.base.dtype))
+    return primal, J
 
 
 def _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction) -> dict:
@@ -255,7 +301,7 @@ def with_limits(study: Study, limits) -> Study:
                  base=study.base, space=study.space, metric=study.metric, n_steps=study.n_steps, window=study.window,
                  limit_names=tuple(n for n, _ in pairs),
                  limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None,
-                 ref_angle=study.ref_angle)
+                 ref_angle=study.ref_angle, linearisation=study.linearisation)
 
 
 def _evaluation_step(t_eval, dt, n_steps) -> int:

@@ -138,6 +138,56 @@ def test_aligned_values_read_the_reference_without_a_run(study):
     assert np.asarray(values) == pytest.approx([0.0, steer], rel=1e-9, abs=1e-9)
 
 
+def test_study_with_its_jacobian_predicts_full_runs(study):
+    """``make_study(..., jacobian=True)`` on the aligned machine, as ``jaxbelt tolerance`` builds
+    it: the reference is the forward-mode run's primal (equal to the plain study's), and the
+    linear response read from its derivatives, ``max |J θ|``, is the metric the full closed-loop
+    runs give at small misalignments (the batch of the sweep above)."""
+    from jaxbelt import make_solver
+
+    lin = design.make_study(study.model, "lateral_max", dt=study.dt, n_steps=study.n_steps, components=COMPONENTS,
+                            integrator=make_solver("direct", "reuse"), jacobian=True)
+    np.testing.assert_allclose(lin.ref_u, study.ref_u, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lin.ref_angle, study.ref_angle, rtol=0, atol=1e-12)
+    r0, J = design.response_jacobian(lin)
+    assert np.all(r0 == 0.0) and J.shape[1] == 2
+    h = 0.002  # mm / mrad: well inside the linear range (the slow test below: 1e-6 relative at 0.05)
+    thetas = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h], [h, -h]])
+    full = design.evaluate_configs(study, _batch(thetas), chunk=CHUNK)["metric"][:len(thetas)]
+    predicted = np.max(np.abs(thetas @ J.T), axis=1)
+    assert np.min(predicted) > 1e-3
+    np.testing.assert_allclose(full, predicted, rtol=1e-3)
+
+
+@pytest.mark.slow
+def test_study_with_its_jacobian_equals_a_study_and_then_its_jacobian(study):
+    """``make_study(..., jacobian=True)`` on the aligned machine: one forward-mode run gives the
+    reference (its primal) and the derivatives; the linear response read from them, with several
+    limits, equals the Jacobian of full runs taken after the study (two programs)."""
+    from jaxbelt import make_solver
+    from jaxbelt.design.metrics import aligned_values
+
+    lin = design.make_study(study.model, "lateral_max", dt=study.dt, n_steps=study.n_steps, components=COMPONENTS,
+                            integrator=make_solver("direct", "reuse"), jacobian=True)
+    assert study.linearisation is None and lin.linearisation is not None
+    np.testing.assert_allclose(lin.ref_u, study.ref_u, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lin.ref_angle, study.ref_angle, rtol=0, atol=1e-12)
+    limits = {"longitudinal_max": 20.0, "steering_max": 3.0}
+    for a, b in ((study, lin), (design.with_limits(study, limits), design.with_limits(lin, limits))):
+        r0, J = design.response_jacobian(a)
+        r0_lin, J_lin = design.response_jacobian(b)  # no run: read from the linearisation
+        assert np.abs(J).max() > 0.1  # µm per mm or mrad; with limits, per limit
+        np.testing.assert_allclose(r0_lin, r0, rtol=0, atol=1e-9 * np.abs(r0).max() + 1e-12)
+        np.testing.assert_allclose(J_lin, J, rtol=0, atol=1e-9 * np.abs(J).max())
+    # the linearisation's zero deviations read what the reference reads
+    assert np.asarray(aligned_values(design.with_limits(lin, limits))[1]) == pytest.approx(
+        np.asarray(aligned_values(design.with_limits(study, limits))[1]), rel=1e-12)
+    # away from θ = 0 the study runs as before
+    theta = np.array([0.01, -0.005])
+    assert design.response_jacobian(lin, theta)[0] == pytest.approx(design.response_jacobian(study, theta)[0],
+                                                                     rel=1e-9, abs=1e-12)
+
+
 @pytest.mark.slow
 def test_response_surface_stands_in_with_the_loop_closed(study):
     """``--rom auto`` on the steered machine: the surrogate, trained and validated by closed-loop
