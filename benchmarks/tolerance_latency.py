@@ -4,8 +4,9 @@ runs it.
 
 Each measurement is its own process (the CLI's persistent compilation cache in a fresh
 directory: the first process fills it, the second reads it). Stages: imports and start-up, the
-model build (mesh, static solve), the aligned reference run, the Jacobian (first call: compile
-and run; second call: run alone), one batch of eight verification runs (first and second call),
+model build (mesh, static solve), the aligned reference run and its Jacobian as one
+forward-mode program (first call: compile and run; second call: run alone), the linear response
+with the limits read from it, one batch of eight verification runs (first and second call),
 the whole box (optimisation and verification), then the error bars: the scene one level finer
 built, and its aligned reference and the box's worst corners run as one batch. ``command``: the
 wall time of ``jaxbelt tolerance --json`` (error bars on, the default) and of ``--no-error-bars``,
@@ -44,12 +45,13 @@ jb.enable_x64(); enable_compilation_cache()
 mark("imports_s")
 scene, mesh, model, opts = load_run(DESIGN_SCENE)
 jax.block_until_ready(model.chi_static); mark("model_build_s")
-study = make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)
-jax.block_until_ready(study.ref_u); mark("aligned_run_s")
+study = make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver, jacobian=True)
+jax.block_until_ready(study.linearisation); mark("aligned_run_and_jacobian_s")
+study = make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver, jacobian=True)
+jax.block_until_ready(study.linearisation); mark("aligned_run_and_jacobian_again_s")
 limits = {"longitudinal_max": 20.0, "steering_max": 3.0}
 work = with_limits(study, (("lateral_max", 20.0),) + tuple(limits.items()))
-response_jacobian(work); mark("jacobian_first_s")
-response_jacobian(work); mark("jacobian_again_s")
+response_jacobian(work); mark("linear_response_s")
 th = jnp.zeros((8, study.space.size))
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_first_s")
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_again_s")

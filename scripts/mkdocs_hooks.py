@@ -296,8 +296,9 @@ BENCHMARKS = {
                         "([scale](scale.md#how-fast-a-batch-can-go-on-a-cpu))."),
     "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene, "
                           "stage by stage, in a process with an empty compilation cache and in a second one that "
-                          "reads it: start-up, model build, the aligned run, the Jacobian and a batch of eight "
-                          "verification runs (first call and again), the whole box, and the error bars (the scene "
+                          "reads it: start-up, model build, the aligned run and its Jacobian as one forward-mode "
+                          "program (first call and again), the linear response with the limits read from it, a batch "
+                          "of eight verification runs (first call and again), the whole box, and the error bars (the scene "
                           "one level finer, its aligned reference and the box's worst corners as one batch); then "
                           "the whole command with and without error bars, empty cache and warm."),
     "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
