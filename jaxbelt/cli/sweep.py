@@ -47,8 +47,9 @@ def run(args):
         raise UsageError(f"--dist {args.dist}: {e}") from None
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise UsageError(f"--out = {args.out!r}: exists and is not a directory")
-    stage(args, f"aligned reference run ({model.n_unknowns} unknowns)")
-    study = make_design_study(args, model, options, list(dist.labels))
+    # FORM and the RSS stack-up read the linear response at θ = 0: taken with the reference run
+    stage(args, f"aligned reference run{'' if args.no_form else ' and its Jacobian'} ({model.n_unknowns} unknowns)")
+    study = make_design_study(args, model, options, list(dist.labels), jacobian=not args.no_form)
     if args.out is not None:
         try:  # a store of another study is refused before anything runs
             open_sweep(args.out, sweep_identity(study, dist, args.samples, args.limit_um, args.seed, args.scene))

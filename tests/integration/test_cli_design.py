@@ -90,6 +90,32 @@ def test_sweep_json_store_and_resume(files, capsys):
     assert again["yield"] == r["yield"] and "discretisation" not in again
 
 
+@pytest.mark.slow
+def test_sweep_form_from_the_study_linearisation_equals_a_plain_study(files, capsys):
+    """``sweep`` with FORM takes the Jacobian with its study (``make_study(..., jacobian=True)``):
+    its FORM index and RSS stack-up equal those of the library on a plain study, whose Jacobian is
+    a run of its own."""
+    import tomllib
+
+    import jaxbelt as jb
+    from jaxbelt import design
+
+    r = _json(capsys, ["sweep", str(files / "small.toml"), "--dist", str(files / "dist.toml"), "--samples", "8",
+                       "--chunk", "8", "--limit-um", "8", "--solver", "reuse", "--json", "--no-error-bars"])
+    scene = jb.load_scene(str(files / "small.toml"))
+    model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
+    dist = design.distribution_from_dict(tomllib.loads((files / "dist.toml").read_text()), model)
+    plain = design.make_study(model, r["metric"], dt=opts.dt, n_steps=opts.n_steps, components=list(dist.labels),
+                              integrator=jb.make_solver("direct", "reuse"))
+    f = design.form(plain, dist, 8.0)
+    assert plain.linearisation is None and 0 < r["form_beta"] < 10
+    assert r["form_beta"] == pytest.approx(f.beta, rel=1e-8)
+    r0, J = design.response_jacobian(plain)
+    sigma = [v if k == "normal" else v / 3**0.5 for k, v in zip(dist.kind, dist.scale)]
+    rss = design.rss_stackup(design.LinearResponse(r0, J, plain.aggregate), sigma).three_sigma_um
+    assert r["rss_3sigma_um"] == pytest.approx(rss, rel=1e-8)
+
+
 BAD = [
     (["tolerance", "{small}", "--limit-um", "0"], "--limit-um"),
     (["tolerance", "{small}", "--limit-um", "nan"], "--limit-um"),
