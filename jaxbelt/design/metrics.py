@@ -154,6 +154,13 @@ class Study(eqx.Module):
         return apply(self.model, self.space, theta, self.base)
 
 
+def for_runs(study: Study) -> Study:
+    """The study without its linearisation, which no run reads: the programs that run
+    configurations then take the same arguments with and without one, and are compiled once for
+    both (in a process and in the persistent compilation cache)."""
+    return study if study.linearisation is None else dataclasses.replace(study, linearisation=None)
+
+
 def _check_metric(model: BeltModel, metric: str):
     if metric not in METRICS:
         raise ValueError(f"metric = {metric!r}: unknown (one of {', '.join(METRICS)})")

@@ -33,7 +33,7 @@ import numpy as np
 from jax.scipy.stats import norm
 
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
-from .metrics import Study, evaluate, metric_value
+from .metrics import Study, evaluate, for_runs, metric_value
 from .sensitivity import response_jacobian
 from .sharding import batched_map
 
@@ -145,7 +145,7 @@ def _map(study, thetas, chunk, progress=None):
     n = thetas.shape[0]
     if chunk is not None and n % chunk:
         thetas = np.concatenate([thetas, np.repeat(thetas[-1:], chunk - n % chunk, axis=0)])
-    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=study)
+    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=for_runs(study))
     return jax.tree.map(lambda a: a[:n], out)
 
 
@@ -251,7 +251,7 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
     u = jnp.asarray(u0, float)
     converged, it = False, 0
     for it in range(1, max_iter + 1):
-        g, dg = _g_and_grad(study, scale, uniform, u, limit_um)
+        g, dg = _g_and_grad(for_runs(study), scale, uniform, u, limit_um)
         nd = float(jnp.dot(dg, dg))
         if nd == 0.0:
             break
@@ -261,8 +261,8 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
         if step < tol * max(1.0, float(jnp.linalg.norm(u))) and abs(float(g)) < 1e-6 * limit_um:
             converged = True
             break
-    g, _ = _g_and_grad(study, scale, uniform, u, limit_um)
-    g0, _ = _g_and_grad(study, scale, uniform, jnp.zeros_like(u), limit_um)
+    g, _ = _g_and_grad(for_runs(study), scale, uniform, u, limit_um)
+    g0, _ = _g_and_grad(for_runs(study), scale, uniform, jnp.zeros_like(u), limit_um)
     beta = float(jnp.linalg.norm(u)) * (1.0 if float(g0) >= 0 else -1.0)  # negative: the nominal fails
     bounds = None
     if study.aggregate == "max":

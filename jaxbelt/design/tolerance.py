@@ -31,8 +31,8 @@ import numpy as np
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
-from .metrics import (METRICS, Study, aggregate, aligned_values, limit_values, make_study_at, metric_unit,
-                      response_sizes, with_limits)
+from .metrics import (METRICS, Study, aggregate, aligned_values, for_runs, limit_values, make_study_at,
+                      metric_unit, response_sizes, with_limits)
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -198,7 +198,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     if evaluate_many is None:
         def evaluate_many(thetas):
             if names:
-                return np.asarray(_limit_values_batch(work, jnp.asarray(thetas, work.base.dtype)))
+                return np.asarray(_limit_values_batch(for_runs(work), jnp.asarray(thetas, work.base.dtype)))
             return evaluate_metric(study, thetas)
 
     sp = study.space

@@ -34,8 +34,9 @@ def study():
     from jaxbelt import make_solver
 
     model, opts = load(scene_with(_coarse, "three-roller-steered"))
+    # with its Jacobian, as jaxbelt tolerance builds it: the reference is the forward-mode run's primal
     return design.make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, components=COMPONENTS,
-                             integrator=make_solver("direct", "reuse"))
+                             integrator=make_solver("direct", "reuse"), jacobian=True)
 
 
 def _batch(rows):
@@ -139,17 +140,12 @@ def test_aligned_values_read_the_reference_without_a_run(study):
 
 
 def test_study_with_its_jacobian_predicts_full_runs(study):
-    """``make_study(..., jacobian=True)`` on the aligned machine, as ``jaxbelt tolerance`` builds
-    it: the reference is the forward-mode run's primal (equal to the plain study's), and the
-    linear response read from its derivatives, ``max |J θ|``, is the metric the full closed-loop
-    runs give at small misalignments (the batch of the sweep above)."""
-    from jaxbelt import make_solver
-
-    lin = design.make_study(study.model, "lateral_max", dt=study.dt, n_steps=study.n_steps, components=COMPONENTS,
-                            integrator=make_solver("direct", "reuse"), jacobian=True)
-    np.testing.assert_allclose(lin.ref_u, study.ref_u, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(lin.ref_angle, study.ref_angle, rtol=0, atol=1e-12)
-    r0, J = design.response_jacobian(lin)
+    """The study built with its Jacobian (one forward-mode run: the reference is its primal, and
+    the closed-loop runs at θ = 0 meet it, test above): the linear response read from its
+    derivatives, ``max |J θ|``, is the metric the full closed-loop runs give at small
+    misalignments (the batch of the sweep above)."""
+    assert study.linearisation is not None
+    r0, J = design.response_jacobian(study)
     assert np.all(r0 == 0.0) and J.shape[1] == 2
     h = 0.002  # mm / mrad: well inside the linear range (the slow test below: 1e-6 relative at 0.05)
     thetas = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h], [h, -h]])
@@ -167,8 +163,9 @@ def test_study_with_its_jacobian_equals_a_study_and_then_its_jacobian(study):
     from jaxbelt import make_solver
     from jaxbelt.design.metrics import aligned_values
 
-    lin = design.make_study(study.model, "lateral_max", dt=study.dt, n_steps=study.n_steps, components=COMPONENTS,
-                            integrator=make_solver("direct", "reuse"), jacobian=True)
+    lin = study
+    study = design.make_study(lin.model, "lateral_max", dt=lin.dt, n_steps=lin.n_steps, components=COMPONENTS,
+                              integrator=make_solver("direct", "reuse"))
     assert study.linearisation is None and lin.linearisation is not None
     np.testing.assert_allclose(lin.ref_u, study.ref_u, rtol=0, atol=1e-15)
     np.testing.assert_allclose(lin.ref_angle, study.ref_angle, rtol=0, atol=1e-12)
