@@ -75,6 +75,13 @@ class BeltModel(eqx.Module):
         return self.R.shape[1]
 
     @property
+    def coupling_band(self) -> int:
+        """How far from its diagonal the coupling of one node column to the next reaches in the
+        step matrix (the ``L_i``, ``U_i`` blocks): a node couples only to its neighbours across
+        the belt, so ``2 p - 1`` for ``p`` unknowns per node — 3 in 2D, 0 in 1D (``b = 1``)."""
+        return 2 * 2 - 1 if self.kind == "2d" else 0
+
+    @property
     def n_rollers(self) -> int:
         return len(self.roller_names)
 

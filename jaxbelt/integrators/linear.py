@@ -236,7 +236,8 @@ def _kept_interior(model, dt, method=None) -> _Kept:
     differentiated (the products carry the derivatives)."""
     A = step_matrix(model, model.m_e0, model.R, dt)
     F = factorise(A, method)
-    return lax.stop_gradient(_Kept(A, with_chained_interior(F, model.contact_columns), scaled_schur(A, F)))
+    return lax.stop_gradient(_Kept(A, with_chained_interior(F, model.contact_columns, model.coupling_band),
+                                   scaled_schur(A, F)))
 
 
 class _Frozen(eqx.Module):
@@ -303,7 +304,7 @@ def _first_step_factors(model, state, dt) -> BorderedFactorisation:
     """The structured factors of ``M + Δt² K`` at ``state``, the interior along its chains
     (:func:`~jaxbelt.linalg.bordered.with_chained_interior`), as one compiled program."""
     A = step_matrix(model, state.m_e, roller_R(model, state.u), dt)
-    return lax.stop_gradient(with_chained_interior(factorise(A), model.contact_columns))
+    return lax.stop_gradient(with_chained_interior(factorise(A), model.contact_columns, model.coupling_band))
 
 
 def default_refinement(model: BeltModel, transport: str = "shift") -> int:

@@ -213,15 +213,18 @@ def _apply_interior(F, rhs):
     return bcr_apply(F, rhs) if isinstance(F, CyclicReductionFactors) else thomas_apply(F, rhs)
 
 
-def with_chained_interior(F: BorderedFactorisation, contact_columns) -> BorderedFactorisation:
+def with_chained_interior(F: BorderedFactorisation, contact_columns, band: int | None = None) -> BorderedFactorisation:
     """``F`` with its Thomas interior rearranged along chains (:class:`ChainedThomasFactors`),
     the breaks at the belt's roller columns ``contact_columns`` (static; column ``i`` is interior
     block ``i - 1``), and ``y_G0`` narrowed to the free spans next to block 0 (the only blocks
     where ``T⁻¹`` of block 0's columns is non-zero: a roller column's rows couple to no belt
     column, so ``T`` decouples there; the dropped entries are exact zeros), and the roller rows of
     ``H`` narrowed to the roller columns and their neighbours (``H_blocks``; the roller rows
-    ``D`` must vanish elsewhere, as the belt's do). Unchanged for a cyclic-reduction interior or
-    unknown columns."""
+    ``D`` must vanish elsewhere, as the belt's do). ``band``: the interior's coupling blocks
+    ``L_i`` vanish beyond that many diagonals off their main one (the model's
+    ``coupling_band``): the forward sweep keeps them banded
+    (:class:`~jaxbelt.linalg.thomas.ChainedThomasFactors`); ``None``: dense. Unchanged for a
+    cyclic-reduction interior or unknown columns."""
     if not isinstance(F.interior, ThomasFactors) or contact_columns is None:
         return F
     m = F.interior.inv.shape[0]
@@ -231,7 +234,7 @@ def with_chained_interior(F: BorderedFactorisation, contact_columns) -> Bordered
     y_G0 = _to_interior(F.y_G0, F.y_G0_rows, m)[np.asarray(rows, int)]
     H_blocks = roller_row_blocks(contact_columns, m + 1)
     H = (F.H[0], F.H[1], _narrow_roller_rows(F.H[2], F.H_blocks, H_blocks, F.y_G0.shape[1]))
-    return dataclasses.replace(F, interior=chain_thomas(F.interior, breaks), y_G0=y_G0, y_G0_rows=rows, H=H,
+    return dataclasses.replace(F, interior=chain_thomas(F.interior, breaks, band), y_G0=y_G0, y_G0_rows=rows, H=H,
                                H_blocks=H_blocks)
 
 

@@ -85,10 +85,21 @@ class ChainedThomasFactors(eqx.Module):
     less time on a CPU. Built by :func:`chain_thomas` from static break positions; the result
     equals :func:`thomas_apply`'s (``tests/integration/test_kept_interior.py``).
 
-    The forward sweep ``y_i = den_i⁻¹ (r_i - L_i y_{i-1})`` is kept as ``y_i = g_i - P_i y_{i-1}``
-    with ``g_i = den_i⁻¹ r_i`` (all blocks at once, one batched product outside the scan) and
-    ``P_i = den_i⁻¹ L_i`` (formed once with the factors): one dependent block product per step
-    instead of two. Blocks are moved between the chains' and the natural order by gathers
+    The forward sweep ``y_i = den_i⁻¹ (r_i - L_i y_{i-1})`` takes one of two forms.
+
+    * **Banded coupling** (``band = w``, the caller's guarantee that every ``L_i`` vanishes
+      beyond ``w`` diagonals off its main one: ``2 p - 1`` for a block-tridiagonal coupling of
+      ``p × p`` node blocks, the belt's 3 in 2D, 0 in 1D): ``L_i`` is kept as its ``2 w + 1``
+      diagonals and applied as shifted products inside the scan, then ``den_i⁻¹``. One dense
+      block streamed per step and block, where the dense form streams two: on
+      ``three-roller-t72`` the interior solve 11 % faster (best of interleaved rounds), the
+      chained factors a third smaller, and in the exact mode's per-step sweep over the tilt
+      columns one dense product per block fewer.
+    * **Dense coupling** (``band = None``): ``y_i = g_i - P_i y_{i-1}`` with ``g_i = den_i⁻¹ r_i``
+      (all blocks at once, one batched product outside the scan) and ``P_i = den_i⁻¹ L_i``
+      (formed once with the factors): one dependent block product per step instead of two.
+
+    Blocks are moved between the chains' and the natural order by gathers
     with static index tables (a gather's transpose is the scatter-add reverse mode needs; a
     scatter in the forward pass is slow on a CPU).
 
@@ -100,14 +111,18 @@ class ChainedThomasFactors(eqx.Module):
     dropped from the carry — instead of padding every chain with zero blocks to the longest (a
     quarter of the blocks streamed on the default scene were zeros).
 
-    **Fields:** per forward phase ``f_inv``, ``f_P`` (steps, chains, b, b); single blocks
-    ``s_inv``; per backward phase ``b_C``; ``layout`` the static index tables."""
+    **Fields:** per forward phase ``f_inv`` (steps, chains, b, b) and either ``f_P`` (the same
+    shape; dense coupling) or ``f_L`` (steps, chains, 2 w + 1, b), the diagonals of ``L_i``
+    (``[d + w, j] = L_i[j, j + d]``; banded coupling, else ``()``); single blocks ``s_inv``; per
+    backward phase ``b_C``; ``layout`` the static index tables; ``band`` ``w`` or ``None``."""
 
     f_inv: tuple
     f_P: tuple
     s_inv: jax.Array
     b_C: tuple
     layout: tuple = eqx.field(static=True)  # (f_phases, singles, b_phases, m): block-index tables
+    f_L: tuple = ()
+    band: int | None = eqx.field(static=True, default=None)
 
 
 def elimination_chains(m: int, breaks, reverse: bool):
@@ -146,10 +161,12 @@ def take_blocks(a, index):
     return a[index.reshape(-1)].reshape(index.shape + a.shape[1:])
 
 
-def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
+def chain_thomas(F: ThomasFactors, breaks, band: int | None = None) -> ChainedThomasFactors:
     """Rearrange ``F`` along its chains (:class:`ChainedThomasFactors`). ``breaks`` (m,) static
     booleans: ``True`` where the block's ``L_i`` and ``U_i`` are zero (the caller's guarantee;
-    e.g. the belt's roller columns)."""
+    e.g. the belt's roller columns). ``band``: ``w`` where every ``L_i`` is zero beyond ``w``
+    diagonals off its main one (the caller's guarantee: entries beyond are dropped), else
+    ``None`` (dense)."""
     m = F.inv.shape[0]
     breaks = [bool(x) for x in breaks]
     fw = elimination_chains(m, breaks, reverse=False)
@@ -158,9 +175,34 @@ def chain_thomas(F: ThomasFactors, breaks) -> ChainedThomasFactors:
     bw = [c for c in elimination_chains(m, breaks, reverse=True) if len(c) > 1]
     f_ph, b_ph = _phases(fw), _phases(bw)
     f_inv = tuple(take_blocks(F.inv, t) for t in f_ph)
-    f_P = tuple(fi @ take_blocks(F.L, t) for fi, t in zip(f_inv, f_ph))
     b_C = tuple(take_blocks(F.C_hat, t) for t in b_ph)
-    return ChainedThomasFactors(f_inv, f_P, F.inv[np.asarray(singles, int)], b_C, (f_ph, singles, b_ph, m))
+    s_inv = F.inv[np.asarray(singles, int)]
+    if band is None:
+        f_P = tuple(fi @ take_blocks(F.L, t) for fi, t in zip(f_inv, f_ph))
+        return ChainedThomasFactors(f_inv, f_P, s_inv, b_C, (f_ph, singles, b_ph, m))
+    f_L = tuple(band_diagonals(take_blocks(F.L, t), band) for t in f_ph)
+    return ChainedThomasFactors(f_inv, (), s_inv, b_C, (f_ph, singles, b_ph, m), f_L, int(band))
+
+
+def band_diagonals(L, w: int):
+    """The ``2 w + 1`` diagonals of blocks ``L`` (..., b, b): (..., 2 w + 1, b) with
+    ``[d + w, j] = L[j, j + d]`` (zero where ``j + d`` falls outside the block)."""
+    b = L.shape[-1]
+    j = np.arange(b)
+    return jnp.stack([jnp.where((j + d >= 0) & (j + d < b), L[..., j, np.clip(j + d, 0, b - 1)], 0.0)
+                      for d in range(-w, w + 1)], axis=-2)
+
+
+def band_times(Ld, y, w: int):
+    """``L y`` for ``L`` given by its diagonals ``Ld`` (c, 2 w + 1, b) (:func:`band_diagonals`)
+    and ``y`` (c, b, k): ``2 w + 1`` shifted elementwise products, which XLA fuses into one loop."""
+    b = y.shape[1]
+    yp = jnp.pad(y, ((0, 0), (w, w), (0, 0)))
+    out = Ld[:, w, :, None] * y
+    for d in range(-w, w + 1):
+        if d:
+            out = out + Ld[:, d + w, :, None] * yp[:, w + d: w + d + b]
+    return out
 
 
 def _flat(phases):
@@ -200,11 +242,31 @@ def _sweep(mats, values):
     return out
 
 
+def _banded_forward(invs, Lds, values, w):
+    """The forward sweep ``y_t = den_t⁻¹ (r_t - L_t y_{t-1})`` along the chains with banded
+    ``L`` (:func:`_sweep`'s phases); the values of every phase, flattened."""
+
+    def step(prev, blk):
+        inv, Ld, r = blk
+        y = inv @ (r - band_times(Ld, prev, w))
+        return y, y
+
+    out, carry = [], jnp.zeros(values[0].shape[1:], values[0].dtype) if values else None
+    for a, ld, v in zip(invs, Lds, values):
+        carry, ys = lax.scan(step, carry[: v.shape[1]], (a, ld, v))
+        out.append(ys.reshape((-1,) + ys.shape[2:]))
+    return out
+
+
 def chained_thomas_apply(F: ChainedThomasFactors, rhs):
     """:func:`thomas_apply` along the chains; ``rhs`` (m, b, k)."""
     f_ph, singles, b_ph, _ = F.layout
     fwd, bwd = _chain_gathers(F.layout)
-    g = [inv @ take_blocks(rhs, t) for inv, t in zip(F.f_inv, f_ph)]  # den⁻¹ r of each phase, batched
-    y = jnp.concatenate(_sweep(F.f_P, g) + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
+    if F.band is None:
+        g = [inv @ take_blocks(rhs, t) for inv, t in zip(F.f_inv, f_ph)]  # den⁻¹ r of each phase, batched
+        chains = _sweep(F.f_P, g)
+    else:
+        chains = _banded_forward(F.f_inv, F.f_L, [take_blocks(rhs, t) for t in f_ph], F.band)
+    y = jnp.concatenate(chains + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
     xs = _sweep(F.b_C, [take_blocks(y, t) for t in b_ph])
     return jnp.concatenate(xs + [y])[bwd]

@@ -1,6 +1,6 @@
 """Stability at the extremes: the CFL limit, the NaN/inf guard, long runs, stiffness and density
 from soft rubber to steel. Each case either works within a stated error or fails with one
-clear line (issue "Speed to the limit ... stability at the extremes")."""
+clear line."""
 
 import copy
 import tomllib

@@ -1,6 +1,6 @@
 """Validation set: fast physical checks of the model against independent analytic values.
 
-Part 5 of the issue "Lateral belt mechanics checked against theory". Every check compares a
+The lateral belt mechanics checked against theory. Every check compares a
 measured number with a value derived by hand (not by the model), with its tolerance in the test.
 ``benchmarks/validation.py`` runs the same measurement functions at finer resolution and writes
 ``benchmarks/results/validation.json`` and ``.png``. Numbers are at the test's resolution

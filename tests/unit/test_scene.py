@@ -1,7 +1,8 @@
-"""Scene loading and every rejection of MODEL.md §1 / issue 'Foundation' point 2."""
+"""Scene loading, units, and every rejection of a bad scene file (the model specification, §1)."""
 
 import math
 
+import numpy as np
 import pytest
 
 import jaxbelt as jb
@@ -23,6 +24,10 @@ def test_builtin_scenes_load_and_compile():
     for n in names:
         m = jb.load_model(n)
         assert m.n_unknowns == m.n_xi * m.block + m.n_roller_dofs
+        # the coupling of one node column to the next reaches coupling_band diagonals, no further
+        # (the Thomas sweeps keep it banded)
+        i, j = np.nonzero(np.any(np.asarray(m.K_lower) != 0, axis=0) | np.any(np.asarray(m.K_upper) != 0, axis=0))
+        assert np.max(np.abs(i - j), initial=0) == m.coupling_band, n
 
 
 def test_units_are_converted_to_si():
