@@ -239,6 +239,40 @@ def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     assert float(jnp.max(jnp.abs(x_wrong - x_p))) > 1e-6
 
 
+def test_banded_forward_sweep_equals_the_plain_sweeps_and_their_transpose():
+    """A coupling that vanishes beyond ``w`` diagonals kept as its diagonals: the chained solve and
+    its transpose equal the plain Thomas sweeps; a band declared too narrow drops entries and
+    gives another answer."""
+    from jaxbelt.linalg.thomas import chain_thomas, chained_thomas_apply, thomas_apply, thomas_factor
+
+    rng = np.random.default_rng(7)
+    m, b, w = 9, 6, 1
+    breaks = np.zeros(m, bool)
+    breaks[[0, 4]] = True
+    i, j = np.indices((b, b))
+    band = jnp.asarray(np.abs(i - j) <= w, float)
+    mask = jnp.asarray(~breaks, float)[:, None, None]
+    diag = jnp.asarray(rng.normal(size=(m, b, b)) + 8 * np.eye(b))
+    lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * band * mask for _ in range(2))
+    r = jnp.asarray(rng.normal(size=(m, b, 3)))
+    spec = jax.ShapeDtypeStruct(r.shape, r.dtype)
+
+    @jax.jit
+    def solves(diag, lower, upper, r):
+        F = thomas_factor(diag, lower, upper)
+        Fb = chain_thomas(F, breaks, band=w)
+        tr = lambda f: jax.linear_transpose(f, spec)(r)[0]  # noqa: E731
+        return (chained_thomas_apply(Fb, r), thomas_apply(F, r), tr(lambda x: chained_thomas_apply(Fb, x)),
+                tr(lambda x: thomas_apply(F, x)), chained_thomas_apply(chain_thomas(F, breaks, band=0), r),
+                Fb.f_L[0].shape, len(Fb.f_P))
+
+    x_b, x_p, tr_b, tr_p, x_narrow, shape, n_dense = solves(diag, lower, upper, r)
+    assert shape[-2:] == (2 * w + 1, b) and n_dense == 0  # the diagonals kept, no dense coupling blocks
+    np.testing.assert_allclose(np.asarray(x_b), np.asarray(x_p), rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(tr_b), np.asarray(tr_p), rtol=1e-13, atol=1e-13)
+    assert float(jnp.max(jnp.abs(x_narrow - x_p))) > 1e-6
+
+
 @pytest.mark.slow
 def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
     """With the roller columns known, ``T⁻¹`` of block 0's border columns is kept on the free
