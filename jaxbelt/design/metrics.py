@@ -53,7 +53,7 @@ from ..control import SATURATION_FRACTION
 from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
-from ..timeloop import simulate
+from ..timeloop import check_finite, simulate
 
 M_TO_UM = 1e6
 RAD_TO_MRAD = 1e3
@@ -195,8 +195,10 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
     """
     frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
     if jacobian and not np.any(np.asarray(frame["base"])):
-        (u, v, angle), (du, dv, dangle) = _reference_and_tangents(model, frame["space"], frame["integrator"],
-                                                                  frame["dt"], frame["n_steps"])
+        ref, (du, dv, dangle) = _reference_and_tangents(model, frame["space"], frame["integrator"], frame["dt"],
+                                                        frame["n_steps"])
+        check_finite(ref, frame["dt"])  # a diverging reference is named, as simulate names it
+        u, v, angle = ref.tracer_u, ref.tracer_v, ref.control_u
         mrad = lambda a: None if a is None else a * RAD_TO_MRAD  # noqa: E731
         zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
         lin = ((zero(u), zero(v), mrad(angle)), (du * M_TO_UM, None if dv is None else dv * M_TO_UM, mrad(dangle)))
@@ -211,16 +213,16 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
 
 @eqx.filter_jit
 def _reference_and_tangents(model, space, integrator, dt, n_steps):
-    """The tracer histories and actuator angles of ``model`` (aligned) and their derivatives
-    with respect to ``θ`` at ``θ = 0``, each with a trailing axis P: one forward-mode pass, the
-    run itself its primal."""
+    """The run of ``model`` (aligned; its :class:`~jaxbelt.timeloop.Trajectory`) and the
+    derivatives of its tracer histories and actuator angles with respect to ``θ`` at ``θ = 0``,
+    each with a trailing axis P: one forward-mode pass, the run itself its primal."""
 
     def run(theta):
         _, tr = simulate(apply(model, space, theta), integrator, n_steps=n_steps, dt=dt)
-        return tr.tracer_u, tr.tracer_v, tr.control_u
+        return (tr.tracer_u, tr.tracer_v, tr.control_u), tr
 
-    J, primal = jax.jacfwd(lambda t: (run(t),) * 2, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
-    return primal, J
+    J, ref = jax.jacfwd(run, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
+    return ref, J
 
 
 @eqx.filter_jit

@@ -363,6 +363,16 @@ def test_worst_case_equals_enumerating_every_corner(kind, offset):
     assert np.isclose(lin.metric(signs[0] * h), brute, rtol=1e-12) and np.all(np.diff(vals) <= 0)
 
 
+def test_a_diverging_reference_is_named_with_or_without_the_jacobian():
+    """The aligned reference that diverges (a NaN in the roller masses) raises the run's own
+    error, whether the study runs it plainly or as the primal of its Jacobian."""
+    model, opts = load(jb.load_scene("two-roller-1d"))
+    bad = model.replace(M_roller=model.M_roller.at[-1].set(jnp.nan))
+    for jacobian in (False, True):
+        with pytest.raises(jb.NonFiniteStateError, match="diverged"):
+            design.make_study(bad, "longitudinal_max", dt=opts.dt, n_steps=4, jacobian=jacobian)
+
+
 def test_study_and_its_values_in_one_batch_equal_the_reference_run_and_single_runs(study, metric_fn, model2d):
     """make_study_at: the aligned reference and the configurations as one vmap batch give the
     study make_study builds (its reference run apart) and the metric of a run per configuration
