@@ -304,7 +304,9 @@ def _first_step_factors(model, state, dt) -> BorderedFactorisation:
     """The structured factors of ``M + Δt² K`` at ``state``, the interior along its chains
     (:func:`~jaxbelt.linalg.bordered.with_chained_interior`), as one compiled program."""
     A = step_matrix(model, state.m_e, roller_R(model, state.u), dt)
-    return lax.stop_gradient(with_chained_interior(factorise(A), model.contact_columns, model.coupling_band))
+    # the dense coupling: one right-hand side per solve, whose sweeps are paced by the dependent
+    # chain's latency more than by their bytes (the banded form is for the exact mode's several columns)
+    return lax.stop_gradient(with_chained_interior(factorise(A), model.contact_columns))
 
 
 def default_refinement(model: BeltModel, transport: str = "shift") -> int:

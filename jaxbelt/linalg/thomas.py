@@ -91,10 +91,12 @@ class ChainedThomasFactors(eqx.Module):
       beyond ``w`` diagonals off its main one: ``2 p - 1`` for a block-tridiagonal coupling of
       ``p × p`` node blocks, the belt's 3 in 2D, 0 in 1D): ``L_i`` is kept as its ``2 w + 1``
       diagonals and applied as shifted products inside the scan, then ``den_i⁻¹``. One dense
-      block streamed per step and block, where the dense form streams two: on
-      ``three-roller-t72`` the interior solve 11 % faster (best of interleaved rounds), the
-      chained factors a third smaller, and in the exact mode's per-step sweep over the tilt
-      columns one dense product per block fewer.
+      block streamed per step and block, where the dense form streams two, and the chained
+      factors a third smaller; with several right-hand sides one dense product per block fewer,
+      which the exact mode's step, sweeping the tilt columns every step, gains most from. With
+      one right-hand side the step's two dependent operations instead of one cost about what
+      the bytes save, and the factorisation-reuse solver keeps the dense form (both timed in
+      ``benchmarks/step_profile.py``).
     * **Dense coupling** (``band = None``): ``y_i = g_i - P_i y_{i-1}`` with ``g_i = den_i⁻¹ r_i``
       (all blocks at once, one batched product outside the scan) and ``P_i = den_i⁻¹ L_i``
       (formed once with the factors): one dependent block product per step instead of two.
