@@ -42,7 +42,8 @@ def _node_geometry(mesh):
     sense = np.where(on, mesh.path.senses[j], 0).astype(float)
     return dict(node_roller=jnp.asarray(mesh.node_roller), node_theta=jnp.asarray(mesh.node_theta),
                 node_radius=jnp.asarray(radius), node_sense=jnp.asarray(sense), z0=jnp.asarray(mesh.z),
-                contact_columns=tuple(int(i) for i in np.flatnonzero(on)))
+                contact_columns=tuple(int(i) for i in np.flatnonzero(on)),
+                contact_rollers=tuple(int(mesh.node_roller[i]) for i in np.flatnonzero(on)))
 
 
 def _tracers(mesh):

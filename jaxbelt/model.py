@@ -59,6 +59,7 @@ class BeltModel(eqx.Module):
     dofs: tuple = eqx.field(static=True)
     lateral_transport: bool = eqx.field(static=True, default=False)
     contact_columns: tuple | None = eqx.field(static=True, default=None)  # node columns on rollers (None: unknown)
+    contact_rollers: tuple | None = eqx.field(static=True, default=None)  # the roller of each of them
     algebraic_index: tuple | None = eqx.field(static=True, default=None)  # flat unknowns with algebraic rows
     control: SteeringLoops | None = None  # steering loops ([[control]]; 2D with lateral transport)
 

@@ -208,13 +208,25 @@ class KeptInterior(AbstractLinearSolver):
                 + jnp.swapaxes(Rr, 1, 2) * m[:, None, :]
             D = D.at[:, jnp.asarray(rows), :].set(jnp.where(model.dynamic[jnp.asarray(rows)][None, :, None], Dr, 0.0))
         A = eqx.tree_at(lambda a: (a.C, a.D), reference.A, (C, D))
-        return _Factors(refactorise_border(lax.stop_gradient(A), reference.F, reference.S, cols, rows))
+        return _Factors(refactorise_border(lax.stop_gradient(A), reference.F, reference.S, cols, rows,
+                                           roller_column_blocks(model, cols)))
 
     def compute(self, state, r_b, r_r):
         return _factored_compute(state, r_b, r_r)
 
     def transpose(self, state):
         return _flip(state)
+
+
+def roller_column_blocks(model: BeltModel, cols) -> tuple:
+    """Per roller unknown in ``cols``, the interior blocks where its column of ``R`` can be
+    non-zero: the belt columns on its own roller (column ``i`` is interior block ``i - 1``;
+    column 0 belongs to the border). Empty where the model does not know its rollers' columns."""
+    if model.contact_rollers is None or model.contact_columns is None:
+        return ()
+    d = len(model.dofs)
+    return tuple(tuple(c - 1 for c, r in zip(model.contact_columns, model.contact_rollers) if r == col // d and c)
+                 for col in cols)
 
 
 def lever_columns(model: BeltModel) -> tuple[tuple, tuple]:

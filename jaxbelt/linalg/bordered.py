@@ -46,8 +46,8 @@ from jax import lax
 from jax.scipy.linalg import lu_factor, lu_solve
 
 from .cyclic_reduction import CyclicReductionFactors, bcr_apply, bcr_factor
-from .thomas import (ChainedThomasFactors, ThomasFactors, elimination_chains, chain_thomas, chained_thomas_apply, thomas_apply,
-                     thomas_factor)
+from .thomas import (ChainedThomasFactors, ThomasFactors, elimination_chains, chain_thomas, chained_thomas_apply,
+                     chained_thomas_apply_sparse, thomas_apply, thomas_factor)
 
 
 class BorderedBlockCyclic(eqx.Module):
@@ -349,7 +349,7 @@ def _scale_rows(A: BorderedBlockCyclic, row_b, row_r) -> BorderedBlockCyclic:
 
 
 def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_ref: jax.Array,
-                       columns=(), rows=()) -> BorderedFactorisation:
+                       columns=(), rows=(), column_blocks=()) -> BorderedFactorisation:
     """Exact factors of ``A`` from those of a matrix ``A_ref`` that differs from it in a few
     roller columns and rows only.
 
@@ -365,7 +365,12 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     checks it against :func:`factorise`). For the belt on rollers with tilt DOFs, whose lever
     arm moves with the lateral displacement (§4.2) while nothing else in ``M + Δt² K`` changes
     under the shift transport, this is the whole difference between two steps' matrices
-    (:class:`jaxbelt.integrators.DirectBackwardEuler`)."""
+    (:class:`jaxbelt.integrators.DirectBackwardEuler`).
+
+    ``column_blocks`` (static, optional): per listed column, the interior blocks (column ``i`` of
+    the belt is block ``i - 1``) where it can be non-zero — a tilt's column lives on its roller's
+    columns — so that the sweep over them skips the chains they cannot reach
+    (:func:`~jaxbelt.linalg.thomas.chained_thomas_apply_sparse`); empty: anywhere."""
     b = A.block
     row_b, row_r = F_ref.row_b, F_ref.row_r
     cols, rws = jnp.asarray(columns, int), jnp.asarray(rows, int)
@@ -378,7 +383,10 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     S = S_ref
     y_new = None
     if len(columns):
-        y_new = _apply_interior(F_ref.interior, C[1:])
+        if column_blocks and isinstance(F_ref.interior, ChainedThomasFactors):
+            y_new = chained_thomas_apply_sparse(F_ref.interior, C[1:], column_blocks)
+        else:
+            y_new = _apply_interior(F_ref.interior, C[1:])
         Z_cols = jnp.concatenate([C[0], A.E[:, cols] * row_r[:, None]], axis=0)
         S = S.at[:, b + cols].set(Z_cols - _border_times(H, y_new, blocks))
     if len(rows):

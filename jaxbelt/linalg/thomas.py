@@ -272,3 +272,80 @@ def chained_thomas_apply(F: ChainedThomasFactors, rhs):
     y = jnp.concatenate(chains + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
     xs = _sweep(F.b_C, [take_blocks(y, t) for t in b_ph])
     return jnp.concatenate(xs + [y])[bwd]
+
+
+def _phase_chains(phases):
+    """The chains of a phase layout (:func:`_phases`), each its blocks in sweep order, in the
+    phases' chain order (longest first)."""
+    if not phases:
+        return []
+    chains = [[] for _ in range(len(phases[0][0]))]
+    for table in phases:
+        for row in table:
+            for q, blk in enumerate(row):
+                chains[q].append(blk)
+    return chains
+
+
+def _columns_per_chain(chains, support):
+    """``(table (chains, k_max), back (chains, k))``: per chain the columns whose ``support``
+    (per column, a set of blocks) meets it, padded with the zero column ``k``; and where each
+    column sits in its chain's row (``k_max``: not there, read as zero)."""
+    k = len(support)
+    cols = [[c for c in range(k) if support[c] & set(chain)] for chain in chains]
+    k_max = max([len(c) for c in cols] + [1])
+    table = np.full((len(chains), k_max), k)
+    back = np.full((len(chains), k), k_max)
+    for q, cs in enumerate(cols):
+        table[q, :len(cs)] = cs
+        back[q, cs] = np.arange(len(cs))
+    return table, back
+
+
+def _select_columns(values, table):
+    """``values`` (steps, chains, b, k) → (steps, chains, b, k_max): each chain's columns of
+    ``table`` (index ``k``: a zero column)."""
+    z = jnp.concatenate([values, jnp.zeros(values.shape[:-1] + (1,), values.dtype)], axis=-1)
+    return jnp.take_along_axis(z, jnp.asarray(table)[None, :, None, :], axis=-1)
+
+
+def chained_thomas_apply_sparse(F: ChainedThomasFactors, rhs, support):
+    """:func:`chained_thomas_apply` for a right-hand side whose column ``c`` is zero off the blocks
+    ``support[c]`` (static; the caller's guarantee): each chain's sweeps carry only the columns
+    that can be non-zero on it. On the belt the exact mode's tilt columns live on one roller's
+    columns each, and a free span's forward sweep sees only the roller before it, its backward
+    sweep the rollers on both sides: on a three-roller belt half of the columns' sweeps are zero
+    and skipped. The result equals :func:`chained_thomas_apply`'s (the skipped values are exact
+    zeros)."""
+    f_ph, singles, b_ph, m = F.layout
+    k = rhs.shape[-1]
+    support = [set(int(i) for i in sup) for sup in support]
+    fwd, bwd = _chain_gathers(F.layout)
+    f_chains = _phase_chains(f_ph)
+    f_table, f_back = _columns_per_chain(f_chains, support)
+    # where the forward values can be non-zero: the chains a column's support meets, and its single blocks
+    y_support = [set().union(*([set(ch) for ch in f_chains if sup & set(ch)] or [set()])) | (sup & set(singles))
+                 for sup in support]
+    b_chains = _phase_chains(b_ph)
+    b_table, b_back = _columns_per_chain(b_chains, y_support)
+
+    def restricted(values_per_phase, table):
+        return [_select_columns(v, table[: v.shape[1]]) for v in values_per_phase]
+
+    def widen(flat_per_phase, phases, back):
+        """Per phase the (steps chains, b, k_max) values back to all k columns (zero elsewhere)."""
+        out = []
+        for v, t in zip(flat_per_phase, phases):
+            steps, n = len(t), len(t[0])
+            v = v.reshape((steps, n) + v.shape[1:])
+            out.append(_select_columns(v, back[:n]).reshape((steps * n,) + v.shape[2:-1] + (k,)))
+        return out
+
+    f_vals = restricted([take_blocks(rhs, t) for t in f_ph], f_table)
+    if F.band is None:
+        chains = _sweep(F.f_P, [inv @ g for inv, g in zip(F.f_inv, f_vals)])
+    else:
+        chains = _banded_forward(F.f_inv, F.f_L, f_vals, F.band)
+    y = jnp.concatenate(widen(chains, f_ph, f_back) + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]
+    xs = _sweep(F.b_C, restricted([take_blocks(y, t) for t in b_ph], b_table))
+    return jnp.concatenate(widen(xs, b_ph, b_back) + [y])[bwd]

@@ -273,6 +273,51 @@ def test_banded_forward_sweep_equals_the_plain_sweeps_and_their_transpose():
     assert float(jnp.max(jnp.abs(x_narrow - x_p))) > 1e-6
 
 
+def test_sweeps_restricted_to_the_columns_a_chain_can_see_equal_the_full_sweeps():
+    """Right-hand-side columns non-zero on a few blocks only (as a tilt's column lives on its
+    roller's columns): the chained sweeps restricted, chain by chain, to the columns that can
+    reach it equal the full sweeps, banded or dense, batched by vmap and transposed."""
+    from jaxbelt.linalg.thomas import chain_thomas, chained_thomas_apply, chained_thomas_apply_sparse, thomas_factor
+
+    rng = np.random.default_rng(3)
+    m, b, w = 14, 4, 1
+    breaks = np.zeros(m, bool)
+    breaks[[0, 1, 5, 6, 10]] = True  # three "rollers" (0-1, 5-6, 10) and the spans between them
+    i, j = np.indices((b, b))
+    band = jnp.asarray(np.abs(i - j) <= w, float)
+    mask = jnp.asarray(~breaks, float)[:, None, None]
+    diag = jnp.asarray(rng.normal(size=(m, b, b)) + 8 * np.eye(b))
+    lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * band * mask for _ in range(2))
+    support = ((0, 1), (0,), (5, 6), (10,), (5,))
+    r = np.zeros((2, m, b, len(support)))
+    for c, sup in enumerate(support):
+        for k in sup:
+            r[:, k, :, c] = rng.normal(size=(2, b))
+    r = jnp.asarray(r)
+    spec = jax.ShapeDtypeStruct(r.shape[1:], r.dtype)
+
+    @jax.jit
+    def solves(diag, lower, upper, r):
+        F = thomas_factor(diag, lower, upper)
+        out = []
+        for bw in (None, w):
+            Fc = chain_thomas(F, breaks, band=bw)
+            tr = lambda f: jax.linear_transpose(f, spec)(r[0])[0]  # noqa: E731
+            out.append((jax.vmap(lambda x: chained_thomas_apply(Fc, x))(r),
+                        jax.vmap(lambda x: chained_thomas_apply_sparse(Fc, x, support))(r),
+                        tr(lambda x: chained_thomas_apply(Fc, x)), tr(lambda x: chained_thomas_apply_sparse(Fc, x, support))))
+        return out
+
+    for full, restricted, tr_full, tr_restricted in solves(diag, lower, upper, r):
+        assert float(jnp.max(jnp.abs(full))) > 0.1
+        np.testing.assert_allclose(np.asarray(restricted), np.asarray(full), rtol=0, atol=1e-14)
+        # the transpose is another operator (it reads the right-hand side off the support too): compared on it
+        sel = np.zeros(r.shape[1:], bool)
+        for c, sup in enumerate(support):
+            sel[list(sup), :, c] = True
+        np.testing.assert_allclose(np.asarray(tr_restricted)[sel], np.asarray(tr_full)[sel], rtol=0, atol=1e-14)
+
+
 @pytest.mark.slow
 def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
     """With the roller columns known, ``T⁻¹`` of block 0's border columns is kept on the free

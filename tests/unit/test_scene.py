@@ -28,6 +28,13 @@ def test_builtin_scenes_load_and_compile():
         # (the Thomas sweeps keep it banded)
         i, j = np.nonzero(np.any(np.asarray(m.K_lower) != 0, axis=0) | np.any(np.asarray(m.K_upper) != 0, axis=0))
         assert np.max(np.abs(i - j), initial=0) == m.coupling_band, n
+        # a tilt's column of R lives on its own roller's belt columns (the exact mode's sweeps skip the rest)
+        from jaxbelt.integrators.linear import lever_columns, roller_column_blocks
+
+        cols = lever_columns(m)[0]
+        for c, blocks in zip(cols, roller_column_blocks(m, cols)):
+            nz = np.flatnonzero(np.abs(np.asarray(m.R)[:, :, c]).max(1) + np.abs(np.asarray(m.R_dz)[:, :, c]).max(1))
+            assert len(nz) and set(nz) - {0} <= {k + 1 for k in blocks}, (n, c)
 
 
 def test_units_are_converted_to_si():
