@@ -384,10 +384,7 @@ def compile_simulate(model: BeltModel, solver: AbstractIntegrator | None = None,
     :func:`simulate` call with the same shapes and settings finds it. Nothing executes, so a
     background thread can compile while the caller runs other programs (two XLA:CPU executions at
     once can wedge its thread pool; compiling beside one cannot)."""
-    solver = make_solver() if solver is None else solver
-    check_time_step(model, dt)
-    _simulate.lower(model, solver, y0, jnp.asarray(dt, dtype=model.ell.dtype), int(n_steps), saveat, adjoint,
-                    None).compile()
+    compile_simulation(model, solver, n_steps=n_steps, dt=dt, saveat=saveat, adjoint=adjoint, y0=y0)
 
 
 @dataclasses.dataclass(frozen=True)

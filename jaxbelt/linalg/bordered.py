@@ -251,12 +251,8 @@ def _narrow_roller_rows(D_flat, blocks_from, blocks_to, b):
     to ``blocks_to`` (a subset)."""
     q = D_flat.shape[0]
     D = D_flat.reshape(q, -1, b)
-    if blocks_from:
-        pos = {k: i for i, k in enumerate(blocks_from)}
-        D = D[:, np.asarray([pos[k] for k in blocks_to], int)]
-    else:
-        D = D[:, np.asarray(blocks_to, int)]
-    return D.reshape(q, -1)
+    pos = {k: i for i, k in enumerate(blocks_from or range(D.shape[1]))}
+    return D[:, np.asarray([pos[k] for k in blocks_to], int)].reshape(q, -1)
 
 
 def _spans_through(breaks, blocks):

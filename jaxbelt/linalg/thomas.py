@@ -227,48 +227,50 @@ def _chain_gathers(layout):
     return fwd, bwd
 
 
+def _scan_phases(step, inputs):
+    """``lax.scan(step)`` along the chains, phase by phase: ``inputs`` per phase a tuple of
+    (steps, chains, ...) arrays, the last the values (steps, chains, b, k) whose shape the carry
+    takes; the carry cut to the chains still running, zero at the start. The values of every
+    phase, flattened."""
+    out, carry = [], jnp.zeros(inputs[0][-1].shape[1:], inputs[0][-1].dtype) if inputs else None
+    for xs in inputs:
+        carry, vs = lax.scan(step, carry[: xs[-1].shape[1]], xs)
+        out.append(vs.reshape((-1,) + vs.shape[2:]))
+    return out
+
+
 def _sweep(mats, values):
-    """One sweep ``v_t = values_t - mats_t v_{t-1}`` along the chains, phase by phase (per phase
-    (steps, chains, b, b) and (steps, chains, b, k); the carry cut to the chains still running,
-    zero at the start); the values of every phase, flattened."""
+    """One sweep ``v_t = values_t - mats_t v_{t-1}`` along the chains (:func:`_scan_phases`; per
+    phase (steps, chains, b, b) and (steps, chains, b, k))."""
 
     def step(prev, blk):
         a, v = blk
         v = v - a @ prev
         return v, v
 
-    out, carry = [], jnp.zeros(values[0].shape[1:], values[0].dtype) if values else None
-    for a, v in zip(mats, values):
-        carry, vs = lax.scan(step, carry[: v.shape[1]], (a, v))
-        out.append(vs.reshape((-1,) + vs.shape[2:]))
-    return out
+    return _scan_phases(step, list(zip(mats, values)))
 
 
-def _banded_forward(invs, Lds, values, w):
-    """The forward sweep ``y_t = den_t⁻¹ (r_t - L_t y_{t-1})`` along the chains with banded
-    ``L`` (:func:`_sweep`'s phases); the values of every phase, flattened."""
+def _forward(F: ChainedThomasFactors, values):
+    """The forward sweep ``y_t = den_t⁻¹ (r_t - L_t y_{t-1})`` along the chains, ``values`` the
+    right-hand side's blocks per phase: with banded ``L`` (shifted products, then ``den⁻¹``) or
+    as ``g_t - P_t y_{t-1}`` (:class:`ChainedThomasFactors`); the values of every phase, flattened."""
+    if F.band is None:
+        return _sweep(F.f_P, [inv @ r for inv, r in zip(F.f_inv, values)])  # den⁻¹ r of each phase, batched
 
     def step(prev, blk):
         inv, Ld, r = blk
-        y = inv @ (r - band_times(Ld, prev, w))
+        y = inv @ (r - band_times(Ld, prev, F.band))
         return y, y
 
-    out, carry = [], jnp.zeros(values[0].shape[1:], values[0].dtype) if values else None
-    for a, ld, v in zip(invs, Lds, values):
-        carry, ys = lax.scan(step, carry[: v.shape[1]], (a, ld, v))
-        out.append(ys.reshape((-1,) + ys.shape[2:]))
-    return out
+    return _scan_phases(step, list(zip(F.f_inv, F.f_L, values)))
 
 
 def chained_thomas_apply(F: ChainedThomasFactors, rhs):
     """:func:`thomas_apply` along the chains; ``rhs`` (m, b, k)."""
     f_ph, singles, b_ph, _ = F.layout
     fwd, bwd = _chain_gathers(F.layout)
-    if F.band is None:
-        g = [inv @ take_blocks(rhs, t) for inv, t in zip(F.f_inv, f_ph)]  # den⁻¹ r of each phase, batched
-        chains = _sweep(F.f_P, g)
-    else:
-        chains = _banded_forward(F.f_inv, F.f_L, [take_blocks(rhs, t) for t in f_ph], F.band)
+    chains = _forward(F, [take_blocks(rhs, t) for t in f_ph])
     y = jnp.concatenate(chains + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]  # (m, b, k) natural order
     xs = _sweep(F.b_C, [take_blocks(y, t) for t in b_ph])
     return jnp.concatenate(xs + [y])[bwd]
@@ -324,8 +326,7 @@ def chained_thomas_apply_sparse(F: ChainedThomasFactors, rhs, support):
     f_chains = _phase_chains(f_ph)
     f_table, f_back = _columns_per_chain(f_chains, support)
     # where the forward values can be non-zero: the chains a column's support meets, and its single blocks
-    y_support = [set().union(*([set(ch) for ch in f_chains if sup & set(ch)] or [set()])) | (sup & set(singles))
-                 for sup in support]
+    y_support = [set().union(*[ch for ch in f_chains if sup & set(ch)]) | (sup & set(singles)) for sup in support]
     b_chains = _phase_chains(b_ph)
     b_table, b_back = _columns_per_chain(b_chains, y_support)
 
@@ -341,11 +342,7 @@ def chained_thomas_apply_sparse(F: ChainedThomasFactors, rhs, support):
             out.append(_select_columns(v, back[:n]).reshape((steps * n,) + v.shape[2:-1] + (k,)))
         return out
 
-    f_vals = restricted([take_blocks(rhs, t) for t in f_ph], f_table)
-    if F.band is None:
-        chains = _sweep(F.f_P, [inv @ g for inv, g in zip(F.f_inv, f_vals)])
-    else:
-        chains = _banded_forward(F.f_inv, F.f_L, f_vals, F.band)
+    chains = _forward(F, restricted([take_blocks(rhs, t) for t in f_ph], f_table))
     y = jnp.concatenate(widen(chains, f_ph, f_back) + [F.s_inv @ rhs[np.asarray(singles, int)]])[fwd]
     xs = _sweep(F.b_C, restricted([take_blocks(y, t) for t in b_ph], b_table))
     return jnp.concatenate(widen(xs, b_ph, b_back) + [y])[bwd]
