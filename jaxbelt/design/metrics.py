@@ -154,6 +154,11 @@ class Study(eqx.Module):
         return apply(self.model, self.space, theta, self.base)
 
 
+def _mrad(angle):
+    """Actuator angles in rad (``None`` without a loop) in mrad."""
+    return None if angle is None else angle * RAD_TO_MRAD
+
+
 def for_runs(study: Study) -> Study:
     """The study without its linearisation, which no run reads: the programs that run
     configurations then take the same arguments with and without one, and are compiled once for
@@ -199,13 +204,12 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
                                                         frame["n_steps"])
         check_finite(ref, frame["dt"])  # a diverging reference is named, as simulate names it
         u, v, angle = ref.tracer_u, ref.tracer_v, ref.control_u
-        mrad = lambda a: None if a is None else a * RAD_TO_MRAD  # noqa: E731
         zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-        lin = ((zero(u), zero(v), mrad(angle)), (du * M_TO_UM, None if dv is None else dv * M_TO_UM, mrad(dangle)))
-        return Study(**frame, ref_u=u, ref_v=v, ref_angle=mrad(angle), linearisation=lin)
+        lin = ((zero(u), zero(v), _mrad(angle)), (du * M_TO_UM, None if dv is None else dv * M_TO_UM, _mrad(dangle)))
+        return Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), linearisation=lin)
     _, ref = simulate(aligned(model), frame["integrator"], n_steps=frame["n_steps"], dt=frame["dt"])
     study = Study(**frame, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
-                  ref_angle=None if ref.control_u is None else ref.control_u * RAD_TO_MRAD)
+                  ref_angle=_mrad(ref.control_u))
     if jacobian:
         study = dataclasses.replace(study, linearisation=_deviation_tangents(study))
     return study
@@ -275,7 +279,7 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
     thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
     u, v, angle = _aligned_and_configured(model, frame["space"], frame["integrator"], frame["dt"], frame["n_steps"],
                                           thetas)
-    angle = None if angle is None else angle * RAD_TO_MRAD
+    angle = _mrad(angle)
     study = Study(**frame, ref_u=u[0], ref_v=None if v is None else v[0], ref_angle=None if angle is None else angle[0])
     if limits:
         study = with_limits(study, limits)
@@ -289,6 +293,14 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
 
     rest = lambda a: None if a is None else a[1:]  # noqa: E731
     return study, np.asarray(jax.vmap(values)(u[1:], rest(v), rest(angle)), dtype=float)
+
+
+def study_on(model: BeltModel, study: Study, thetas, *, dt, integrator: AbstractIntegrator | None = None, limits=()):
+    """:func:`make_study_at` of ``study``'s question — its metric, components, evaluation time and
+    window — on ``model`` (the same scene on another grid, run at ``dt`` with ``integrator``):
+    ``(study, values)`` at ``thetas`` (m, P), the aligned reference in the same batch."""
+    return make_study_at(model, study.metric, thetas, t_eval=study.t_eval, dt=dt, components=list(study.space.labels()),
+                         integrator=integrator, window_fraction=study.window / study.n_steps, limits=limits)
 
 
 def with_limits(study: Study, limits) -> Study:
@@ -335,7 +347,7 @@ def run_deviation(study: Study, theta):
     _, tr = simulate(study.configured(theta), study.integrator, n_steps=study.n_steps, dt=study.dt)
     du = (tr.tracer_u - study.ref_u) * M_TO_UM
     dv = None if tr.tracer_v is None else (tr.tracer_v - study.ref_v) * M_TO_UM
-    angle = None if tr.control_u is None else tr.control_u * RAD_TO_MRAD
+    angle = _mrad(tr.control_u)
     return du, dv, angle
 
 

@@ -249,9 +249,10 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
     if u0 is None:
         u0 = linear_design_point(r0, J, dist, limit_um, study.aggregate)
     u = jnp.asarray(u0, float)
+    runs = for_runs(study)
     converged, it = False, 0
     for it in range(1, max_iter + 1):
-        g, dg = _g_and_grad(for_runs(study), scale, uniform, u, limit_um)
+        g, dg = _g_and_grad(runs, scale, uniform, u, limit_um)
         nd = float(jnp.dot(dg, dg))
         if nd == 0.0:
             break
@@ -261,8 +262,8 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
         if step < tol * max(1.0, float(jnp.linalg.norm(u))) and abs(float(g)) < 1e-6 * limit_um:
             converged = True
             break
-    g, _ = _g_and_grad(for_runs(study), scale, uniform, u, limit_um)
-    g0, _ = _g_and_grad(for_runs(study), scale, uniform, jnp.zeros_like(u), limit_um)
+    g, _ = _g_and_grad(runs, scale, uniform, u, limit_um)
+    g0, _ = _g_and_grad(runs, scale, uniform, jnp.zeros_like(u), limit_um)
     beta = float(jnp.linalg.norm(u)) * (1.0 if float(g0) >= 0 else -1.0)  # negative: the nominal fails
     bounds = None
     if study.aggregate == "max":

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import Study, metric_value, response, response_from_deviation
+from .metrics import Study, for_runs, metric_value, response, response_from_deviation
 
 
 KINK_UM = 1e-6  # a metric at or below this is at its kink r = 0
@@ -89,7 +89,7 @@ def response_jacobian(study: Study, theta=None, mode: str = "auto"):
         r, J = _response_and_jacobian_from_linearisation(study)
         return np.asarray(r), np.asarray(J)
     theta = _zeros(study) if theta is None else jnp.asarray(theta, study.base.dtype)
-    study = dataclasses.replace(study, linearisation=None)  # not read here: the plain study's program
+    study = for_runs(study)  # the linearisation is not read here: the plain study's program
     n_r = jax.eval_shape(lambda t: response(study, t), theta).shape[0]
     forward = mode == "forward" or (mode == "auto" and study.space.size <= n_r)
     r, J = _response_and_jacobian(study, theta, forward)

@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import SATURATION_FRACTION, Study, make_study_at
+from .metrics import SATURATION_FRACTION, Study, study_on
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
@@ -251,9 +251,7 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distr
     thetas = sweep_samples(study, dist, n, res.seed)
     values = np.asarray(res.metric_values)
     pick = np.argsort(np.abs(values - res.limit_um))[: min(k, n)]
-    _, fine = make_study_at(fine_model, study.metric, thetas[pick], t_eval=study.t_eval, dt=dt,
-                            components=list(study.space.labels()), integrator=integrator,
-                            window_fraction=study.window / study.n_steps)
+    _, fine = study_on(fine_model, study, thetas[pick], dt=dt, integrator=integrator)
     before, after = values[pick] <= res.limit_um, fine <= res.limit_um
     rel = np.abs(fine - values[pick]) / np.maximum(np.abs(values[pick]), 1e-12)
     return YieldDiscretisation(

@@ -31,8 +31,8 @@ import numpy as np
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
-from .metrics import (METRICS, Study, aggregate, aligned_values, for_runs, limit_values, make_study_at,
-                      metric_unit, response_sizes, with_limits)
+from .metrics import (METRICS, Study, aggregate, aligned_values, for_runs, limit_values, metric_unit, response_sizes,
+                      study_on, with_limits)
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -292,9 +292,7 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integ
     floor, worst = _box_floor(box, study.aggregate), float(np.max(worst_rows))
     aligned_scene = not np.any(np.asarray(study.base))
     thetas = box.corners if aligned_scene else np.concatenate([np.zeros((1, box.corners.shape[1])), box.corners])
-    fine_study, values = make_study_at(fine_model, study.metric, thetas, t_eval=study.t_eval, dt=dt,
-                                       components=list(study.space.labels()), integrator=integrator,
-                                       window_fraction=study.window / study.n_steps, limits=box.limit_names or ())
+    fine_study, values = study_on(fine_model, study, thetas, dt=dt, integrator=integrator, limits=box.limit_names or ())
     fine = _on_limit_scale(values, box.limit_um, box.limit_names)
     if aligned_scene:
         metric, per_limit = aligned_values(fine_study)
