@@ -206,6 +206,18 @@ def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking, dt)
     assert float(jnp.max(jnp.abs(r_all))) > 1.0  # the supports do carry load
 
 
+def _random_interior(rng, breaks, b, w=None, shift=8.0):
+    """Random diagonally dominant block-tridiagonal blocks ``(diag, lower, upper)`` (m, b, b) whose
+    couplings vanish at the ``breaks`` (and beyond ``w`` diagonals off their main one, if given)."""
+    m = len(breaks)
+    i, j = np.indices((b, b))
+    band = 1.0 if w is None else jnp.asarray(np.abs(i - j) <= w, float)
+    mask = jnp.asarray(~breaks, float)[:, None, None]
+    diag = jnp.asarray(rng.normal(size=(m, b, b)) + shift * np.eye(b))
+    lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * band * mask for _ in range(2))
+    return diag, lower, upper
+
+
 @pytest.mark.slow
 def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     """Blocks with zero couplings break the chain: the rearranged sweeps give the same solve,
@@ -216,9 +228,7 @@ def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     m, b = 11, 3
     breaks = np.zeros(m, bool)
     breaks[[0, 1, 4, 5, 9]] = True  # runs of single blocks, chains of lengths 3 and 4, a last chain of 2
-    diag = jnp.asarray(rng.normal(size=(m, b, b)) + 6 * np.eye(b))
-    mask = jnp.asarray(~breaks, float)[:, None, None]
-    lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * mask for _ in range(2))
+    diag, lower, upper = _random_interior(rng, breaks, b, shift=6.0)
     r = jnp.asarray(rng.normal(size=(m, b, 2)))
     spec = jax.ShapeDtypeStruct(r.shape, r.dtype)
     wrong = breaks.copy()
@@ -249,11 +259,7 @@ def test_banded_forward_sweep_equals_the_plain_sweeps_and_their_transpose():
     m, b, w = 9, 6, 1
     breaks = np.zeros(m, bool)
     breaks[[0, 4]] = True
-    i, j = np.indices((b, b))
-    band = jnp.asarray(np.abs(i - j) <= w, float)
-    mask = jnp.asarray(~breaks, float)[:, None, None]
-    diag = jnp.asarray(rng.normal(size=(m, b, b)) + 8 * np.eye(b))
-    lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * band * mask for _ in range(2))
+    diag, lower, upper = _random_interior(rng, breaks, b, w)
     r = jnp.asarray(rng.normal(size=(m, b, 3)))
     spec = jax.ShapeDtypeStruct(r.shape, r.dtype)
 
@@ -283,11 +289,7 @@ def test_sweeps_restricted_to_the_columns_a_chain_can_see_equal_the_full_sweeps(
     m, b, w = 14, 4, 1
     breaks = np.zeros(m, bool)
     breaks[[0, 1, 5, 6, 10]] = True  # three "rollers" (0-1, 5-6, 10) and the spans between them
-    i, j = np.indices((b, b))
-    band = jnp.asarray(np.abs(i - j) <= w, float)
-    mask = jnp.asarray(~breaks, float)[:, None, None]
-    diag = jnp.asarray(rng.normal(size=(m, b, b)) + 8 * np.eye(b))
-    lower, upper = (jnp.asarray(rng.normal(size=(m, b, b))) * band * mask for _ in range(2))
+    diag, lower, upper = _random_interior(rng, breaks, b, w)
     support = ((0, 1), (0,), (5, 6), (10,), (5,))
     r = np.zeros((2, m, b, len(support)))
     for c, sup in enumerate(support):
