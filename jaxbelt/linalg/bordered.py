@@ -207,9 +207,12 @@ def _effective_y_G(F: BorderedFactorisation) -> jax.Array:
     return jnp.concatenate([_to_interior(F.y_G0, F.y_G0_rows, y_R.shape[0]), y_R], axis=2)
 
 
-def _apply_interior(F, rhs):
+def _apply_interior(F, rhs, support=()):
+    """``T⁻¹ rhs`` (m, b, k) with the interior factors ``F``; ``support``: per column of ``rhs`` the
+    blocks it can be non-zero on (static, optional), which the chained sweeps use to skip the
+    chains a column cannot reach (:func:`~jaxbelt.linalg.thomas.chained_thomas_apply_sparse`)."""
     if isinstance(F, ChainedThomasFactors):
-        return chained_thomas_apply(F, rhs)
+        return chained_thomas_apply_sparse(F, rhs, support) if support else chained_thomas_apply(F, rhs)
     return bcr_apply(F, rhs) if isinstance(F, CyclicReductionFactors) else thomas_apply(F, rhs)
 
 
@@ -379,10 +382,7 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     S = S_ref
     y_new = None
     if len(columns):
-        if column_blocks and isinstance(F_ref.interior, ChainedThomasFactors):
-            y_new = chained_thomas_apply_sparse(F_ref.interior, C[1:], column_blocks)
-        else:
-            y_new = _apply_interior(F_ref.interior, C[1:])
+        y_new = _apply_interior(F_ref.interior, C[1:], column_blocks)
         Z_cols = jnp.concatenate([C[0], A.E[:, cols] * row_r[:, None]], axis=0)
         S = S.at[:, b + cols].set(Z_cols - _border_times(H, y_new, blocks))
     if len(rows):
