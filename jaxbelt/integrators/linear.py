@@ -37,6 +37,8 @@ from jax import lax
 
 from ..assembly import dae_apply, nodal_masses, roller_R, roller_stiffness_rows, step_matrix
 from ..linalg import BorderedBlockCyclic, dense_solve, join, split
+from ..linalg.border_first import (BorderFirstFactors, border_first, border_first_solve, border_first_solve_transposed,
+                                   border_green, replace_border_columns)
 from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
                                refactorise_border, scaled_schur, solve_with_adjoint, with_chained_interior)
 from ..model import BeltModel
@@ -107,10 +109,17 @@ class AbstractLinearSolver(eqx.Module):
 
 
 class _Factors(eqx.Module):
-    """Bordered factors and which way they solve."""
+    """Bordered factors (interior first or border first) and which way they solve."""
 
-    F: BorderedFactorisation
+    F: BorderedFactorisation | BorderFirstFactors
     transposed: bool = eqx.field(static=True, default=False)
+
+
+def _solve_with(F, r_b, r_r, transposed: bool = False):
+    """``A⁻¹ r`` (``A⁻ᵀ r``) with either kind of bordered factors."""
+    if isinstance(F, BorderFirstFactors):
+        return (border_first_solve_transposed if transposed else border_first_solve)(F, r_b, r_r)
+    return (factor_solve_transposed if transposed else factor_solve)(F, r_b, r_r)
 
 
 def _factored_compute(state, r_b, r_r):
@@ -118,7 +127,7 @@ def _factored_compute(state, r_b, r_r):
     (:class:`_DenseLU`, see :class:`Structured`)."""
     if isinstance(state, _DenseLU):
         return _dense_compute(state, r_b, r_r)
-    return (factor_solve_transposed if state.transposed else factor_solve)(state.F, r_b, r_r)
+    return _solve_with(state.F, r_b, r_r, state.transposed)
 
 
 def _flip(state):
@@ -157,11 +166,13 @@ class CyclicReduction(Structured):
 
 class _Kept(eqx.Module):
     """Run data of :class:`KeptInterior`: the reference matrix (model masses, reference lever
-    arms), its factors, its scaled Schur complement."""
+    arms), its factors (border first where ``green`` is not ``None``), its scaled Schur
+    complement, and the border rows' Green's functions ``green`` on the roller columns."""
 
     A: BorderedBlockCyclic
-    F: BorderedFactorisation
+    F: BorderedFactorisation | BorderFirstFactors
     S: jax.Array
+    green: jax.Array | None = None
 
 
 class KeptInterior(AbstractLinearSolver):
@@ -179,14 +190,32 @@ class KeptInterior(AbstractLinearSolver):
     misalignments the kept factors are shared, since misalignments change neither stiffness nor
     masses. Where the transport rule moves masses between elements (``"source"``) every step is
     factored in full, as :class:`Structured`.
+
+    ``border``: how a step's new tilt columns enter the kept factors, both exact.
+
+    * ``"green"`` (default where the tilts are prescribed DOFs): border first
+      (:mod:`jaxbelt.linalg.border_first`). The Green's functions of the border rows, ``H T⁻¹``,
+      are computed once per run; a step changes only the Schur complement's tilt columns, by a
+      small product with them on the roller columns, and each solve is one sweep — the cost of a
+      solve with frozen factors.
+    * ``"sweep"``: interior first. Each step sweeps its tilt columns through the kept interior
+      (:func:`jaxbelt.linalg.bordered.refactorise_border`), a sweep with one right-hand side per
+      tilt, and each solve is one sweep and a product. Where a tilt is a dynamic DOF (its roller
+      row moves with the lever arm too, which needs ``T⁻¹`` of the columns) ``"green"`` takes this
+      path as well.
     """
 
     interior: str | None = eqx.field(static=True, default=None)
+    border: str = eqx.field(static=True, default="green")
+
+    def __check_init__(self):
+        if self.border not in ("green", "sweep"):
+            raise ValueError(f"KeptInterior(border={self.border!r}): 'green' or 'sweep'")
 
     def reference(self, model, state, dt, transport="shift"):
         if transport != "shift" or model.n_xi < 3:
             return None
-        return _kept_interior(model, dt, self.interior)
+        return _kept_interior(model, dt, self.interior, self.border == "green")
 
     def uses_roller_columns(self, reference) -> bool:
         return reference is not None
@@ -196,6 +225,12 @@ class KeptInterior(AbstractLinearSolver):
             return Structured(self.interior).init(operator)
         model, dt = operator.model, operator.dt
         cols, rows = lever_columns(model)
+        if reference.green is not None:  # border first: the tilt columns on the roller columns only
+            on = np.asarray(model.contact_columns, int)
+            R = operator.R[on] if operator.R.shape[0] == model.n_xi else operator.R
+            C_on = jnp.where(model.is_constraint[on][:, :, None], -dt**2 * R[:, :, jnp.asarray(cols)], 0.0)
+            return _Factors(replace_border_columns(reference.F, reference.S, reference.green, reference.A.E, cols,
+                                                   lax.stop_gradient(C_on), on))
         con = model.is_constraint[:, :, None]
         C, D = reference.A.C, reference.A.D
         if cols:
@@ -241,15 +276,43 @@ def lever_columns(model: BeltModel) -> tuple[tuple, tuple]:
     return cols, tuple(c for c in cols if n_belt + c not in algebraic)
 
 
+def border_first_possible(model: BeltModel) -> bool:
+    """Whether the kept factors are border first (:class:`KeptInterior` ``"green"``): the model
+    has tilts with a lever arm (2D), none of them a dynamic DOF, and knows its roller columns."""
+    cols, rows = lever_columns(model)
+    return model.contact_columns is not None and bool(cols) and not rows
+
+
+def dynamic_roller_rows(model: BeltModel) -> tuple:
+    """The roller unknowns whose rows of ``D`` can be non-zero: the dynamic (force- or
+    torque-loaded) roller DOFs; a prescribed DOF's row is its constraint alone."""
+    algebraic = set(model.partition[1])
+    n_belt = model.n_xi * model.block
+    return tuple(c for c in range(model.n_roller_dofs) if n_belt + c not in algebraic)
+
+
+def contact_blocks(model: BeltModel) -> tuple:
+    """The interior blocks (belt column ``i`` is block ``i - 1``) of the belt's roller columns,
+    where ``R`` and so the roller columns ``C`` can be non-zero."""
+    return tuple(int(c) - 1 for c in model.contact_columns if int(c) != 0)
+
+
 @eqx.filter_jit
-def _kept_interior(model, dt, method=None) -> _Kept:
+def _kept_interior(model, dt, method=None, green: bool = False) -> _Kept:
     """Factors of ``M + Δt² K`` at the model's masses and reference lever arms, the interior along
-    its chains of dependent blocks (one compiled program). Constants of the run: never
-    differentiated (the products carry the derivatives)."""
+    its chains of dependent blocks (one compiled program); with ``green`` (static) and where
+    :func:`border_first_possible`, border first. Constants of the run: never differentiated (the
+    products carry the derivatives)."""
     A = step_matrix(model, model.m_e0, model.R, dt)
     F = factorise(A, method)
-    return lax.stop_gradient(_Kept(A, with_chained_interior(F, model.contact_columns, model.coupling_band),
-                                   scaled_schur(A, F)))
+    S = scaled_schur(A, F)
+    F = with_chained_interior(F, model.contact_columns, model.coupling_band)
+    if not (green and border_first_possible(model)):
+        return lax.stop_gradient(_Kept(A, F, S))
+    blocks = contact_blocks(model)
+    Phi = border_green(F)
+    Fb = border_first(F, A, dynamic_roller_rows(model), blocks, Phi)
+    return lax.stop_gradient(_Kept(A, Fb, S, Phi[:, np.asarray(blocks, int)]))
 
 
 class _Frozen(eqx.Module):
@@ -303,9 +366,9 @@ class Reuse(AbstractLinearSolver):
         if state.transposed:
             spec = (jax.ShapeDtypeStruct(r_b.shape, r_b.dtype), jax.ShapeDtypeStruct(r_r.shape, r_r.dtype))
             vecmat = jax.linear_transpose(state.operator.mv, *spec)
-            return _refined(lambda *r: factor_solve_transposed(state.F, *r), lambda *x: vecmat(x), r_b, r_r,
+            return _refined(lambda *r: _solve_with(state.F, *r, transposed=True), lambda *x: vecmat(x), r_b, r_r,
                             state.refine)
-        return _refined(lambda *r: factor_solve(state.F, *r), state.operator.mv, r_b, r_r, state.refine)
+        return _refined(lambda *r: _solve_with(state.F, *r), state.operator.mv, r_b, r_r, state.refine)
 
     def transpose(self, state):
         return _Refined(state.F, state.operator, state.refine, not state.transposed)

@@ -154,7 +154,7 @@ class BorderedFactorisation(eqx.Module):
     ``T⁻¹ G`` for the border columns in two parts: ``y_G0`` (k0, b, b), block 0's columns on the
     interior blocks ``y_G0_rows`` (static; zero on the others), and ``y_GR`` (n-1, b, q), the
     roller columns; the border rows' couplings to the interior ``H = (U_0, L_0, D[1:] flattened)``
-    (row-equilibrated; :func:`_border_times`), and the LU of the ``(b + q)²`` Schur complement.
+    (row-equilibrated; :func:`border_times`), and the LU of the ``(b + q)²`` Schur complement.
     A solve with them costs ``O(n b (b + q))``; they are all that reverse mode keeps per step for
     the adjoint solve.
 
@@ -189,7 +189,7 @@ class BorderedFactorisation(eqx.Module):
     H_blocks: tuple = eqx.field(static=True, default=())
 
 
-def _to_interior(v, rows, m):
+def to_interior(v, rows, m):
     """Values ``v`` (k, ...) on the interior blocks ``rows`` (static) as (m, ...), zero elsewhere —
     by a gather from ``[v; 0]`` (no scatter)."""
     if tuple(rows) == tuple(range(m)):
@@ -204,10 +204,10 @@ def _effective_y_G(F: BorderedFactorisation) -> jax.Array:
     y_R = F.y_GR
     if F.y_G_index:
         y_R = y_R.at[:, :, np.asarray(F.y_G_index)].set(F.y_G_cols)
-    return jnp.concatenate([_to_interior(F.y_G0, F.y_G0_rows, y_R.shape[0]), y_R], axis=2)
+    return jnp.concatenate([to_interior(F.y_G0, F.y_G0_rows, y_R.shape[0]), y_R], axis=2)
 
 
-def _apply_interior(F, rhs, support=()):
+def apply_interior(F, rhs, support=()):
     """``T⁻¹ rhs`` (m, b, k) with the interior factors ``F``; ``support``: per column of ``rhs`` the
     blocks it can be non-zero on (static, optional), which the chained sweeps use to skip the
     chains a column cannot reach (:func:`~jaxbelt.linalg.thomas.chained_thomas_apply_sparse`)."""
@@ -234,7 +234,7 @@ def with_chained_interior(F: BorderedFactorisation, contact_columns, band: int |
     on = set(int(c) for c in contact_columns)
     breaks = [(k + 1) in on for k in range(m)]
     rows = _spans_through(breaks, (0, m - 1))
-    y_G0 = _to_interior(F.y_G0, F.y_G0_rows, m)[np.asarray(rows, int)]
+    y_G0 = to_interior(F.y_G0, F.y_G0_rows, m)[np.asarray(rows, int)]
     H_blocks = roller_row_blocks(contact_columns, m + 1)
     H = (F.H[0], F.H[1], _narrow_roller_rows(F.H[2], F.H_blocks, H_blocks, F.y_G0.shape[1]))
     return dataclasses.replace(F, interior=chain_thomas(F.interior, breaks, band), y_G0=y_G0, y_G0_rows=rows, H=H,
@@ -272,7 +272,7 @@ def _spans_through(breaks, blocks):
 def _border_parts(A):
     """Couplings of the interior blocks ``1..n-1`` to the border (block 0 + rollers): ``G``
     (interior rows × border columns, (n-1, b, s)), ``Z`` (border × border). The border rows'
-    couplings ``H`` are used in sparse form (:func:`_border_times`)."""
+    couplings ``H`` are used in sparse form (:func:`border_times`)."""
     n, b = A.n_blocks, A.block
     zero = jnp.zeros((n - 1, b, b), A.diag.dtype)
     G0 = zero.at[0].add(A.lower[1]).at[n - 2].add(A.upper[n - 1])
@@ -295,7 +295,7 @@ def _flat_roller_rows(D):
     return jnp.transpose(D, (1, 0, 2)).reshape(D.shape[1], -1)
 
 
-def _border_times(H, Y, blocks=()):
+def border_times(H, Y, blocks=()):
     """``H Y`` for interior values ``Y`` (n-1, b, k) without forming ``H`` (:func:`_border_rows`);
     ``blocks``: the interior blocks ``H``'s roller rows are kept on (empty: all)."""
     U0, L0, D_flat = H
@@ -329,7 +329,7 @@ def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFact
     else:
         interior, y_G = thomas_factor(As.diag[1:], As.lower[1:], As.upper[1:], G)
     H = _border_rows(As)
-    S_lu, S_piv = lu_factor(Z - _border_times(H, y_G))
+    S_lu, S_piv = lu_factor(Z - border_times(H, y_G))
     return BorderedFactorisation(row_b, row_r, interior, y_G[:, :, :b], y_G[:, :, b:], H, S_lu, S_piv,
                                  y_G0_rows=tuple(range(n - 1)))
 
@@ -337,11 +337,11 @@ def factorise(A: BorderedBlockCyclic, method: str | None = None) -> BorderedFact
 def scaled_schur(A: BorderedBlockCyclic, F: BorderedFactorisation) -> jax.Array:
     """The (unfactored) ``(b + q)²`` Schur complement ``Z - H T⁻¹ G`` of ``A`` in ``F``'s row
     scaling (:func:`refactorise_border` updates it)."""
-    G, Z = _border_parts(_scale_rows(A, F.row_b, F.row_r))
-    return Z - _border_times(F.H, _effective_y_G(F), F.H_blocks)
+    G, Z = _border_parts(scale_rows(A, F.row_b, F.row_r))
+    return Z - border_times(F.H, _effective_y_G(F), F.H_blocks)
 
 
-def _scale_rows(A: BorderedBlockCyclic, row_b, row_r) -> BorderedBlockCyclic:
+def scale_rows(A: BorderedBlockCyclic, row_b, row_r) -> BorderedBlockCyclic:
     return BorderedBlockCyclic(diag=A.diag * row_b[:, :, None], lower=A.lower * row_b[:, :, None],
                                upper=A.upper * row_b[:, :, None], C=A.C * row_b[:, :, None],
                                D=A.D * row_r[None, :, None], E=A.E * row_r[:, None])
@@ -382,9 +382,9 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     S = S_ref
     y_new = None
     if len(columns):
-        y_new = _apply_interior(F_ref.interior, C[1:], column_blocks)
+        y_new = apply_interior(F_ref.interior, C[1:], column_blocks)
         Z_cols = jnp.concatenate([C[0], A.E[:, cols] * row_r[:, None]], axis=0)
-        S = S.at[:, b + cols].set(Z_cols - _border_times(H, y_new, blocks))
+        S = S.at[:, b + cols].set(Z_cols - border_times(H, y_new, blocks))
     if len(rows):
         Z_rows = jnp.concatenate([D[0, rws], A.E[rws] * row_r[rws, None]], axis=1)
         H_r = H[2][rws].reshape(len(rows), -1, b)  # (k, blocks, b)
@@ -408,11 +408,11 @@ def factor_solve(F: BorderedFactorisation, rhs_belt, rhs_roll):
     """Solve with the factors: exact for the factored matrix, a preconditioner for a nearby one."""
     rb, rr = rhs_belt * F.row_b, rhs_roll * F.row_r
     b = rb.shape[1]
-    y_r = _apply_interior(F.interior, rb[1:, :, None])[:, :, 0]
-    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - _border_times(F.H, y_r[:, :, None], F.H_blocks)[:, 0])
+    y_r = apply_interior(F.interior, rb[1:, :, None])[:, :, 0]
+    x_border = lu_solve((F.S_lu, F.S_piv), jnp.concatenate([rb[0], rr]) - border_times(F.H, y_r[:, :, None], F.H_blocks)[:, 0])
     x_0, x_roll = x_border[:b], x_border[b:]
     m = y_r.shape[0]
-    x_int = y_r - _to_interior(jnp.einsum("nbs,s->nb", F.y_G0, x_0), F.y_G0_rows, m)
+    x_int = y_r - to_interior(jnp.einsum("nbs,s->nb", F.y_G0, x_0), F.y_G0_rows, m)
     if F.y_G_index:  # the replaced roller columns from y_G_cols, the rest from y_GR
         idx = np.asarray(F.y_G_index)
         keep = np.ones(x_roll.shape[0])

@@ -16,7 +16,7 @@ from jaxbelt.integrators.linear import lever_columns
 from jaxbelt.linalg import BorderedBlockCyclic, join
 from jaxbelt.linalg.bordered import dense_solve, factor_solve, factorise, refactorise_border, scaled_schur
 from jaxbelt.timeloop import run
-from helpers import scene_fixtures, scene_with, solve_step
+from helpers import load, scene_fixtures, scene_with, solve_step
 
 
 def FullFactorisation():
@@ -73,6 +73,23 @@ def walking_scene():
 loaded, walking, dt = scene_fixtures(walking_scene)
 
 
+def drifting_scene():
+    """The walking belt with every tilt a prescribed DOF (no torque-loaded tension tilt): the
+    lever arms keep moving, and the kept factors are border first."""
+
+    def mutate(d):
+        d.setdefault("mesh", {}).update(n_eta=3)
+        d.setdefault("solver", {}).update(lateral_transport=True)
+        d.setdefault("variant", {}).setdefault("roller 3", {}).update(rotation_mrad=[0.0, 2.0, 0.0])
+
+    return scene_with(mutate, "three-roller-t72")
+
+
+@pytest.fixture(scope="module")
+def drifting():
+    return load(drifting_scene())[0]
+
+
 @pytest.fixture(scope="module")
 def moved(walking, dt):
     """The state after 4 steps: the lever arms have moved away from the reference's."""
@@ -127,6 +144,35 @@ def test_run_equals_a_full_factorisation_every_step(walking, dt):
         np.testing.assert_allclose(np.asarray(tr_kept.roller_reaction), r, rtol=0, atol=1e-9 * np.max(np.abs(r)))
     # the lever arms did move (else the test could not tell the kept interior from a frozen matrix)
     assert float(jnp.max(jnp.abs(s_full.u[:, 1::2] - s0.u[:, 1::2]))) > 1e-7
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("border", ["green", "sweep"])
+def test_border_first_run_equals_a_full_factorisation_every_step(drifting, dt, border):
+    """Prescribed tilts: the kept factors, border first (the default) or sweeping the tilt columns,
+    against the full factorisation of every step's matrix over a run whose lever arms move, and
+    reverse mode through the run against reverse mode through the full factorisation."""
+    from jaxbelt.integrators.linear import border_first_possible
+
+    assert border_first_possible(drifting)
+    n = 16
+    kept = DirectBackwardEuler(KeptInterior(border=border))
+    s0 = jb.initial_state(drifting)
+
+    def metric(integrator, rot):
+        s, tr = run(jb.with_misalignment(drifting, rotation=rot), integrator, s0, dt, n)
+        return jnp.sum(tr.tracer_v[-1] ** 2) + jnp.sum(s.chi ** 2), s
+
+    rot = jnp.zeros((3, 3)).at[0, 0].set(3e-4)
+    (_, s_kept), g_kept = jax.jit(jax.value_and_grad(lambda r: metric(kept, r), has_aux=True))(rot)
+    (_, s_full), g_full = jax.jit(jax.value_and_grad(lambda r: metric(FullFactorisation(), r), has_aux=True))(rot)
+    scale_u = float(jnp.max(jnp.abs(s_full.u)))
+    np.testing.assert_allclose(np.asarray(s_kept.u), np.asarray(s_full.u), rtol=0, atol=1e-12 * scale_u)
+    np.testing.assert_allclose(np.asarray(s_kept.chi), np.asarray(s_full.chi), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(g_kept), np.asarray(g_full), rtol=1e-9,
+                               atol=1e-9 * float(jnp.max(jnp.abs(g_full))))
+    assert float(jnp.max(jnp.abs(g_full))) > 0
+    assert float(jnp.max(jnp.abs(s_full.u[:, 1::2] - s0.u[:, 1::2]))) > 1e-7  # the lever arms did move
 
 
 @pytest.mark.slow
