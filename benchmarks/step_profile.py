@@ -5,8 +5,9 @@
 (so XLA cannot hoist it out of the loop), and timed best of ``--repeat``; the whole step
 (:func:`jaxbelt.timeloop.make_step`) the same way. Parts: *assembly* (roller kinematics, the
 right-hand side and the matrix-free product of the predictor), *solve* (the frozen-factor
-structured solve of the reuse solver; for the exact solver the whole solve step, factorisation
-included), *transport* (interpolation, mass flux, roller-relative and normal-entry corrections),
+structured solve of the reuse solver; for the exact solver its per-step border update — border
+first, the default, and interior first, sweeping the tilt columns — and the whole solve step,
+factorisation included), *transport* (interpolation, mass flux, roller-relative and normal-entry corrections),
 *outputs* (tracers, support loads, edge margins, the NaN guard); last, a whole run per step as
 :func:`jaxbelt.simulate` compiles it (model and solver as the program's arguments, every step's
 outputs recorded). Set ``OPENBLAS_NUM_THREADS=1``.
@@ -24,6 +25,7 @@ import jaxbelt as jb
 from _common import clock, write
 from jaxbelt.assembly import dae_apply, dae_rhs, roller_R, static_surface_offset
 from jaxbelt.integrators.linear import lever_columns
+from jaxbelt.linalg.border_first import replace_border_columns
 from jaxbelt.linalg.bordered import factor_solve, refactorise_border
 from jaxbelt.timeloop import compile_simulation, edge_margin, make_step, nonfinite_code, tracer_values
 from jaxbelt.transport import transport_step_with_weights
@@ -50,10 +52,11 @@ def main():
     st = jb.initial_state(model)
     reuse = jb.DirectBackwardEuler(jb.Reuse())
     exact = jb.DirectBackwardEuler(jb.KeptInterior())
+    exact_sweep = jb.DirectBackwardEuler(jb.KeptInterior(border="sweep"))
     exact_full = jb.DirectBackwardEuler(jb.Structured())
     # each solver's data for the run (the frozen factors; the kept interior), as a run computes it once
     data = {"reuse": reuse.init(model, st, dt), "exact": exact.init(model, st, dt),
-            "exact_full": exact_full.init(model, st, dt)}
+            "exact_sweep": exact_sweep.init(model, st, dt), "exact_full": exact_full.init(model, st, dt)}
     stencil = data["reuse"].stencil
     offset = static_surface_offset(model)
     eps = 1e-30  # feeds an output back into the input without changing it numerically
@@ -76,10 +79,18 @@ def main():
             return jax.tree.map(lambda x, y: x + eps * y if jnp.issubdtype(x.dtype, jnp.floating) else x, s, new)
         return go
 
-    ref = data["exact"].linear
+    ref_green, ref = data["exact"].linear, data["exact_sweep"].linear
     cols, rows_ = lever_columns(model)
+    on = jnp.asarray(model.contact_columns)
 
-    def border(u):  # the exact mode's per-step refactorisation (tilt columns, Schur complement)
+    def border_first(u):  # the exact mode's per-step border update, border first (the default)
+        R = roller_R(model, u, on_rollers=True)
+        C_on = jnp.where(model.is_constraint[on][:, :, None], -dt**2 * R[:, :, jnp.asarray(cols)], 0.0)
+        F = replace_border_columns(ref_green.F, ref_green.S, ref_green.green, ref_green.A.E, cols, C_on,
+                                   model.contact_columns)
+        return u + eps * jnp.sum(F.S_lu)
+
+    def border(u):  # the exact mode's per-step refactorisation interior first (tilt columns swept, Schur complement)
         R = roller_R(model, u)
         c = jnp.asarray(cols)
         C = ref.A.C.at[:, :, c].set(jnp.where(model.is_constraint[:, :, None], -dt**2 * R[:, :, c], 0.0))
@@ -104,10 +115,14 @@ def main():
     rows["outputs (tracers, margins, NaN guard)"] = timed_scan(outputs, st.u, a.steps, a.repeat)
     step_reuse = make_step(model, reuse, dt, data["reuse"])
     rows["whole step, reuse"] = timed_scan(lambda s: step_reuse(s)[0], st, a.steps, a.repeat)
-    rows["exact: border refactorisation (tilt columns' sweep, Schur complement)"] = timed_scan(
+    rows["exact: border update, border first (Schur complement's tilt columns from the border rows' Green's functions)"] \
+        = timed_scan(border_first, st.u, a.steps, a.repeat)
+    rows["exact: border update, interior first (tilt columns' sweep, Schur complement)"] = timed_scan(
         border, st.u, a.steps, a.repeat)
-    rows["exact solve step (kept interior: border + solve)"] = timed_scan(
+    rows["exact solve step (kept interior, border first: border + solve)"] = timed_scan(
         solve_step_of(exact, data["exact"]), st, a.steps, a.repeat)
+    rows["exact solve step (kept interior, interior first: border + solve)"] = timed_scan(
+        solve_step_of(exact_sweep, data["exact_sweep"]), st, a.steps, a.repeat)
     rows["exact solve step, full factorisation every step"] = timed_scan(
         solve_step_of(exact_full, data["exact_full"]), st, a.steps // 5, a.repeat)
     step_exact = make_step(model, exact, dt, data["exact"])
