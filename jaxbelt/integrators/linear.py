@@ -185,7 +185,7 @@ class KeptInterior(AbstractLinearSolver):
     (§4.2), which enters only the roller columns of the tilt DOFs (``C``) and the roller rows of
     the dynamic ones (``D``). So the interior's block factorisation — 97 % of a factorisation —
     is computed once per run (:meth:`reference`) and each step recomputes exactly the part of the
-    factors its matrix changes (:func:`jaxbelt.linalg.bordered.refactorise_border`). That is the
+    factors its matrix changes (``border``, below). That is the
     exact factorisation of the current step's matrix, not an approximation. Under ``vmap`` over
     misalignments the kept factors are shared, since misalignments change neither stiffness nor
     masses. Where the transport rule moves masses between elements (``"source"``) every step is
@@ -380,7 +380,7 @@ def _first_step_factors(model, state, dt) -> BorderedFactorisation:
     (:func:`~jaxbelt.linalg.bordered.with_chained_interior`), as one compiled program."""
     A = step_matrix(model, state.m_e, roller_R(model, state.u), dt)
     # the dense coupling: one right-hand side per solve, whose sweeps are paced by the dependent
-    # chain's latency more than by their bytes (the banded form is for the exact mode's several columns)
+    # chain's latency more than by their bytes (the banded form is for sweeps of several columns)
     return lax.stop_gradient(with_chained_interior(factorise(A), model.contact_columns))
 
 

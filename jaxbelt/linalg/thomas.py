@@ -93,9 +93,10 @@ class ChainedThomasFactors(eqx.Module):
       diagonals and applied as shifted products inside the scan, then ``den_i⁻¹``. One dense
       block streamed per step and block, where the dense form streams two, and the chained
       factors a third smaller; with several right-hand sides one dense product per block fewer,
-      which the exact mode's step, sweeping the tilt columns every step, gains most from. With
-      one right-hand side the step's two dependent operations instead of one cost about what
-      the bytes save, and the factorisation-reuse solver keeps the dense form (both timed in
+      which sweeps of several columns at once gain most from (forward-mode tangents; the exact
+      mode's tilt columns where it sweeps them). With one right-hand side the step's two
+      dependent operations instead of one cost about what the bytes save, and the
+      factorisation-reuse solver keeps the dense form (both timed in
       ``benchmarks/step_profile.py``).
     * **Dense coupling** (``band = None``): ``y_i = g_i - P_i y_{i-1}`` with ``g_i = den_i⁻¹ r_i``
       (all blocks at once, one batched product outside the scan) and ``P_i = den_i⁻¹ L_i``
@@ -314,7 +315,7 @@ def _select_columns(values, table):
 def chained_thomas_apply_sparse(F: ChainedThomasFactors, rhs, support):
     """:func:`chained_thomas_apply` for a right-hand side whose column ``c`` is zero off the blocks
     ``support[c]`` (static; the caller's guarantee): each chain's sweeps carry only the columns
-    that can be non-zero on it. On the belt the exact mode's tilt columns live on one roller's
+    that can be non-zero on it. On the belt the exact mode's tilt columns (where it sweeps them) live on one roller's
     columns each, and a free span's forward sweep sees only the roller before it, its backward
     sweep the rollers on both sides: on a three-roller belt half of the columns' sweeps are zero
     and skipped. The result equals :func:`chained_thomas_apply`'s (the skipped values are exact
