@@ -21,7 +21,10 @@ procedure (``benchmarks/model_choice.py`` measures the difference and the saving
 **The solver**: where the caller leaves the solver to the scene, the direct integrator's reuse
 solver (the first step's factors, refined against the current matrix; exact to round-off with
 the shift transport and no lateral transport) is run on the chosen grid beside the scene's own
-solver and taken where the measured difference fits within the accuracy and it is faster.
+solver and taken where the measured difference fits within the accuracy and it is faster. The
+comparison is of single runs; an answer made of batches of runs (the design commands:
+``allow_reuse=False``) keeps the scene's solver, since in a batch the exact solver's kept factors
+are shared by every configuration and it is the faster one (``benchmarks/sweep_throughput.py``).
 
 **The precision** (``allow_float32``): float32 is taken where its rounding leaves the answer within
 the accuracy: the chosen grid is run in both precisions, the largest difference of the tracers
@@ -338,7 +341,8 @@ def _try_float32(scene, value_um, accuracy_um, quantities, solver, t_from, refer
 
 
 def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, *, t_from: float = 0.0,
-                rounds: int = 3, progress=None, allow_1d: bool = False, allow_float32: bool = False) -> GridChoice:
+                rounds: int = 3, progress=None, allow_1d: bool = False, allow_float32: bool = False,
+                allow_reuse: bool = True) -> GridChoice:
     """The cheapest run of ``scene`` whose estimated error is at most ``accuracy_um`` for the
     ``quantities`` (``longitudinal``/``lateral``; default both the scene has), verified by its
     own estimate (module docstring). ``AccuracyError`` (naming the best reachable error and its
@@ -346,7 +350,9 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     taken over the output times from then on (:func:`~jaxbelt.accuracy.estimate_error`).
     ``allow_1d``: run a symmetric 2D scene's 1D counterpart where the measured model difference
     allows; ``allow_float32``: run in float32 where its measured rounding allows (the caller
-    builds and runs the chosen scene inside :func:`precision_scope`)."""
+    builds and runs the chosen scene inside :func:`precision_scope`); ``allow_reuse``: try the
+    reuse solver where the caller leaves the solver to the scene (``False`` for answers made of
+    batched runs)."""
     if not (isinstance(accuracy_um, (int, float)) and math.isfinite(accuracy_um) and accuracy_um > 0):
         raise ValueError(f"accuracy_um = {accuracy_um}: must be a positive number of µm")
     quantities = tuple(quantities or (QUANTITIES if scene.kind == "2d" else ("longitudinal",)))
@@ -371,11 +377,14 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     value = v.value_um + model_diff
     chosen_scene, precision, cost_s = v.scene, "float64", v.estimate.run_s
     reference = None
-    if solver is None or allow_float32:
+    try_reuse = solver is None and allow_reuse
+    if try_reuse or allow_float32:
         g = scene_grid(v.scene)
         reference = (runs if v.scene.kind == scene.kind else runs_1d).get(g)
         reference = reference if reference is not None else tracer_run(v.scene, solver)
-    if solver is None:
+    if solver is None and not allow_reuse:
+        automatic[0] += ": the answer runs in batches, which share the exact solver's kept factors"
+    if try_reuse:
         taken, check = _try_reuse(v.scene, value, accuracy_um, quantities, t_from, reference)
         checks.append(check)
         if taken is not None:

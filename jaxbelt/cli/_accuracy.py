@@ -39,7 +39,7 @@ def _progress(args):
 
 def choose_accuracy(args, scene, quantities=None, t_from: float = 0.0, **allow):
     """The :class:`jaxbelt.accuracy.GridChoice` for the accuracy asked (the error taken over the
-    output times from ``t_from`` on; ``allow``: ``allow_1d``, ``allow_float32`` of
+    output times from ``t_from`` on; ``allow``: ``allow_1d``, ``allow_float32``, ``allow_reuse`` of
     :func:`~jaxbelt.accuracy.choose_grid`), or ``None``."""
     x = accuracy_asked(args, scene)
     if x is None:

@@ -74,7 +74,8 @@ def load_design_model(args):
         # the metric reads the window before t_eval: the error is asked there, not at the start-up
         t_eval = scene.time.t_end if args.at is None else args.at
         frac = CLOSED_LOOP_WINDOW if scene.control else OPEN_LOOP_WINDOW
-        chosen = choose_accuracy(args, scene, metric_quantities(args.metric, scene), t_from=(1 - frac) * t_eval)
+        chosen = choose_accuracy(args, scene, metric_quantities(args.metric, scene), t_from=(1 - frac) * t_eval,
+                                 allow_reuse=False)
         if chosen is not None:
             scene, _, model, options = rebuild(chosen.scene)
             args.accuracy_chosen = chosen.as_dict()

@@ -96,6 +96,10 @@ def test_chosen_grid_meets_the_accuracy_and_is_verified(scene_1d, estimate_1d):
     reuse = next(ch for ch in c.checks if ch.name == "reuse")
     assert reuse.difference_um is not None and reuse.difference_um < 1e-6
     assert reuse.used == (c.solver == "direct/reuse") == (c.scene.solver.linear_solver == "reuse")
+    # an answer made of batched runs keeps the scene's solver, and says why
+    b = choose_grid(scene_1d, target, allow_reuse=False)
+    assert "reuse" not in {ch.name for ch in b.checks} and b.scene.solver == scene_1d.solver
+    assert "batches" in b.automatic[0]
 
 
 def test_unreachable_accuracy_names_the_best_reachable(scene_1d):
