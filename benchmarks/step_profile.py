@@ -17,16 +17,14 @@ Writes ``results/step_profile.json``.
 import argparse
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 import jaxbelt as jb
 from _common import clock, write
 from jaxbelt.assembly import dae_apply, dae_rhs, roller_R, static_surface_offset
-from jaxbelt.integrators.linear import lever_columns
-from jaxbelt.linalg.border_first import replace_border_columns
-from jaxbelt.linalg.bordered import factor_solve, refactorise_border
+from jaxbelt.integrators import StepOperator
+from jaxbelt.linalg.bordered import factor_solve
 from jaxbelt.timeloop import compile_simulation, edge_margin, make_step, nonfinite_code, tracer_values
 from jaxbelt.transport import transport_step_with_weights
 
@@ -79,24 +77,11 @@ def main():
             return jax.tree.map(lambda x, y: x + eps * y if jnp.issubdtype(x.dtype, jnp.floating) else x, s, new)
         return go
 
-    ref_green, ref = data["exact"].linear, data["exact_sweep"].linear
-    cols, rows_ = lever_columns(model)
-    on = jnp.asarray(model.contact_columns)
-
-    def border_first(u):  # the exact mode's per-step border update, border first (the default)
-        R = roller_R(model, u, on_rollers=True)
-        C_on = jnp.where(model.is_constraint[on][:, :, None], -dt**2 * R[:, :, jnp.asarray(cols)], 0.0)
-        F = replace_border_columns(ref_green.F, ref_green.S, ref_green.green, ref_green.A.E, cols, C_on,
-                                   model.contact_columns)
-        return u + eps * jnp.sum(F.S_lu)
-
-    def border(u):  # the exact mode's per-step refactorisation interior first (tilt columns swept, Schur complement)
-        R = roller_R(model, u)
-        c = jnp.asarray(cols)
-        C = ref.A.C.at[:, :, c].set(jnp.where(model.is_constraint[:, :, None], -dt**2 * R[:, :, c], 0.0))
-        A = eqx.tree_at(lambda a: a.C, ref.A, C)
-        F = refactorise_border(A, ref.F, ref.S, cols, rows_)
-        return u + eps * jnp.sum(F.S_lu)
+    def border_update(solver, run_data):  # the exact mode's per-step border update, as its solver's init does it
+        def go(u):
+            op = StepOperator(model, st.m_e, roller_R(model, u, on_rollers=True), dt)
+            return u + eps * jnp.sum(solver.init(op, run_data.linear).F.S_lu)
+        return go
 
     def transport(u):
         out = transport_step_with_weights(model, u, st.u_dot, st.chi, st.m_e, static_offset=offset)
@@ -116,9 +101,9 @@ def main():
     step_reuse = make_step(model, reuse, dt, data["reuse"])
     rows["whole step, reuse"] = timed_scan(lambda s: step_reuse(s)[0], st, a.steps, a.repeat)
     rows["exact: border update, border first (Schur complement's tilt columns from the border rows' Green's functions)"] \
-        = timed_scan(border_first, st.u, a.steps, a.repeat)
+        = timed_scan(border_update(exact.linear_solver, data["exact"]), st.u, a.steps, a.repeat)
     rows["exact: border update, interior first (tilt columns' sweep, Schur complement)"] = timed_scan(
-        border, st.u, a.steps, a.repeat)
+        border_update(exact_sweep.linear_solver, data["exact_sweep"]), st.u, a.steps, a.repeat)
     rows["exact solve step (kept interior, border first: border + solve)"] = timed_scan(
         solve_step_of(exact, data["exact"]), st, a.steps, a.repeat)
     rows["exact solve step (kept interior, interior first: border + solve)"] = timed_scan(

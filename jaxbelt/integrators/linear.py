@@ -271,9 +271,8 @@ def lever_columns(model: BeltModel) -> tuple[tuple, tuple]:
         return (), ()
     d = len(model.dofs)
     cols = tuple(j * d + model.dofs.index(a) for j in range(model.n_rollers) for a in ("ax", "ay") if a in model.dofs)
-    algebraic = set(model.partition[1])
-    n_belt = model.n_xi * model.block
-    return cols, tuple(c for c in cols if n_belt + c not in algebraic)
+    dynamic = set(dynamic_roller_rows(model))
+    return cols, tuple(c for c in cols if c in dynamic)
 
 
 def border_first_possible(model: BeltModel) -> bool:
