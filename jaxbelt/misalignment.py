@@ -150,6 +150,10 @@ def with_misalignment(model, translation=None, rotation=None):
     chi = model.chi_static.reshape(model.n_rollers, len(model.dofs))
     if translation is not None:
         t = jnp.asarray(translation)
+        p = model.n_rollers
+        if t.shape not in ((p,), (p, 3)):
+            raise ValueError(f"translation: shape {t.shape}, expected ({p},) (x translations) or ({p}, 3) — one row "
+                             f"per roller ({p} rollers), m")
         if t.ndim == 1:
             t = jnp.stack([t, jnp.zeros_like(t), jnp.zeros_like(t)], axis=1)
         for k, ax in enumerate("xyz"):
@@ -159,6 +163,8 @@ def with_misalignment(model, translation=None, rotation=None):
                 _require_zero(t[:, k], f"translation along {ax}", model.kind)
     if rotation is not None:
         a = jnp.asarray(rotation)
+        if a.shape != (model.n_rollers, 3):
+            raise ValueError(f"rotation: shape {a.shape}, expected ({model.n_rollers}, 3) — one row per roller, rad")
         for k, ax in enumerate("xy"):
             if f"a{ax}" in model.dofs:
                 chi = chi.at[:, model.dofs.index(f"a{ax}")].set(a[:, k])

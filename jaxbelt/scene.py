@@ -327,7 +327,9 @@ def _roller(r: dict, j: int, kind: str) -> RollerSpec:
     if not isinstance(r, dict):
         raise _err(where, r, "must be a table")
     _check_keys(r, _TABLES["roller"], where)
-    name = str(r.get("name", f"roller {j + 1}"))
+    name = r.get("name", f"roller {j + 1}")
+    if not isinstance(name, str) or not name.strip():
+        raise _err(f"{where}.name", name, "must be a non-empty string")
     role = _choice(r, "role", where, _ROLES)
     side = _choice(r, "side", where, _SIDES, default="internal")
     speed = _number(r, "speed_m_s", where, required=role == "drive", default=0.0, positive=role == "drive")
@@ -400,6 +402,14 @@ def _check_rollers(rollers, belt: BeltSpec):
         raise _err("roller.name", names, "roller names must be unique")
     if not any(r.role == "drive" for r in rollers):
         raise _err("roller.role", [r.role for r in rollers], "at least one roller must be the drive")
+    drives = [r for r in rollers if r.role == "drive"]
+    speeds = [r.speed for r in drives]
+    if max(speeds) - min(speeds) > 1e-9 * max(speeds):
+        # the belt sticks to every roller it wraps: two prescribed surface speeds would stretch the
+        # span between them without bound (a real belt slips on one of them, which this model has no law for)
+        raise _err("roller.speed_m_s", {r.name: r.speed for r in drives},
+                   "every drive roller must run at the same surface speed: the belt does not slip on a roller, "
+                   "so two drive speeds would stretch it without bound")
     for j, r in enumerate(rollers):
         if belt.width > r.width * (1 + 1e-12):
             raise _err(f"roller[{j}].width_mm", r.width * 1e3,
@@ -412,6 +422,13 @@ def _check_rollers(rollers, belt: BeltSpec):
                 raise _err(f"roller[{b}].center_mm", [c * 1e3 for c in rb.center],
                            f"{rb.name!r} overlaps {ra.name!r} (centre distance {dist * 1e3:.3f} mm < "
                            f"sum of radii {(ra.radius + rb.radius) * 1e3:.3f} mm)")
+            # the same with the static translations applied: the misaligned rollers must not overlap either
+            moved = float(np.hypot(ra.center[0] + ra.translation[0] - rb.center[0] - rb.translation[0],
+                                   ra.center[1] + ra.translation[1] - rb.center[1] - rb.translation[1]))
+            if moved < ra.radius + rb.radius:
+                raise _err(f"roller[{b}].translation_mm", [t * 1e3 for t in rb.translation],
+                           f"with the static translations {rb.name!r} overlaps {ra.name!r} (centre distance "
+                           f"{moved * 1e3:.3f} mm < sum of radii {(ra.radius + rb.radius) * 1e3:.3f} mm)")
 
 
 # ---------------------------------------------------------------------------- loading
@@ -425,11 +442,20 @@ def builtin_scene_names() -> list[str]:
 def load_scene(source: str | Path) -> Scene:
     """Load a scene from a TOML file path or a built-in scene name (see ``jaxbelt scenes``)."""
     s = str(source)
+    if not s.strip():
+        raise SceneError("no scene given: a TOML path or a built-in scene name (see `jaxbelt scenes`)")
     path = Path(s)
     if path.suffix == ".toml" or path.exists():
         if not path.exists():
             raise SceneError(f"scene file {s!r} does not exist")
-        text = path.read_text()
+        if not path.is_file():
+            raise SceneError(f"scene {s!r} is a folder, not a scene file")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as e:
+            raise SceneError(f"scene file {s!r} is not UTF-8 text (TOML is UTF-8): {e.reason} at byte {e.start}") from None
+        except OSError as e:
+            raise SceneError(f"scene file {s!r} cannot be read: {e.strerror}") from None
         name = path.stem
     else:
         res = resources.files("jaxbelt") / "scenes" / f"{s}.toml"

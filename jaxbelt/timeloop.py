@@ -332,7 +332,9 @@ def check_time_step(model: BeltModel, dt) -> None:
     V, h = belt_speed(model), float(np.min(np.asarray(model.ell)))
     if V * dt >= h:
         raise ValueError(f"dt = {dt:g} s violates the CFL condition of the transport step (belt speed {V:g} m/s × dt "
-                         f"= {V * dt * 1e3:.4g} mm >= smallest element {h * 1e3:.4g} mm); use dt < {h / V:.4g} s")
+                         f"= {V * dt * 1e3:.4g} mm >= smallest element {h * 1e3:.4g} mm); use dt <= {0.9 * h / V:.4g} s "
+                         f"(the bound is {h / V:.4g} s; the belt runs a few per cent faster than V while it starts up, "
+                         "so a step at the bound extrapolates)")
 
 
 def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -39,6 +41,10 @@ def scene_from_args(scene_arg, t_end=None, dt=None, integrator=None, transport=N
         if t_end < dt:
             raise UsageError(f"--t-end = {t_end}: shorter than one step (dt = {dt})")
         scene = scene.replace(time=dataclasses.replace(t, t_end=float(t_end), dt=float(dt)))
+    t = scene.time
+    if abs(t.n_steps * t.dt - t.t_end) > 1e-9 * t.t_end:
+        print(f"jaxbelt: note: t_end = {t.t_end:g} s is not a whole number of steps of dt = {t.dt:g} s; the run "
+              f"takes {t.n_steps} steps and ends at {t.n_steps * t.dt:g} s", file=sys.stderr)
     if integrator is not None:
         scene = scene.replace(solver=dataclasses.replace(scene.solver, integrator=integrator))
     if transport is not None:
@@ -61,6 +67,31 @@ def rebuild(scene):
     """``(scene, mesh, model, options)`` of a scene already loaded (another grid of it)."""
     mesh = build_mesh(scene)
     return scene, mesh, build_model(scene, mesh), RunOptions.from_scene(scene)
+
+
+def output_file(option, path, kind="figure"):
+    """The file an output option will write, checked before anything runs: its folder exists and
+    it is not a folder itself; a figure's suffix is a format matplotlib writes (none: PNG); an
+    archive (``kind="npz"``) gains the ``.npz`` that :func:`numpy.savez` appends, so that what is
+    reported is the file written. **Returns:** the path (str), or ``None`` for ``None``. Raises
+    :class:`UsageError` naming the option."""
+    if path is None:
+        return None
+    p = Path(path)
+    if str(path) == "" or p.is_dir():
+        raise UsageError(f"{option} = {str(path)!r}: is a folder; give a file name")
+    if not p.resolve().parent.is_dir():
+        raise UsageError(f"{option} = {str(path)!r}: the folder {str(p.resolve().parent)!r} does not exist")
+    if kind == "npz":
+        return str(p) if p.suffix == ".npz" else str(p) + ".npz"
+    if p.suffix:
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        formats = FigureCanvasBase.get_supported_filetypes()
+        if p.suffix[1:].lower() not in formats:
+            raise UsageError(f"{option} = {str(path)!r}: {p.suffix!r} is not a figure format matplotlib writes "
+                             f"({', '.join(sorted(formats))})")
+    return str(p)
 
 
 def check_at_least(name, v, low=1):

@@ -16,7 +16,7 @@ from ..design import METRICS, make_study
 from ..design.metrics import CLOSED_LOOP_WINDOW, OPEN_LOOP_WINDOW
 from ..registry import LINEAR_SOLVERS
 from ._accuracy import add_accuracy_arguments, choose_accuracy, print_accuracy
-from ._common import SCENE_HELP, UsageError, emit, load_run, rebuild
+from ._common import SCENE_HELP, UsageError, emit, load_run, output_file, rebuild
 
 DESIGN_SCENE = "three-roller-steered"
 
@@ -25,8 +25,10 @@ def add_design_arguments(p, metric_default: str, limit: bool = False):
     p.add_argument("scene", nargs="?", default=DESIGN_SCENE,
                    help=f"{SCENE_HELP} (default {DESIGN_SCENE}: the aligned three-roller machine with its "
                         "steering loop closed, 20 s, metrics over the last 4 s)")
-    p.add_argument("--metric", default=metric_default,
-                   help=f"{' | '.join(METRICS)} (default {metric_default})")
+    p.add_argument("--metric", default=None,
+                   help=f"{' | '.join(METRICS)} (default {metric_default}; on a 1D scene, which has no lateral "
+                        f"deviation, {one_d_metric(metric_default)})")
+    p.set_defaults(metric_default=metric_default)
     p.add_argument("--at", type=float, default=None, metavar="T", help="evaluation time in s (default: the scene's end)")
     p.add_argument("--solver", choices=tuple(LINEAR_SOLVERS), default=None,
                    help="linear solver of the runs (default: the scene's, kept-interior unless it names one; "
@@ -45,14 +47,18 @@ def add_design_arguments(p, metric_default: str, limit: bool = False):
     p.add_argument("--progress", action="store_true", help="progress bars and stage messages on stderr")
 
 
+def one_d_metric(metric: str) -> str:
+    """The longitudinal counterpart of a lateral metric: the default on a 1D scene."""
+    return metric.replace("lateral", "longitudinal", 1) if metric.startswith("lateral") else metric
+
+
 def check_limit(v):
     if not (math.isfinite(v) and v > 0):
         raise UsageError(f"--limit-um = {v}: must be a positive number")
 
 
 def check_plot(path):
-    if path is not None and not Path(path).resolve().parent.is_dir():
-        raise UsageError(f"--plot = {path!r}: directory {str(Path(path).resolve().parent)!r} does not exist")
+    output_file("--plot", path)
 
 
 def read_toml(path, option):
@@ -70,6 +76,8 @@ def load_design_model(args):
     if args.at is not None and not (math.isfinite(args.at) and args.at > 0):
         raise UsageError(f"--at = {args.at}: must be a positive time in s")
     scene, _, model, options = load_run(args.scene, linear_solver=args.solver)
+    if args.metric is None:
+        args.metric = one_d_metric(args.metric_default) if scene.kind == "1d" else args.metric_default
     if args.metric in METRICS:  # an unknown metric is reported by make_design_study
         # the metric reads the window before t_eval: the error is asked there, not at the start-up
         t_eval = scene.time.t_end if args.at is None else args.at

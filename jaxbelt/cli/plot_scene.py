@@ -2,7 +2,7 @@
 
 from ..mesh import build_mesh
 from ..plot import plot_scene
-from ._common import SCENE_HELP, scene_from_args
+from ._common import SCENE_HELP, output_file, scene_from_args
 
 
 def add_parser(subparsers):
@@ -14,8 +14,9 @@ def add_parser(subparsers):
 
 
 def run(args):
+    output_file("--out", args.out)
     scene = scene_from_args(args.scene)
-    out = args.out or f"{scene.name}-scene.png"
+    out = output_file("--out", args.out or f"{scene.name}-scene.png")
     plot_scene(scene, build_mesh(scene), out)
     print(f"wrote {out}")
     return 0

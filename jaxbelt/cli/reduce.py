@@ -8,7 +8,6 @@ import dataclasses
 import sys
 import warnings
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import numpy as np
 
@@ -20,7 +19,7 @@ from ..rom.results import METHODS as REDUCE_METHODS
 from ..rom.results import FullRunDivergedError, ReducedRunDivergedError
 from ..timeloop import RunOptions
 from ._common import (SCENE_HELP, SimulationError, UsageError, check_at_least, emit, finite_or_none, fmt,
-                      scene_from_args)
+                      output_file, scene_from_args)
 from ._design import read_toml
 
 REDUCE_HELP = """\
@@ -172,8 +171,7 @@ def _check_args(args):
     if method == "dmd" and any(t != args.scene for t in train):
         raise UsageError("--method dmd fits one configuration, the scene's own first --train-steps steps; "
                          "use dmdc or pdmd (or pod) to train on other scenes")
-    if args.plot and not Path(args.plot).resolve().parent.is_dir():
-        raise UsageError(f"--plot {args.plot}: the folder {Path(args.plot).parent} does not exist")
+    output_file("--plot", args.plot)
 
 
 def _sized(args) -> bool:

@@ -11,11 +11,11 @@ import numpy as np
 from .. import plot
 from ..accuracy import precision_scope
 from ..control import loop_summary
-from ..prestress import slack_message, slack_spans
+from ..prestress import overstrain_message, overstrained_spans, slack_message, slack_spans, span_forces
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, TRANSPORT_RULES
 from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
 from ._accuracy import add_accuracy_arguments, choose_accuracy, error_estimate, print_accuracy
-from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, rebuild
+from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, output_file, rebuild
 
 
 def add_parser(subparsers):
@@ -216,7 +216,22 @@ def _text(s, scene, model, demo):
     return print_text
 
 
+def _check_outputs(args):
+    """The output options checked before anything is built: their folders exist, the figures'
+    formats are written by matplotlib, ``--out`` names the ``.npz`` written; options that only
+    shape an output not asked for are refused rather than ignored."""
+    args.out = output_file("--out", args.out, kind="npz")
+    for option in ("plot", "plot_fields", "plot_3d"):
+        if getattr(args, option, None) is not None:
+            setattr(args, option, output_file("--" + option.replace("_", "-"), getattr(args, option)))
+    if getattr(args, "plot_times", None) is not None and not args.plot:
+        raise UsageError(f"--plot-times = {args.plot_times!r}: needs --plot")
+    if getattr(args, "exaggerate", 1.0) != 1.0 and not getattr(args, "plot_3d", None):
+        raise UsageError(f"--exaggerate = {args.exaggerate:g}: needs --plot-3d")
+
+
 def run(args, demo=False):
+    _check_outputs(args)
     scene, mesh, model, options = load_run(args.scene, args.t_end, args.dt, args.integrator,
                                            getattr(args, "transport", None), getattr(args, "solver", None))
     # the 1D counterpart where the answer allows, unless fields of the 2D belt are asked for
@@ -230,16 +245,19 @@ def run(args, demo=False):
 
 def _run(args, demo, scene, mesh, model, options, chosen):
     request = _field_request(args, scene, options)  # checked before anything is compiled
-    slack = slack_spans(scene, mesh, model)
+    spans = span_forces(scene, mesh, model)
+    slack, overstrained = slack_spans(scene, mesh, model, spans), overstrained_spans(scene, mesh, model, spans)
     if slack:  # before the run: the user learns it even if the run is long
         print(f"jaxbelt: warning: {slack_message(slack)}; the linear model carries compression like "
               "tension, so the results are not a real belt's", file=sys.stderr)
+    if overstrained:
+        print(f"jaxbelt: warning: {overstrain_message(overstrained)}", file=sys.stderr)
     progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
     chunked = simulate_in_chunks(model, **options, field_rows=None if request is None else request["rows"],
                                  progress=progress)
     traj, fields = chunked.trajectory, chunked.fields
     s = _summary(scene, options, model, traj, {"compile_s": chunked.compile_s, "run_s": chunked.run_s})
-    s["slack"] = slack
+    s["slack"], s["overstrained"] = slack, overstrained
     try:
         check_finite(traj, options.dt)
     except NonFiniteStateError as e:

@@ -60,6 +60,14 @@ def test_simulate_integrator_and_dt_options(capsys):
     (["simulate", "no-such-scene"], "unknown scene"),
     (["simulate", "two-roller-1d", "--t-end", "-1"], "--t-end"),
     (["info", "/nonexistent/scene.toml"], "does not exist"),
+    (["simulate", "two-roller-1d", "--out", "/nonexistent/dir/a.npz"], "'/nonexistent/dir' does not exist"),
+    (["simulate", "two-roller-1d", "--plot", "run.xyz"], "--plot = 'run.xyz': '.xyz' is not a figure format"),
+    (["simulate", "two-roller-1d", "--plot-3d", "/"], "--plot-3d = '/': is a folder"),
+    (["plot-scene", "two-roller-1d", "--out", "/nonexistent/scene.png"], "does not exist"),
+    (["demo", "--out", "/nonexistent/demo.npz"], "does not exist"),
+    (["simulate", "two-roller-1d", "--plot-times", "0.05"], "--plot-times = '0.05': needs --plot"),
+    (["simulate", "two-roller-1d", "--exaggerate", "5"], "--exaggerate = 5: needs --plot-3d"),
+    (["simulate", "/"], "is a folder, not a scene file"),
 ])
 def test_bad_input_exits_nonzero_with_message(argv, fragment, capsys):
     assert main(argv) == 2
@@ -96,3 +104,34 @@ def test_plot_scene_and_2d_simulate(tmp_path, capsys):
     data = np.load(out)
     assert data["tracer_u"].shape == (6, 30) and data["tracer_v"].shape == (6, 30)
     assert data["roller_state"].shape == (6, 3, 6)
+
+
+def test_output_file_names_what_is_written(tmp_path):
+    from jaxbelt.cli._common import output_file
+
+    assert output_file("--out", tmp_path / "run.txt", kind="npz") == str(tmp_path / "run.txt.npz")  # numpy's suffix
+    assert output_file("--out", tmp_path / "run.npz", kind="npz") == str(tmp_path / "run.npz")
+    assert output_file("--plot", tmp_path / "fig.PDF") == str(tmp_path / "fig.PDF")
+    assert output_file("--plot", None) is None
+
+
+def test_end_time_off_the_step_grid_is_noted(capsys):
+    from jaxbelt.cli._common import scene_from_args
+
+    scene = scene_from_args("two-roller-1d", t_end=0.0123, dt=0.005)
+    assert scene.time.n_steps == 2
+    assert "takes 2 steps and ends at 0.01 s" in capsys.readouterr().err
+    scene_from_args("two-roller-1d", t_end=0.01, dt=0.005)
+    assert capsys.readouterr().err == ""
+
+
+def test_design_metric_defaults_to_longitudinal_on_a_1d_scene():
+    from jaxbelt.cli import build_parser
+    from jaxbelt.cli._design import load_design_model
+
+    args = build_parser().parse_args(["sensitivity", "two-roller-1d"])
+    load_design_model(args)
+    assert args.metric == "longitudinal_rms"
+    args = build_parser().parse_args(["tolerance", "two-roller-1d", "--metric", "longitudinal_rms"])
+    load_design_model(args)
+    assert args.metric == "longitudinal_rms"

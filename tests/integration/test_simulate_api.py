@@ -158,7 +158,7 @@ def test_run_options_from_scene():
 @pytest.mark.parametrize("dt,message", [(0.0, r"dt = 0\.0: must be a positive number"),
                                         (-0.001, r"dt = -0\.001: must be a positive number"),
                                         (float("nan"), r"dt = nan: must be a positive number"),
-                                        (0.01, r"dt = 0\.01 s violates the CFL condition.*use dt < 0\.00785")])
+                                        (0.01, r"dt = 0\.01 s violates the CFL condition.*use dt <= 0\.007069 s \(the bound is 0\.007854 s")])
 def test_bad_time_step_is_refused_before_compiling(one_d, dt, message):
     model, opts = one_d
     with counting_compiles() as events, pytest.raises(ValueError, match=message):

@@ -3,6 +3,8 @@ from soft rubber to steel. Each case either works within a stated error or fails
 clear line."""
 
 import copy
+import json
+import math
 import tomllib
 from importlib import resources
 
@@ -47,9 +49,9 @@ def test_dt_just_below_the_cfl_limit_runs_and_just_above_is_rejected():
     w = np.asarray(tr.transport_weights)
     assert w.min() >= 0.0 and w.max() < 1.02
     assert np.all(w[10:] < 1.0) and w[-1, 1] == pytest.approx(0.99, abs=1e-6)
-    with pytest.raises(jb.SceneError, match=r"time\.dt_s .*CFL.*use dt_s <"):
+    with pytest.raises(jb.SceneError, match=r"time\.dt_s .*CFL.*use dt_s <="):
         jb.build_mesh(scene_1d(time={"dt_s": 1.01 * dt_max, "t_end_s": 1.0}))  # before any compile
-    with pytest.raises(ValueError, match=r"CFL.*use dt <"):  # a run of the model at such a step: refused too
+    with pytest.raises(ValueError, match=r"CFL.*use dt <="):  # a run of the model at such a step: refused too
         jb.simulate(model, opts.solver, n_steps=opts.n_steps, dt=1.01 * dt_max)
 
 
@@ -161,6 +163,34 @@ def test_slack_belt_is_detected_and_located(tmp_path, capsys):
     assert main(["simulate", str(p), "--json"]) == 0
     err = capsys.readouterr().err
     assert "slack belt" in err and "drive → idle" in err
+
+
+def test_overstrained_belt_is_detected(tmp_path, capsys):
+    """The idle roller of two-roller-1d moved 30 mm outwards: in the static solution (the belt held
+    on the rollers) each free span of length D stretches by d / D ≈ 11 %, beyond the small-strain
+    model's 5 %: reported with the spans, and simulate warns; 5 mm out (≈ 1.8 %) is not reported."""
+    from jaxbelt.cli import main
+    from jaxbelt.prestress import STRAIN_LIMIT, overstrained_spans
+
+    d = tomllib.loads((resources.files("jaxbelt") / "scenes" / "two-roller-1d.toml").read_text())
+    drive, idle = d["roller"]
+    D = math.dist(drive["center_mm"], idle["center_mm"])
+    for dx in (30.0, 5.0):
+        idle["translation_mm"] = [dx, 0.0, 0.0]
+        sc = jb.scene_from_dict(d)
+        mesh = jb.build_mesh(sc)
+        found = overstrained_spans(sc, mesh, jb.build_model(sc, mesh))
+        expected = dx / D
+        assert bool(found) == (expected > STRAIN_LIMIT)
+        for span in found:
+            assert span["strain"] == pytest.approx(expected, rel=0.05)
+    p = tmp_path / "stretched.toml"
+    p.write_text('extends = "two-roller-1d"\n[variant."idle"]\ntranslation_mm = [30.0, 0.0, 0.0]\n'
+                 '[time]\nt_end_s = 0.05\n')
+    assert main(["simulate", str(p), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "stretched beyond 5 %" in captured.err and "drive → idle" in captured.err
+    assert json.loads(captured.out)["overstrained"]
 
 
 def test_rotation_beyond_the_linear_range_is_refused_and_near_it_warned():

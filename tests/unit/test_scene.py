@@ -194,3 +194,38 @@ def test_toml_file_roundtrip(tmp_path):
     sc = jb.load_scene(p)
     assert sc.name == "mine" and tomllib.loads(text)["mesh"]["free_elements"] == [70, 70]
     assert builtin_dict()["roller"][0]["role"] == "drive"
+
+
+def test_translated_rollers_must_not_overlap():
+    # centres 275 mm apart, radii 50 mm: a 200 mm inward translation of the idle roller overlaps the drive
+    _reject(lambda d: d["roller"][1].update(translation_mm=[-200.0, 0.0, 0.0]), "roller[1].translation_mm",
+            "with the static translations", "overlaps")
+
+
+def test_drives_at_two_speeds():
+    def m(d):
+        d["roller"][1].update(role="drive", speed_m_s=0.4)
+    _reject(m, "roller.speed_m_s", "same surface speed")
+
+
+def test_two_drives_at_one_speed_load():
+    d = builtin_dict("two-roller-1d")
+    speed = next(r["speed_m_s"] for r in d["roller"] if r["role"] == "drive")
+    for r in d["roller"]:
+        r.update(role="drive", speed_m_s=speed)
+    assert [r.role for r in jb.scene_from_dict(d).rollers] == ["drive", "drive"]
+
+
+def test_roller_name_must_be_a_string():
+    _reject(lambda d: d["roller"][1].update(name=5), "roller[1].name", "non-empty string")
+
+
+def test_unreadable_scene_files(tmp_path):
+    with pytest.raises(jb.SceneError, match="is a folder"):
+        jb.load_scene(tmp_path)
+    with pytest.raises(jb.SceneError, match="no scene given"):
+        jb.load_scene("")
+    p = tmp_path / "latin.toml"
+    p.write_bytes(b"\xff\xfe[model]\n")
+    with pytest.raises(jb.SceneError, match="not UTF-8"):
+        jb.load_scene(p)
