@@ -10,7 +10,9 @@ with the limits read from it, one batch of eight verification runs (first and se
 the whole box (optimisation and verification), then the error bars: the scene one level finer
 built, and its aligned reference and the box's worst corners run as one batch. ``command``: the
 wall time of ``jaxbelt tolerance --json`` (error bars on, the default) and of ``--no-error-bars``,
-each with an empty cache and again with the cache it filled. Run:
+each with an empty cache and again with the cache it filled, and of the default once more with
+XLA:CPU's MLIR fusion emitters on (the command line switches them off: :data:`jaxbelt.cli.CLI_XLA_FLAGS`).
+The stages run with the command line's process settings (:func:`jaxbelt.cli.configure_process`). Run:
 ``OPENBLAS_NUM_THREADS=1 python benchmarks/tolerance_latency.py``. Writes
 ``results/tolerance_latency.json``.
 """
@@ -32,7 +34,7 @@ def mark(name, t=[T0]):
     now = time.perf_counter(); marks[name] = now - t[0]; t[0] = now
 import jax, jax.numpy as jnp, numpy as np
 import jaxbelt as jb
-from jaxbelt.cli import enable_compilation_cache
+from jaxbelt.cli import configure_process, enable_compilation_cache
 from jaxbelt.cli._common import load_run
 from jaxbelt.design import make_study
 from jaxbelt.design import tolerance as tol
@@ -41,7 +43,7 @@ from jaxbelt.design.sensitivity import response_jacobian
 from jaxbelt.cli._design import DESIGN_SCENE
 from jaxbelt.accuracy import refine
 from jaxbelt.cli._common import rebuild
-jb.enable_x64(); enable_compilation_cache()
+configure_process(); enable_compilation_cache()  # the command line's process settings
 mark("imports_s")
 scene, mesh, model, opts = load_run(DESIGN_SCENE)
 jax.block_until_ready(model.chi_static); mark("model_build_s")
@@ -82,9 +84,12 @@ def main():
             out[label] = json.loads(r.stdout.strip().splitlines()[-1])
             print(label, json.dumps(out[label]["stages"]), flush=True)
     out["command"] = {}
-    for name, argv in (("error_bars", []), ("no_error_bars", ["--no-error-bars"])):
+    # the last pair: the command with XLA:CPU's MLIR fusion emitters, which it otherwise switches off
+    # (the user's XLA_FLAGS win), to measure what that switch saves
+    for name, argv, xla in (("error_bars", [], None), ("no_error_bars", ["--no-error-bars"], None),
+                            ("error_bars_mlir_fusion_emitters", [], "--xla_cpu_use_fusion_emitters=true")):
         with tempfile.TemporaryDirectory() as cache:
-            env = {**base, "JAXBELT_CACHE_DIR": cache}
+            env = {**base, "JAXBELT_CACHE_DIR": cache, **({"XLA_FLAGS": xla} if xla else {})}
             out["command"][name] = {"empty_cache_s": _command(argv, env), "warm_cache_s": _command(argv, env)}
         print(name, out["command"][name], flush=True)
     write("tolerance_latency", out)

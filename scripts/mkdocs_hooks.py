@@ -300,7 +300,8 @@ BENCHMARKS = {
                           "program (first call and again), the linear response with the limits read from it, a batch "
                           "of eight verification runs (first call and again), the whole box, and the error bars (the scene "
                           "one level finer, its aligned reference and the box's worst corners as one batch); then "
-                          "the whole command with and without error bars, empty cache and warm."),
+                          "the whole command with and without error bars, empty cache and warm, and with error bars once more "
+                          "with XLA:CPU's MLIR fusion emitters on, which the command line switches off."),
     "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
                           "each built-in design scene's grid and one level finer, as a share of the 20 µm limit "
                           "(the rule: at most 5 %), and the half-widths' relative change "

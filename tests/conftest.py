@@ -21,12 +21,10 @@ import os
 # and does not slow the runs; results agree with the default emitters to round-off (~1e-12
 # relative). One LLVM module per program instead of parallel codegen's pieces: ~7 % less again
 # (the two workers already keep both cores busy). Set before jax starts its backend; a caller's
-# own XLA_FLAGS win, flag by flag.
+# own XLA_FLAGS win, flag by flag, and a flag the installed XLA no longer defines is left out
+# (an unknown flag aborts the process).
 TEST_XLA_FLAGS = {"xla_backend_optimization_level": "0", "xla_cpu_use_fusion_emitters": "false",
                   "xla_cpu_parallel_codegen_split_count": "1"}
-for _flag, _value in TEST_XLA_FLAGS.items():
-    if _flag not in os.environ.get("XLA_FLAGS", ""):
-        os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + f" --{_flag}={_value}").strip()
 
 # One BLAS thread per process: the two workers already fill both cores, and OpenBLAS's own
 # threads (numpy, scipy, and jaxlib's LAPACK calls through scipy's) only spin waiting for each
@@ -40,6 +38,10 @@ try:
     threadpool_limits(1, user_api="blas")
 except ImportError:  # pragma: no cover - threadpoolctl comes with the dev extra
     pass
+
+from jaxbelt.cli import add_xla_flags  # noqa: E402  (imports jax; its backend starts at the first computation)
+
+add_xla_flags(TEST_XLA_FLAGS)
 
 import jax  # noqa: E402
 import pytest  # noqa: E402

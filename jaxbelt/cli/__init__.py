@@ -13,6 +13,7 @@ never a traceback; a diverged run ends with exit code 3. Commands signal these b
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 import warnings
@@ -28,7 +29,8 @@ from .reduce import print_reduce
 
 COMMANDS = (tolerance, sweep, sensitivity, tune, steering, demo, scenes, info, plot_scene, simulate, reduce, bench)  # in the order of ``jaxbelt --help``
 
-__all__ = ["COMMANDS", "SimulationError", "UsageError", "print_reduce", "build_parser", "main"]
+__all__ = ["CLI_XLA_FLAGS", "COMMANDS", "SimulationError", "UsageError", "add_xla_flags", "build_parser",
+           "configure_process", "main", "print_reduce", "xla_knows_flag"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -66,13 +68,53 @@ def enable_compilation_cache():
     return path
 
 
+# XLA:CPU's classic elemental IR emitters instead of its newer MLIR fusion emitters: the
+# command line's programs compile in about half the time and run as fast, the answers equal to
+# round-off (``jaxbelt tolerance`` with an empty cache and with a warm one, both settings:
+# benchmarks/tolerance_latency.py).
+CLI_XLA_FLAGS = {"xla_cpu_use_fusion_emitters": "false"}
+
+
+@functools.lru_cache(maxsize=None)
+def xla_knows_flag(flag: str) -> bool:
+    """Whether the installed jaxlib's XLA defines the flag ``flag`` (its name is in the library):
+    an unknown flag in ``XLA_FLAGS`` aborts the process when the backend starts, and XLA retires
+    flags from one release to the next. **Returns:** ``False`` where no jaxlib library is found."""
+    import mmap
+    from importlib.util import find_spec
+
+    spec = find_spec("jaxlib")
+    if spec is None or not spec.submodule_search_locations:
+        return False
+    libs = sorted(Path(spec.submodule_search_locations[0]).rglob("*.so"), key=lambda p: p.stat().st_size,
+                  reverse=True)
+    needle = flag.encode()
+    for lib in libs[:2]:
+        with open(lib, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+            if mm.find(needle) >= 0:
+                return True
+    return False
+
+
+def add_xla_flags(flags: dict) -> dict:
+    """Append ``--name=value`` to ``XLA_FLAGS`` for every flag the installed XLA defines and the
+    caller's ``XLA_FLAGS`` does not set already (theirs win, flag by flag). Takes effect only before
+    JAX starts its backend (the first computation). **Returns:** the flags added."""
+    current = os.environ.get("XLA_FLAGS", "")
+    added = {k: v for k, v in flags.items() if f"--{k}" not in current and xla_knows_flag(k)}
+    if added:
+        os.environ["XLA_FLAGS"] = " ".join([current] + [f"--{k}={v}" for k, v in added.items()]).strip()
+    return added
+
+
 def configure_process():
-    """The process settings of the command line: float64 (:func:`jaxbelt.enable_x64`) and one
-    OpenBLAS thread unless the user chose otherwise. The LAPACK calls behind ``jnp.linalg`` (the
-    reduced models' SVD, QR, eig) would otherwise spin extra OpenBLAS threads against XLA's own
-    pool, which on a small, busy machine is several times slower; the variable is read when
-    OpenBLAS loads, at the first LAPACK call."""
+    """The process settings of the command line: float64 (:func:`jaxbelt.enable_x64`), one
+    OpenBLAS thread unless the user chose otherwise, and :data:`CLI_XLA_FLAGS`. The LAPACK calls
+    behind ``jnp.linalg`` (the reduced models' SVD, QR, eig) would otherwise spin extra OpenBLAS
+    threads against XLA's own pool, which on a small, busy machine is several times slower; the
+    variable is read when OpenBLAS loads, at the first LAPACK call."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    add_xla_flags(CLI_XLA_FLAGS)
     enable_x64()
 
 

@@ -4,6 +4,7 @@ The runs are whole numbers of the time loop's checkpoint chunks (56, 9, 6 steps)
 compiled run holds one copy of the step."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -135,3 +136,16 @@ def test_design_metric_defaults_to_longitudinal_on_a_1d_scene():
     args = build_parser().parse_args(["tolerance", "two-roller-1d", "--metric", "longitudinal_rms"])
     load_design_model(args)
     assert args.metric == "longitudinal_rms"
+
+
+def test_xla_flags_only_those_xla_defines_and_the_callers_win(monkeypatch):
+    from jaxbelt.cli import CLI_XLA_FLAGS, add_xla_flags, xla_knows_flag
+
+    assert xla_knows_flag("xla_backend_optimization_level")
+    assert not xla_knows_flag("xla_no_such_flag_in_any_release")
+    monkeypatch.setenv("XLA_FLAGS", "--xla_backend_optimization_level=2")
+    added = add_xla_flags({"xla_backend_optimization_level": "0", "xla_no_such_flag_in_any_release": "1",
+                           **CLI_XLA_FLAGS})
+    assert "xla_backend_optimization_level" not in added and "xla_no_such_flag_in_any_release" not in added
+    flags = os.environ["XLA_FLAGS"]
+    assert flags.startswith("--xla_backend_optimization_level=2") and "no_such_flag" not in flags
