@@ -2,7 +2,9 @@
 per-step comparison against SciPy SuperLU (interleaved rounds, best of 6:
 :func:`jaxbelt.bench.baselines.per_step`) and the whole 100 s reuse run
 (:func:`jaxbelt.bench.baselines.whole_run`, best of 3) on ``three-roller-t72``. For tracking the
-machine's state between full bench runs. Writes ``results/step_vs_superlu.json``.
+machine's state between full bench runs; with the command line's process settings
+(:func:`jaxbelt.cli.configure_process`), as ``jaxbelt bench`` has them. Writes
+``results/step_vs_superlu.json``.
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/step_vs_superlu.py [--rounds 6]``.
 """
 
@@ -12,9 +14,11 @@ import time
 import jaxbelt as jb
 from _common import write
 from jaxbelt.bench.baselines import SCENE, per_step, whole_run
+from jaxbelt.cli import configure_process
 
 
 def main():
+    configure_process()  # before the first computation: the XLA flags take effect when the backend starts
     ap = argparse.ArgumentParser()
     ap.add_argument("--rounds", type=int, default=6)
     a = ap.parse_args()
