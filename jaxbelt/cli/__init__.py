@@ -121,11 +121,14 @@ def configure_process():
 def main(argv=None) -> int:
     default_show = warnings.showwarning
 
-    def one_line(message, category, *a, **k):  # the scene's range warnings as one line, others as usual
-        if issubclass(category, MisalignmentWarning):
+    cli_dir = str(Path(__file__).parent)
+
+    def one_line(message, category, filename="", *a, **k):
+        """The scene's range warnings and the commands' own as one line, others as usual."""
+        if issubclass(category, MisalignmentWarning) or str(filename).startswith(cli_dir):
             print(f"jaxbelt: warning: {message}", file=sys.stderr)
         else:
-            default_show(message, category, *a, **k)
+            default_show(message, category, filename, *a, **k)
 
     args = build_parser().parse_args(argv)
     configure_process()

@@ -211,6 +211,12 @@ def _training_set(args, scene, test, opts):
             raise UsageError(f"--train {name}: dt = {o.dt:g} s, {scene.name} has dt = {opts.dt:g} s")
         if args.method == "pod" and o.solver.transport != "shift":
             raise UsageError(f"--method pod needs the 'shift' transport rule; {name} uses {o.solver.transport!r}")
+    outside = rom.parameters_outside_training(test, [m for _, m, _ in runs]) if (
+        box_spec is None and args.method in ("dmdc", "pdmd") and len(runs) >= 2) else []
+    if outside:
+        warnings.warn(f"{scene.name} lies outside its training configurations ({'; '.join(outside[:3])}"
+                      + (f"; {len(outside) - 3} more" if len(outside) > 3 else "")
+                      + f"): --method {args.method} extrapolates there; read the error estimate")
     return names, [m for _, m, _ in runs], [o.solver for _, _, o in runs], box_spec
 
 

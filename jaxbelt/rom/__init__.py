@@ -42,6 +42,7 @@ from .reduced import ReducedTrajectory as ReducedTrajectory
 from .reduced import fit_reduced_pod as fit_reduced_pod
 from .reduced import fit_reduced_pod_ranks as fit_reduced_pod_ranks
 from .reduced import parameters as parameters
+from .reduced import parameters_outside_training as parameters_outside_training
 from .reduced import with_parameters as with_parameters
 from .snapshots import collect_first_order as collect_first_order
 from .snapshots import collect_snapshots as collect_snapshots

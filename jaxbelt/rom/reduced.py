@@ -53,6 +53,27 @@ def parameters(model):
     return jnp.concatenate([model.chi_static, model.omega])
 
 
+def parameters_outside_training(model, training_models, rel_tol: float = 1e-9) -> list[str]:
+    """The components of ``model``'s :func:`parameters` outside the range its training
+    configurations span, each as ``"static dx of 'idle' = 0.01 (trained over [0, 0.005])"``: a
+    parametric or controlled DMD predicts there by extrapolation, which its interpolation weights
+    (or input matrix) were not fitted for. A component no training configuration varies counts
+    where the predicted value differs from theirs. ``rel_tol``: relative to the component's
+    largest magnitude. **Returns:** the list (empty inside the range)."""
+    P = np.stack([np.asarray(parameters(m)) for m in training_models])
+    mu = np.asarray(parameters(model))
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    tol = rel_tol * np.maximum(np.maximum(np.abs(lo), np.abs(hi)), np.abs(mu)) + 1e-300
+    q, dofs = model.n_roller_dofs, model.dofs
+    out = []
+    for k in np.flatnonzero((mu < lo - tol) | (mu > hi + tol)):
+        j = k % q
+        what = "static" if k < q else "rate of"
+        out.append(f"{what} {dofs[j % len(dofs)]} of {model.roller_names[j // len(dofs)]!r} = {mu[k]:.4g} "
+                   f"(trained over [{lo[k]:.4g}, {hi[k]:.4g}])")
+    return out
+
+
 def with_parameters(model, mu):
     """``model`` with ``μ = [χ_static; ω]`` replaced (inverse of :func:`parameters`)."""
     q = model.n_roller_dofs

@@ -9,6 +9,8 @@ import json
 import numpy as np
 import pytest
 
+import jaxbelt as jb
+
 from jaxbelt.cli import print_reduce, main
 
 from helpers import COARSE_2D_TWO_ROLLER
@@ -67,6 +69,16 @@ def test_dmdc_and_pdmd_predict_a_held_out_configuration(method, held_out, capsys
     assert r["modes"] == 30 and r["train_steps"] == 100
     assert r["predict_from_step"] == 0 and r["predict_steps"] == 200 and r["compared"] == "tracer_u"
     assert r["error_estimate_mm"] is None and r["effectivity"] is None  # --stride 0: no estimate
+
+
+def test_a_configuration_outside_the_training_ones_is_named(held_out):
+    from jaxbelt import rom
+
+    train = [jb.build_model(jb.load_scene(n)) for n in ("two-roller-1d", "two-roller-1d-train1")]
+    assert rom.parameters_outside_training(jb.build_model(jb.load_scene(held_out)), train) == []  # 6 mm of 0…10
+    outside = rom.parameters_outside_training(jb.build_model(jb.load_scene("two-roller-1d-train2")), train)
+    # train2: the drive 4 mm out (inside) but at 0.35 m/s where both training runs have 0.5 m/s
+    assert len(outside) == 1 and outside[0].startswith("rate of az of 'drive'") and "trained over [10, 10]" in outside[0]
 
 
 @pytest.mark.slow
