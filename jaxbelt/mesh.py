@@ -84,6 +84,18 @@ def _segment_counts(scene: Scene, path: BeltPath):
     return tuple(nr), tuple(nf), key
 
 
+CFL_ADVICE_FACTOR = 0.9  # of the CFL bound V dt < ℓ_min, the step advised (cfl_advice)
+
+
+def cfl_advice(h_min: float, V: float, name: str = "dt") -> str:
+    """The step to use after a refused one: ``CFL_ADVICE_FACTOR`` of the bound ``ℓ_min / V`` (s),
+    with why — the belt runs a few per cent faster than ``V`` while it starts up, so a step at
+    the bound makes the transport step extrapolate. ``name``: the option or key to name."""
+    bound = h_min / V
+    return (f"use {name} <= {CFL_ADVICE_FACTOR * bound:.4g} s (the bound is {bound:.4g} s; the belt runs a few "
+            "per cent faster than V while it starts up, so a step at the bound extrapolates)")
+
+
 def build_mesh(scene: Scene) -> Mesh:
     """Belt path + grid for a scene, with the geometry/mesh checks of model specification §1."""
     rollers = scene.rollers
@@ -140,8 +152,7 @@ def build_mesh(scene: Scene) -> Mesh:
         raise SceneError(
             f"time.dt_s = {scene.time.dt:g}: violates the CFL condition of the transport step "
             f"(belt speed {V:g} m/s × dt = {V * scene.time.dt * 1e3:.4g} mm >= smallest element "
-            f"{h_min * 1e3:.4g} mm); use dt_s <= {0.9 * h_min / V:.4g} (the bound is {h_min / V:.4g}; the belt "
-            f"runs a few per cent faster than V while it starts up, so a step at the bound extrapolates)"
+            f"{h_min * 1e3:.4g} mm); {cfl_advice(h_min, V, 'dt_s')}"
         )
 
     n_eta = scene.mesh.n_eta

@@ -32,6 +32,7 @@ from .control import controller_update, measure, sensor_displacement
 from .integrators import AbstractIntegrator, make_solver
 from .linalg import join
 from .loop_plan import checkpointed, loop_plan, scan_or_inline
+from .mesh import cfl_advice
 from .model import BeltModel
 from .scene import Scene
 from .state import BeltState, initial_state
@@ -332,9 +333,7 @@ def check_time_step(model: BeltModel, dt) -> None:
     V, h = belt_speed(model), float(np.min(np.asarray(model.ell)))
     if V * dt >= h:
         raise ValueError(f"dt = {dt:g} s violates the CFL condition of the transport step (belt speed {V:g} m/s × dt "
-                         f"= {V * dt * 1e3:.4g} mm >= smallest element {h * 1e3:.4g} mm); use dt <= {0.9 * h / V:.4g} s "
-                         f"(the bound is {h / V:.4g} s; the belt runs a few per cent faster than V while it starts up, "
-                         "so a step at the bound extrapolates)")
+                         f"= {V * dt * 1e3:.4g} mm >= smallest element {h * 1e3:.4g} mm); {cfl_advice(h, V)}")
 
 
 def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,

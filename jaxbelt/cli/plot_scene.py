@@ -14,9 +14,9 @@ def add_parser(subparsers):
 
 
 def run(args):
-    output_file("--out", args.out)
+    out = output_file("--out", args.out)  # checked before the scene is loaded
     scene = scene_from_args(args.scene)
-    out = output_file("--out", args.out or f"{scene.name}-scene.png")
+    out = out or output_file("--out", f"{scene.name}-scene.png")
     plot_scene(scene, build_mesh(scene), out)
     print(f"wrote {out}")
     return 0
