@@ -294,6 +294,11 @@ BENCHMARKS = {
                         "bytes a configuration-step streams against the read bandwidth measured in the same process, "
                         "the step, the solve and one sweep's recurrence timed against it for batches of 1, 8 and 32 "
                         "([scale](scale.md#how-fast-a-batch-can-go-on-a-cpu))."),
+    "suite_cost": ("Where the test suite's time goes", "The default test suite (`python -m pytest -q`) as "
+                   "configured (two workers) and in one process, with JAX's compile events counted per test: "
+                   "seconds spent tracing, lowering and compiling with XLA against the tests' whole time, the "
+                   "programs whose compile took over half a second, and the best wall time two workers could "
+                   "reach by splitting the one process's work perfectly."),
     "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene, "
                           "stage by stage, in a process with an empty compilation cache and in a second one that "
                           "reads it: start-up, model build, the aligned run and its Jacobian as one forward-mode "

@@ -1,0 +1,131 @@
+"""Where the default test suite's time goes: tracing, lowering, XLA compilation, and the rest.
+
+Runs the README's test command twice in fresh processes, each with a small pytest plugin that
+listens to JAX's compile events (``jax.monitoring``) per test:
+
+* as configured (``pyproject.toml``: two xdist workers), for the wall time a user sees and the
+  test seconds of each worker;
+* in one process (``-n 0``), for the work itself without a second worker's duplicated tracing or
+  the two processes competing for the cores: test seconds, and of them the seconds spent tracing
+  to jaxprs, lowering to MLIR and compiling with XLA (a load from the run's compilation cache
+  counts as a compile), the number of programs whose compile took over half a second, and the
+  slowest modules.
+
+``wall_s_if_split_perfectly`` is the one-process test seconds halved: the wall time two workers
+could reach at best, before start-up and their competition for memory bandwidth. Writes
+``results/suite_cost.json``. Takes about eight minutes on two cores.
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/suite_cost.py``.
+"""
+
+import collections
+import glob
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _common import write
+
+ROOT = Path(__file__).resolve().parent.parent
+
+PLUGIN = r'''
+import collections, json, os, time
+import jax.monitoring as mon
+import pytest
+
+CUR = ["<none>"]
+ACC = collections.defaultdict(collections.Counter)
+BIG = collections.Counter()
+
+
+def _listener(event, secs, **kwargs):
+    if event.startswith("/jax/core/compile/"):
+        key = event.rsplit("/", 1)[-1]
+        ACC[CUR[0]][key] += secs
+        if key == "backend_compile_duration" and secs > 0.5:
+            BIG[CUR[0]] += 1
+
+
+mon.register_event_duration_secs_listener(_listener)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    CUR[0] = item.nodeid
+    t0 = time.perf_counter()
+    yield
+    ACC[item.nodeid]["wall"] += time.perf_counter() - t0
+
+
+def pytest_sessionfinish(session):
+    out = os.environ["SUITE_COST_OUT"]
+    wid = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    with open(os.path.join(out, f"{wid}.json"), "w") as f:
+        json.dump({"tests": ACC, "big": BIG}, f)
+'''
+
+PHASES = {"jaxpr_trace_duration": "trace_s", "jaxpr_to_mlir_module_duration": "lower_s",
+          "backend_compile_duration": "xla_compile_s"}
+
+
+def _run(extra_args, plugin_dir, out_dir):
+    path = os.pathsep.join(p for p in (str(plugin_dir), os.environ.get("PYTHONPATH", "")) if p)
+    env = dict(os.environ, SUITE_COST_OUT=str(out_dir), OPENBLAS_NUM_THREADS="1", PYTHONPATH=path)
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "suite_cost_plugin", *extra_args], cwd=ROOT,
+                       env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if r.returncode:
+        raise RuntimeError(f"the suite failed: {(r.stdout + r.stderr).strip().splitlines()[-3:]}")
+    summary = r.stdout.strip().splitlines()[-1]
+    workers = {}
+    for path in glob.glob(str(out_dir / "*.json")):
+        workers[Path(path).stem] = json.loads(Path(path).read_text())
+    return wall, summary, workers
+
+
+def _totals(workers):
+    tot = collections.Counter()
+    by_module = collections.Counter()
+    big = 0
+    for w in workers.values():
+        big += sum(w["big"].values())
+        for test, c in w["tests"].items():
+            for k, v in c.items():
+                tot[k] += v
+            by_module[re.sub(r"::.*", "", test).rsplit("/", 1)[-1]] += c.get("wall", 0.0)
+    out = {"test_s": tot["wall"], **{PHASES[k]: tot[k] for k in PHASES}}
+    out["compile_share"] = sum(tot[k] for k in PHASES) / tot["wall"]
+    out["other_s"] = tot["wall"] - sum(tot[k] for k in PHASES)
+    out["programs_over_half_a_second"] = big
+    out["slowest_modules_s"] = dict(by_module.most_common(10))
+    return out
+
+
+def main():
+    with tempfile.TemporaryDirectory(prefix="jaxbelt-suite-cost-") as d:
+        d = Path(d)
+        (d / "suite_cost_plugin.py").write_text(PLUGIN)
+        results = {}
+        for label, args in (("two_workers", []), ("one_process", ["-n", "0"])):
+            out = d / label
+            out.mkdir()
+            print(f"running the suite: {label}", file=sys.stderr, flush=True)
+            wall, summary, workers = _run(args, d, out)
+            results[label] = {"wall_s": wall, "pytest_summary": summary, **_totals(workers),
+                              "test_s_by_process": {k: sum(c.get("wall", 0.0) for c in w["tests"].values())
+                                                    for k, w in sorted(workers.items())}}
+            print(f"  {wall:.1f} s: {summary}", file=sys.stderr, flush=True)
+    one = results["one_process"]
+    results["wall_s_if_split_perfectly"] = one["test_s"] / 2
+    results["duplicated_or_contended_s"] = results["two_workers"]["test_s"] - one["test_s"]
+    write("suite_cost", results)
+    print(json.dumps({k: v for k, v in one.items() if k != "slowest_modules_s"}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
