@@ -13,7 +13,7 @@ listens to JAX's compile events (``jax.monitoring``) per test:
 
 ``wall_s_if_split_perfectly`` is the one-process test seconds halved: the wall time two workers
 could reach at best, before start-up and their competition for memory bandwidth. Writes
-``results/suite_cost.json``. Takes about eight minutes on two cores.
+``results/suite_cost.json``. Takes eight to ten minutes on two cores.
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/suite_cost.py``.
 """
 
@@ -62,6 +62,8 @@ def pytest_runtest_protocol(item, nextitem):
 
 
 def pytest_sessionfinish(session):
+    if not ACC:  # xdist's controlling process runs no test
+        return
     out = os.environ["SUITE_COST_OUT"]
     wid = os.environ.get("PYTEST_XDIST_WORKER", "main")
     with open(os.path.join(out, f"{wid}.json"), "w") as f:
@@ -103,6 +105,8 @@ def _totals(workers):
     out["other_s"] = tot["wall"] - sum(tot[k] for k in PHASES)
     out["programs_over_half_a_second"] = big
     out["slowest_modules_s"] = dict(by_module.most_common(10))
+    out["test_s_by_process"] = {k: sum(c.get("wall", 0.0) for c in w["tests"].values())
+                                for k, w in sorted(workers.items())}
     return out
 
 
@@ -116,9 +120,7 @@ def main():
             out.mkdir()
             print(f"running the suite: {label}", file=sys.stderr, flush=True)
             wall, summary, workers = _run(args, d, out)
-            results[label] = {"wall_s": wall, "pytest_summary": summary, **_totals(workers),
-                              "test_s_by_process": {k: sum(c.get("wall", 0.0) for c in w["tests"].values())
-                                                    for k, w in sorted(workers.items())}}
+            results[label] = {"wall_s": wall, "pytest_summary": summary, **_totals(workers)}
             print(f"  {wall:.1f} s: {summary}", file=sys.stderr, flush=True)
     one = results["one_process"]
     results["wall_s_if_split_perfectly"] = one["test_s"] / 2
