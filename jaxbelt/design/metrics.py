@@ -34,6 +34,18 @@ law is linear until it clips) — which is what the tolerance box and FORM use
 maximum $\\tau \\log \\sum e^{|r|/\\tau}$ (``smooth=True``, ``τ = 0.05`` µm by default: it exceeds the
 hard maximum by at most ``τ log(len r)``).
 
+**Steady operation** (``make_study(..., steady=True)``):
+instead of a window of a time-stepped run, the study judges the settled machine, the fixed point of
+its one-period map (:func:`jaxbelt.steady.steady_state`, noise and edge profile left out). Every
+history then has one row — the steady state — so the table above applies with ``k = W = 0``: the
+lateral and longitudinal deviation of every tracer from the aligned machine's steady state, and
+the actuator's steady angle. ``steering_max``'s response is that angle widened by the aligned
+machine's own actuator jitter ``j`` (sensor noise and edge waviness, measured once by a
+time-stepped run from the aligned steady state over :data:`JITTER_TURNS` belt turns): the pair
+``(a + j, a − j)``, whose max-abs is ``|a| + j``, still affine in the misalignments. A misalignment
+the loop absorbs (the steering roller's own tilt about its actuated axis) then costs only actuator
+range.
+
 A study can carry *several limits* at once (``limits``: ``((metric, limit), ...)``, max-type
 metrics only; :func:`with_limits`): its response is then every metric's response divided by its
 limit, stacked, and its metric the largest ratio (dimensionless; ≤ 1 passes), so the tolerance
@@ -53,7 +65,9 @@ from ..control import SATURATION_FRACTION
 from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
-from ..timeloop import check_finite, simulate
+from ..state import BeltState
+from ..steady import NoSteadyStateError, period_steps, steady_state
+from ..timeloop import SaveAt, check_finite, simulate
 
 M_TO_UM = 1e6
 RAD_TO_MRAD = 1e3
@@ -99,7 +113,12 @@ class Study(eqx.Module):
     deviations of :func:`run_deviation` at ``θ = 0`` and their derivatives with respect to every
     component of ``θ``: ``((d_u, d_v, angle), (∂d_u, ∂d_v, ∂angle))``, each derivative with a
     trailing axis of length P — what :func:`jaxbelt.design.response_jacobian` reads at ``θ = 0``
-    instead of running again.
+    instead of running again; ``steady`` whether the study judges steady operation (module
+    docstring, *Steady operation*): then ``n_steps = window = 1`` and every history above has one
+    row, the steady state's; ``period_steps`` the steady map's period in steps; ``jitter_mrad``
+    (n_c,) the aligned machine's actuator jitter around its steady angle from sensor noise and
+    edge profile, mrad (steady studies of a steered machine, else ``None``); ``steady_start``
+    the aligned machine's steady state, where every steady solve of the study starts.
     """
 
     model: BeltModel
@@ -116,6 +135,10 @@ class Study(eqx.Module):
     limit_values: jax.Array | None = None
     ref_angle: jax.Array | None = None
     linearisation: tuple | None = None
+    steady: bool = eqx.field(static=True, default=False)
+    period_steps: int = eqx.field(static=True, default=1)
+    jitter_mrad: jax.Array | None = None
+    steady_start: BeltState | None = None
 
     @property
     def limits(self) -> tuple:
@@ -134,14 +157,16 @@ class Study(eqx.Module):
         return self.model.control is not None
 
     @property
-    def t_eval(self) -> float:
-        """The evaluation time ``n_steps × dt``, s (concrete studies only)."""
-        return self.n_steps * float(self.dt)
+    def t_eval(self) -> float | None:
+        """The evaluation time ``n_steps × dt``, s (concrete studies only); ``None`` for steady
+        operation."""
+        return None if self.steady else self.n_steps * float(self.dt)
 
     @property
-    def t_window(self) -> tuple[float, float]:
-        """The evaluation window ``(start, end)``, s: the last ``window`` steps of the run."""
-        return (self.n_steps - self.window) * float(self.dt), self.t_eval
+    def t_window(self) -> tuple[float, float] | None:
+        """The evaluation window ``(start, end)``, s: the last ``window`` steps of the run;
+        ``None`` for steady operation."""
+        return None if self.steady else ((self.n_steps - self.window) * float(self.dt), self.t_eval)
 
     @property
     def range_mrad(self) -> float | None:
@@ -177,7 +202,7 @@ def _check_metric(model: BeltModel, metric: str):
 
 def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | None = None, *, dt,
                n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
-               window_fraction: float | None = None, jacobian: bool = False) -> Study:
+               window_fraction: float | None = None, jacobian: bool = False, steady: bool = False) -> Study:
     """Set up a study: validate the metric and time, select the components, run the aligned
     reference once.
 
@@ -193,11 +218,15 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
     in :func:`jaxbelt.misalignment.parameter_space`; ``integrator`` the solver (default
     :func:`jaxbelt.make_solver`'s; a scene's is ``RunOptions.solver``); ``window_fraction`` of
     ``[0, t_eval]``, the evaluation window (default 0.1, ``lateral_peak``'s; 0.2 on a steered
-    machine, where every windowed metric reads it).
+    machine, where every windowed metric reads it); ``steady`` judge steady operation instead of a
+    time-stepped window (module docstring; ``t_eval``, ``n_steps`` and ``window_fraction`` are then
+    not read).
 
     ``jaxbelt.RunOptions`` holds a scene's ``dt``, ``n_steps`` and solver:
     ``make_study(model, metric, dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)``.
     """
+    if steady:
+        return _make_steady_study(model, metric, dt, components, integrator, jacobian)
     frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
     if jacobian and not np.any(np.asarray(frame["base"])):
         ref, (du, dv, dangle) = _reference_and_tangents(model, frame["space"], frame["integrator"], frame["dt"],
@@ -212,6 +241,119 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
                   ref_angle=_mrad(ref.control_u))
     if jacobian:
         study = dataclasses.replace(study, linearisation=_deviation_tangents(study))
+    return study
+
+
+JITTER_TURNS = 2.0  # belt turns of the time-stepped run that measures the actuator jitter
+
+
+def _steady_rows(s):
+    """A steady state's tracers and angles as one-row histories ``(u, v, angle)`` (m, m, rad)."""
+    row = lambda a: None if a is None else a[None]  # noqa: E731
+    return row(s.tracer_u), row(s.tracer_v), row(s.angle)
+
+
+@eqx.filter_jit
+def _steady_reference_and_tangents(model, space, integrator, dt, n_p):
+    """The steady state of ``model`` and the derivatives of its tracers and actuator angles with
+    respect to ``θ`` at ``θ = 0`` (implicit function theorem, one tangent solve per component)."""
+
+    def solve(theta):
+        s = steady_state(apply(model, space, theta), integrator, dt=dt, period_steps=n_p)
+        return (s.tracer_u, s.tracer_v, s.angle), s
+
+    J, ref = jax.jacfwd(solve, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
+    return ref, J
+
+
+@eqx.filter_jit
+def _steady_batch(model, space, integrator, dt, n_p, chis, y0):
+    """Steady states of ``model`` at each row of ``chis`` (m, q), as one ``vmap`` batch:
+    ``((tracer rows and angles, converged (m,)), the SteadyStates)``."""
+
+    def one(chi):
+        s = steady_state(model.replace(chi_static=chi), integrator, dt=dt, period_steps=n_p, y0=y0)
+        return (_steady_rows(s), s.converged), s
+
+    return jax.vmap(one)(chis)
+
+
+def check_steady(s, model: BeltModel, what: str = "the aligned machine"):
+    """:class:`jaxbelt.steady.NoSteadyStateError` unless ``s`` (concrete) is a steady operation the
+    machine can hold: converged, its actuators within their range, the belt on its rollers."""
+    if not bool(s.converged) or not np.all(np.isfinite(np.asarray(s.tracer_u))):
+        raise NoSteadyStateError(f"no steady operation of {what}: the fixed-point iteration did not converge "
+                                 f"(residual {float(s.residual):.3g} µm after {int(s.newton_steps)} Newton steps)")
+    if s.angle is not None:
+        need, limit = np.abs(np.asarray(s.angle)), np.asarray(model.control.limit)
+        for label, a, lim in zip(model.control.labels, need, limit):
+            if a > lim:
+                raise NoSteadyStateError(f"no steady operation of {what}: the loop on {label} needs {a * 1e3:.4g} mrad "
+                                         f"to hold the belt, beyond its ±{lim * 1e3:.4g} mrad range")
+    if s.edge_margin is not None and np.min(np.asarray(s.edge_margin)) < 0:
+        raise NoSteadyStateError(f"no steady operation of {what}: the belt edge runs off a roller "
+                                 f"({-np.min(np.asarray(s.edge_margin)) * 1e3:.3g} mm beyond its face)")
+
+
+def actuator_jitter(model: BeltModel, integrator, dt, s, turns: float = JITTER_TURNS):
+    """The aligned machine's actuator jitter around its steady angle, mrad (n_c,): the largest
+    ``|angle − steady angle|`` of a time-stepped run of ``model`` (sensor noise and edge profile
+    on) from its steady state ``s`` over ``turns`` belt turns. A loop whose steady state is not
+    stable shows here: the deviation growing from the first turn to the last is named
+    (:class:`jaxbelt.steady.NoSteadyStateError`)."""
+    from ..timeloop import belt_speed
+
+    loops = model.control
+    n = max(2, int(np.ceil(turns * float(loops.loop_length) / belt_speed(model) / float(dt))))
+    y0 = dataclasses.replace(s.state, control=dataclasses.replace(s.state.control, travel=jnp.zeros((), dt.dtype)))
+    _, tr = simulate(model, integrator, n_steps=n, dt=dt, y0=y0, saveat=SaveAt(), check=False)
+    dev = np.abs(np.asarray(tr.control_u) - np.asarray(s.angle)[None])
+    if not np.all(np.isfinite(dev)):
+        raise NoSteadyStateError("no steady operation: the aligned machine's run from its steady state diverged "
+                                 "(an unstable loop)")
+    half = n // 2
+    first, last = dev[:half].max(axis=0), dev[half:].max(axis=0)
+    if np.any((last > 4 * first) & (last > 0.05 * np.asarray(loops.limit))):
+        raise NoSteadyStateError(f"no steady operation: the steady state is unstable (actuator deviation grows from "
+                                 f"{first.max() * 1e3:.3g} to {last.max() * 1e3:.3g} mrad over {turns:g} belt turns: "
+                                 "a growing loop mode; lower the gains)")
+    return jnp.asarray(dev.max(axis=0) * RAD_TO_MRAD, dt.dtype)
+
+
+def _steady_frame(model, metric, dt, components, integrator) -> dict:
+    _check_metric(model, metric)
+    dt = jnp.asarray(dt, model.ell.dtype)
+    return dict(model=model, integrator=make_solver() if integrator is None else integrator, dt=dt,
+                base=model.chi_static, space=parameter_space(model, components), metric=metric, n_steps=1, window=1,
+                steady=True, period_steps=period_steps(model, dt))
+
+
+def _make_steady_study(model, metric, dt, components, integrator, jacobian, jitter=None) -> Study:
+    """:func:`make_study` of steady operation (module docstring)."""
+    frame = _steady_frame(model, metric, dt, components, integrator)
+    if model.kind == "2d" and model.control is None and model.lateral_transport:
+        raise ValueError("steady operation: this machine walks (lateral transport without a steering loop); "
+                         "judge a time-stepped window instead (t_eval)")
+    args = (frame["space"], frame["integrator"], frame["dt"], frame["period_steps"])
+    base_is_zero = not np.any(np.asarray(frame["base"]))
+    if jacobian and base_is_zero:
+        s, (du, dv, dangle) = _steady_reference_and_tangents(model, *args)
+    else:
+        s = steady_state(aligned(model), frame["integrator"], dt=frame["dt"], period_steps=frame["period_steps"])
+    check_steady(s, model)
+    if model.control is not None and jitter is None:
+        jitter = actuator_jitter(aligned(model), frame["integrator"], frame["dt"], s)
+    u, v, angle = _steady_rows(s)
+    study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,
+                  steady_start=s.state)
+    if jacobian:
+        if base_is_zero:
+            row = lambda a, k: None if a is None else a[None] * k  # noqa: E731
+            zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
+            lin = ((zero(u), zero(v), _mrad(angle)), (row(du, M_TO_UM), row(dv, M_TO_UM), row(dangle, RAD_TO_MRAD)))
+        else:
+            lin = _deviation_tangents(study)
+        study = dataclasses.replace(study, linearisation=lin)
     return study
 
 
@@ -266,7 +408,7 @@ def _aligned_and_configured(model, space, integrator, dt, n_steps, thetas):
 
 def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = None, *, dt,
                   n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
-                  window_fraction: float | None = None, limits=()):
+                  window_fraction: float | None = None, limits=(), steady: bool = False, jitter_mrad=None):
     """:func:`make_study` and the study's values at ``thetas`` (m, P) from one ``vmap`` batch of
     m + 1 runs, the aligned reference among them. On a CPU a batch of m + 1 costs far less than
     a reference run and then a batch of m: one run's sequential sweeps leave the cores idle.
@@ -274,11 +416,27 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
     **Arguments:** as :func:`make_study`; ``limits`` ``((metric, limit), ...)`` as
     :func:`with_limits` (then the study is the one with the limits). **Returns:** ``(study,
     values)``: ``values`` (m,) the metric, or with ``limits`` (m, n_limits) each limit's value in
-    its own unit (:func:`limit_values`)."""
-    frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
-    thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
-    u, v, angle = _aligned_and_configured(model, frame["space"], frame["integrator"], frame["dt"], frame["n_steps"],
-                                          thetas)
+    its own unit (:func:`limit_values`). With ``steady``, the study of steady operation, its m + 1
+    steady solves one batch; ``jitter_mrad`` its actuator jitter (default: measured here)."""
+    if steady:
+        frame = _steady_frame(model, metric, dt, components, integrator)
+        thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
+        chis = jnp.concatenate([jnp.zeros_like(model.chi_static)[None],
+                                jax.vmap(lambda t: apply(model, frame["space"], t).chi_static)(thetas)])
+        ((u, v, angle), converged), first = _steady_batch(model, frame["space"], frame["integrator"], frame["dt"],
+                                                          frame["period_steps"], chis, None)
+        if not np.all(np.asarray(converged)):
+            raise NoSteadyStateError(f"no steady operation at {int(np.sum(~np.asarray(converged)))} of "
+                                     f"{len(chis)} configurations: the fixed-point iteration did not converge")
+        if model.control is not None and jitter_mrad is None:
+            aligned_state = jax.tree.map(lambda a: a[0], first)
+            jitter_mrad = actuator_jitter(aligned(model), frame["integrator"], frame["dt"], aligned_state)
+        frame.update(jitter_mrad=jitter_mrad, steady_start=jax.tree.map(lambda a: a[0], first.state))
+    else:
+        frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
+        thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
+        u, v, angle = _aligned_and_configured(model, frame["space"], frame["integrator"], frame["dt"],
+                                              frame["n_steps"], thetas)
     angle = _mrad(angle)
     study = Study(**frame, ref_u=u[0], ref_v=None if v is None else v[0], ref_angle=None if angle is None else angle[0])
     if limits:
@@ -299,6 +457,9 @@ def study_on(model: BeltModel, study: Study, thetas, *, dt, integrator: Abstract
     """:func:`make_study_at` of ``study``'s question — its metric, components, evaluation time and
     window — on ``model`` (the same scene on another grid, run at ``dt`` with ``integrator``):
     ``(study, values)`` at ``thetas`` (m, P), the aligned reference in the same batch."""
+    if study.steady:
+        return make_study_at(model, study.metric, thetas, dt=dt, components=list(study.space.labels()),
+                             integrator=integrator, limits=limits, steady=True, jitter_mrad=study.jitter_mrad)
     return make_study_at(model, study.metric, thetas, t_eval=study.t_eval, dt=dt, components=list(study.space.labels()),
                          integrator=integrator, window_fraction=study.window / study.n_steps, limits=limits)
 
@@ -322,7 +483,8 @@ def with_limits(study: Study, limits) -> Study:
                  base=study.base, space=study.space, metric=study.metric, n_steps=study.n_steps, window=study.window,
                  limit_names=tuple(n for n, _ in pairs),
                  limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None,
-                 ref_angle=study.ref_angle, linearisation=study.linearisation)
+                 ref_angle=study.ref_angle, linearisation=study.linearisation, steady=study.steady,
+                 period_steps=study.period_steps, jitter_mrad=study.jitter_mrad, steady_start=study.steady_start)
 
 
 def _evaluation_step(t_eval, dt, n_steps) -> int:
@@ -344,11 +506,18 @@ def run_deviation(study: Study, theta):
     """``(d_u, d_v, angle)``: the tracer displacements at ``theta`` minus the aligned run's,
     (n_steps, n_tr) µm (``d_v`` ``None`` in 1D), and the steering actuators' angles (n_steps,
     n_c), mrad (``None`` without a loop)."""
-    _, tr = simulate(study.configured(theta), study.integrator, n_steps=study.n_steps, dt=study.dt)
-    du = (tr.tracer_u - study.ref_u) * M_TO_UM
-    dv = None if tr.tracer_v is None else (tr.tracer_v - study.ref_v) * M_TO_UM
-    angle = _mrad(tr.control_u)
-    return du, dv, angle
+    if study.steady:
+        s = steady_state(study.configured(theta), study.integrator, dt=study.dt, period_steps=study.period_steps,
+                         y0=study.steady_start)
+        u, v, angle = _steady_rows(s)
+        bad = jnp.where(s.converged, 0.0, jnp.nan)  # an unconverged solve is NaN, never a number
+        u = u + bad
+    else:
+        _, tr = simulate(study.configured(theta), study.integrator, n_steps=study.n_steps, dt=study.dt)
+        u, v, angle = tr.tracer_u, tr.tracer_v, tr.control_u
+    du = (u - study.ref_u) * M_TO_UM
+    dv = None if v is None else (v - study.ref_v) * M_TO_UM
+    return du, dv, _mrad(angle)
 
 
 def tracer_deviation(study: Study, theta):
@@ -363,6 +532,8 @@ def _single_response(study: Study, name: str, du, dv, angle):
     if name == "steering_max":
         if angle is None:
             raise ValueError("steering_max: the run has no actuator angles (no steering loop)")
+        if study.steady and study.jitter_mrad is not None:  # the steady angle widened by the jitter
+            return jnp.concatenate([angle[0] + study.jitter_mrad, angle[0] - study.jitter_mrad])
         return angle[window].reshape(-1)
     if name in ("longitudinal_rms", "longitudinal_max"):
         return du[window].reshape(-1) if study.steered else du[k]
@@ -442,6 +613,8 @@ def saturation(study: Study, angle):
     """``(steering_mrad, saturated)`` from the actuator angles (n_steps, n_c) mrad: the largest
     |angle| in the window, and whether it reached ``SATURATION_FRACTION`` of its loop's range."""
     w = angle[study.n_steps - study.window:]
+    if study.steady and study.jitter_mrad is not None:
+        w = jnp.abs(w) + study.jitter_mrad
     limit = study.model.control.limit * RAD_TO_MRAD
     return jnp.max(jnp.abs(w)), jnp.any(jnp.abs(w) >= SATURATION_FRACTION * limit)
 

@@ -1,0 +1,336 @@
+"""Steady operation solved directly: the fixed point of the machine's one-period map.
+
+A belt machine in steady operation repeats itself: after one controller sample period the state
+on the fixed grid is what it was (the grid is fixed in space and the transport step keeps the
+belt's moving material on it, §3.5). With ``Φ`` the map of one period — ``n_p`` Backward-Euler
+steps, each with its transport step and (on a steered machine) the controller update, exactly the
+steps :func:`jaxbelt.simulate` takes — steady operation is the fixed point
+
+    x* = Φ(x*),
+
+solved here by Newton's method on ``F(x) = Φ(x) − x`` with GMRES on the Jacobian-vector products
+of ``Φ`` (:mod:`optimistix` ``root_find`` with ``Newton``, :mod:`lineax` ``GMRES``). Because ``Φ``
+is the time stepper's own map, a long time-stepped run settles onto ``x*`` to the solver's
+tolerance, not to a discretisation error. Derivatives come from the implicit function theorem
+(``optimistix.ImplicitAdjoint``): ``dx*/dθ = (I − ∂Φ/∂x)⁻¹ ∂Φ/∂θ``, one linear solve per tangent
+(forward mode) or one transposed solve (reverse mode), never through the iterations; the solve
+is jit- and vmap-able over misalignments and gains.
+
+**What is solved, and decisions where the specification is silent:**
+
+- *The period* ``n_p``: the least common multiple of the loops' sample counts ``sample / Δt``
+  (one step without a loop). The controller samples at the period's first step.
+- *The unknowns*: belt displacement and velocity, roller DOFs and rates, element masses, and the
+  controllers' integral, last error, held command and actuator angle. The step counter and the
+  belt's travel are not unknowns: they only time the sensor noise and the edge profile, which
+  steady operation leaves out (:func:`quiet`: both act alike on an aligned and a misaligned
+  machine, and cancel in a deviation; the actuator jitter they cause is measured once by a
+  time-stepped run, :func:`jaxbelt.design.steady.actuator_jitter`).
+- *The actuator range and rate limit* are lifted in the solve: steady operation has a constant
+  angle, so the rate limit never acts, and the angle the loop needs is found even where it lies
+  beyond the range — which is then reported against the range (no steady state), not clipped.
+- *Mass*: the transport step conserves the belt's mass, so ``Φ`` leaves the total mass where it
+  finds it and ``F`` is singular along the family of steady states of other total masses. The
+  mass rows of the residual get ``(Σ m − M₀) / n`` added (``M₀`` the model's belt mass), which
+  picks the member of the family with the belt's own mass and makes the Jacobian regular; at the
+  solution the added term is zero, so the fixed point is unchanged.
+- *Units*: the unknowns are scaled to µm (lengths), µm over one period (velocities), µrad
+  (angles) and ppm of the element's rest mass, so one absolute tolerance means the same in every
+  block; ``tol`` is that tolerance on the residual, in µm.
+- *The walking machine* (lateral transport, no loop): its belt walks, so it repeats itself only
+  up to a uniform lateral shift. :func:`steady_walk` solves ``Φ(x) = x + c e_v`` with the phase
+  condition that the belt's mean lateral displacement is that of the start state; the walk per
+  period ``c`` is an unknown, the walk rate ``c / T``.
+
+**Iterations.** ``Φ`` is strongly contracting in the belt's fast elastic modes (Backward Euler
+damps them by far over a period) and close to the identity only in the slow ones: the loop's
+lateral modes and the lightly damped low belt modes. GMRES's iterations go to those few slow
+directions, so an unpreconditioned GMRES needs some tens of Jacobian-vector products per
+Newton step, each one period of steps with the step's factors kept; the response is nearly
+linear in the misalignments, so Newton needs two steps (the second checks the first). A
+preconditioner from the step's factors (one Backward-Euler step's inverse) targets the fast
+modes, which GMRES already resolves in a few iterations; it is not used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import jax.flatten_util
+import jax.scipy.sparse.linalg
+import jax.numpy as jnp
+import lineax as lx
+import numpy as np
+import optimistix as optx
+from jax import lax
+
+from .control import ControllerState, samples_per_update, sensor_displacement
+from .integrators import AbstractIntegrator, make_solver
+from .model import BeltModel
+from .state import BeltState, initial_state
+from .timeloop import check_time_step, edge_margin, make_step, tracer_values
+
+UNIT = 1e6  # m → µm, rad → µrad: the scaled unknowns' unit
+DEFAULT_TOL_UM = 1e-5
+DEFAULT_MAX_NEWTON = 8
+DEFAULT_GMRES_RESTART = 200
+DEFAULT_GMRES_CYCLES = 4
+NEWTON_KRYLOV_RTOL = 1e-3  # GMRES's residual reduction per Newton step
+ADJOINT_KRYLOV_RTOL = 1e-10  # per tangent (implicit function theorem)
+
+
+class SteadyState(eqx.Module):
+    """A machine's steady operation (:func:`steady_state`; :func:`steady_walk`).
+
+    **Fields:** ``state`` the steady :class:`~jaxbelt.BeltState` at the start of a period (step
+    0); ``tracer_u``, ``tracer_v`` (n_tr,) the tracers' displacements there, m (``tracer_v``
+    ``None`` in 1D); ``angle`` (n_c,) the actuators' steady angles, rad (``None`` without a loop);
+    ``sensor_v`` (n_c,) the belt's lateral displacement at the sensors, m; ``edge_margin`` (p,) the
+    smallest distance from a belt edge to its roller face's end, m (``None`` in 1D); ``walk_rate``
+    () the uniform lateral walk, m/s (zero for :func:`steady_state`); ``residual`` () the last
+    Newton residual, µm (max norm of the scaled ``F``); ``newton_steps`` (); ``converged`` ();
+    ``period_steps`` (static) steps per period.
+    """
+
+    state: BeltState
+    tracer_u: jax.Array
+    tracer_v: jax.Array | None
+    angle: jax.Array | None
+    sensor_v: jax.Array | None
+    edge_margin: jax.Array | None
+    walk_rate: jax.Array
+    residual: jax.Array
+    newton_steps: jax.Array
+    converged: jax.Array
+    period_steps: int = eqx.field(static=True)
+
+
+class NoSteadyStateError(ValueError):
+    """The machine has no steady operation (one line: what was found)."""
+
+
+def quiet(model: BeltModel) -> BeltModel:
+    """The model without sensor noise and edge profile, its actuators' range and rate limit lifted
+    (module docstring): the machine whose fixed point is steady operation."""
+    loops = model.control
+    if loops is None:
+        return model
+    inf = jnp.full_like(loops.limit, jnp.inf)
+    loops = eqx.tree_at(lambda c: (c.noise, c.profile_amplitude, c.limit, c.rate_limit), loops,
+                        (jnp.zeros_like(loops.noise), jnp.zeros_like(loops.profile_amplitude), inf, inf))
+    return model.replace(control=loops)
+
+
+def period_steps(model: BeltModel, dt) -> int:
+    """Steps per period: the least common multiple of the loops' ``sample / Δt`` (1 without a
+    loop); ``dt`` and the sample periods must be concrete (under a transformation, pass the period
+    of the concrete model to :func:`steady_state`)."""
+    if model.control is None:
+        return 1
+    if isinstance(dt, jax.core.Tracer) or isinstance(model.control.sample, jax.core.Tracer):
+        raise ValueError("steady_state: the period needs concrete dt and sample periods; pass period_steps "
+                         "(jaxbelt.steady.period_steps of the concrete model) under jit/vmap/grad")
+    n = np.asarray(samples_per_update(model.control, float(dt)))
+    return int(math.lcm(*(int(k) for k in n)))
+
+
+class _Scales(eqx.Module):
+    """Per-block scales of the unknowns (module docstring, *Units*)."""
+
+    period: jax.Array
+    m_e0: jax.Array
+
+
+def _pack(state: BeltState, sc: _Scales):
+    c = state.control
+    ctrl = None if c is None else (c.integral * UNIT, c.error * UNIT, c.command * UNIT, c.angle * UNIT)
+    return (state.u * UNIT, state.u_dot * UNIT * sc.period, state.chi * UNIT, state.chi_dot * UNIT * sc.period,
+            (state.m_e / sc.m_e0 - 1.0) * UNIT, ctrl)
+
+
+def _unpack(y, template: BeltState, sc: _Scales) -> BeltState:
+    u, ud, chi, chid, m, ctrl = y
+    control = None
+    if ctrl is not None:
+        control = ControllerState(integral=ctrl[0] / UNIT, error=ctrl[1] / UNIT, command=ctrl[2] / UNIT,
+                                  angle=ctrl[3] / UNIT, travel=jnp.zeros((), u.dtype))
+    return BeltState(u=u / UNIT, u_dot=ud / (UNIT * sc.period), chi=chi / UNIT, chi_dot=chid / (UNIT * sc.period),
+                     m_e=(1.0 + m / UNIT) * sc.m_e0, step=jnp.zeros((), jnp.int32), control=control)
+
+
+def _period_map(model: BeltModel, solver: AbstractIntegrator, dt, n: int, run_data):
+    """``Φ``: ``n`` steps of :func:`jaxbelt.timeloop.make_step` from a state at step 0."""
+    step = make_step(model, solver, dt, run_data)
+
+    def phi(state: BeltState) -> BeltState:
+        return lax.scan(lambda s, _: (step(s)[0], None), state, None, length=n)[0]
+
+    return phi
+
+
+def _lateral_direction(model: BeltModel, y):
+    """``e_v`` in the scaled unknowns: a uniform unit lateral shift of every belt node."""
+    e = jax.tree.map(jnp.zeros_like, y)
+    u = e[0].at[:, 1::2].set(1.0)
+    return (u,) + tuple(e[1:])
+
+
+def _residual(model: BeltModel, solver, dt, n, sc, template, walking: bool):
+    """``F(y, model)`` of the root find (and the augmented walk system)."""
+
+    def phi_scaled(y, args):
+        m, run_data = args
+        s = _unpack(y, template, sc)
+        return _pack(_period_map(m, solver, dt, n, run_data)(s), sc)
+
+    def mass_row(y, f):
+        total = jnp.sum((1.0 + y[4] / UNIT) * sc.m_e0) - jnp.sum(sc.m_e0)
+        return f[:4] + (f[4] + total / jnp.sum(sc.m_e0) * UNIT,) + f[5:]
+
+    if not walking:
+        def fn(y, args):
+            f = jax.tree.map(lambda a, b: a - b, phi_scaled(y, args), y)
+            return mass_row(y, f)
+        return fn
+
+    def fn_walk(yc, args):
+        y, c = yc
+        e = _lateral_direction(model, y)
+        f = jax.tree.map(lambda a, b, d: a - b - c * d, phi_scaled(y, args), y, e)
+        f = mass_row(y, f)
+        phase = jnp.mean(y[0][:, 1::2]) - jnp.mean(template.u[:, 1::2]) * UNIT
+        return f, phase
+
+    return fn_walk
+
+
+class RelativeGMRES(lx.AbstractLinearSolver):
+    """Restarted GMRES (:func:`jax.scipy.sparse.linalg.gmres`) as a :mod:`lineax` solver, stopped when
+    ``‖r‖₂ ≤ rtol ‖b‖₂``: the usual inexact-Newton criterion, one scale for the whole vector.
+    ``lineax.GMRES`` scales its tolerance entry by entry (``atol + rtol |b_i|``), which asks every
+    entry for its own relative accuracy, also the many nearly-zero entries of a Newton residual:
+    measured on the steered machine, it did not stop. ``restart`` Krylov vectors per cycle, at
+    most ``cycles`` cycles; a solve that misses the tolerance is reported (``max_steps_reached``)."""
+
+    rtol: float
+    restart: int = DEFAULT_GMRES_RESTART
+    cycles: int = DEFAULT_GMRES_CYCLES
+
+    def init(self, operator, options):
+        return operator
+
+    def compute(self, state, vector, options):
+        b, unravel = jax.flatten_util.ravel_pytree(vector)
+        mv = lambda x: jax.flatten_util.ravel_pytree(state.mv(unravel(x)))[0]  # noqa: E731
+        zero = jnp.linalg.norm(b) == 0  # (a tangent the map does not feel): x = 0, not GMRES's 0/0
+        x, _ = jax.scipy.sparse.linalg.gmres(mv, jnp.where(zero, 1.0, b), tol=self.rtol, atol=0.0,
+                                             restart=self.restart, maxiter=self.cycles, solve_method="incremental")
+        x = jnp.where(zero, 0.0, x)
+        missed = jnp.linalg.norm(mv(x) - b) > 10 * self.rtol * jnp.linalg.norm(b)
+        result = lx.RESULTS.where(missed, lx.RESULTS.max_steps_reached, lx.RESULTS.successful)
+        return unravel(x), result, {}
+
+    def transpose(self, state, options):
+        return state.transpose()
+
+    def conj(self, state, options):
+        return state.conj()
+
+    def assume_full_rank(self):
+        return True
+
+
+def _solve(fn, y0, model, solver, template, dt, tol, max_steps, restart, gmres_steps):
+    gmres = RelativeGMRES(NEWTON_KRYLOV_RTOL, restart, gmres_steps)
+    newton = optx.Newton(rtol=0.0, atol=tol, linear_solver=gmres)
+    adjoint = optx.ImplicitAdjoint(linear_solver=RelativeGMRES(ADJOINT_KRYLOV_RTOL, restart, gmres_steps))
+    run_data = lax.stop_gradient(solver.init(model, template, dt))
+    sol = optx.root_find(fn, newton, y0, args=(model, run_data), max_steps=max_steps, adjoint=adjoint, throw=False)
+    return sol
+
+
+def _result(model, solver, dt, n, y, sc, template, walk_per_period, sol, fn):
+    state = _unpack(y, template, sc)
+    tu, tv = tracer_values(model, state.u)
+    f = sol.state.f  # the residual where the last Newton step started
+    residual = jax.tree.reduce(jnp.maximum, jax.tree.map(lambda a: jnp.max(jnp.abs(a)), f))
+    loops = model.control
+    return SteadyState(
+        state=state, tracer_u=tu, tracer_v=tv,
+        angle=None if loops is None else state.control.angle,
+        sensor_v=None if loops is None else sensor_displacement(loops, state.u),
+        edge_margin=edge_margin(model, state.u, state.chi) if model.kind == "2d" else None,
+        walk_rate=walk_per_period / (UNIT * n * dt),
+        residual=lax.stop_gradient(residual), newton_steps=sol.stats["num_steps"],
+        converged=sol.result == optx.RESULTS.successful, period_steps=n)
+
+
+def _setup(model, solver, dt, y0, n=None):
+    solver = make_solver() if solver is None else solver
+    check_time_step(model, dt)
+    n = period_steps(model, dt) if n is None else int(n)
+    dt = jnp.asarray(dt, model.ell.dtype)
+    template = initial_state(model) if y0 is None else y0
+    template = dataclasses.replace(template, step=jnp.zeros((), jnp.int32))
+    sc = _Scales(period=n * dt, m_e0=lax.stop_gradient(model.m_e0))
+    return solver, n, dt, template, sc
+
+
+@eqx.filter_jit
+def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps):
+    q = quiet(model)
+    fn = _residual(q, solver, dt, n, sc, template, walking=False)
+    y0 = _pack(template, sc)
+    sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps)
+    return _result(q, solver, dt, n, sol.value, sc, template, jnp.zeros((), dt.dtype), sol, fn)
+
+
+@eqx.filter_jit
+def _walk(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps):
+    q = quiet(model)
+    fn = _residual(q, solver, dt, n, sc, template, walking=True)
+    y0 = (_pack(template, sc), jnp.zeros((), dt.dtype))
+    sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps)
+    return _result(q, solver, dt, n, sol.value[0], sc, template, sol.value[1], sol, fn)
+
+
+def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, y0: BeltState | None = None,
+                 period_steps: int | None = None,
+                 tol: float = DEFAULT_TOL_UM, max_newton: int = DEFAULT_MAX_NEWTON,
+                 restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES) -> SteadyState:
+    """Steady operation of a machine that is stationary on its grid: a steered machine, or one
+    without lateral transport (module docstring). jit-, vmap- and differentiable (implicit
+    function theorem) in the model's array fields.
+
+    **Arguments:** ``solver`` the integrator of the map (default :func:`jaxbelt.make_solver`'s);
+    ``dt`` the time step, s (concrete: it fixes the period); ``y0`` the start of the iteration
+    (default the static equilibrium); ``period_steps`` steps per period (default
+    :func:`period_steps`; give it under ``jit``/``vmap``/``grad``); ``tol`` the residual tolerance, µm; ``max_newton`` Newton
+    steps; ``restart`` and ``krylov_cycles`` GMRES's Krylov vectors per cycle and cycles per solve.
+    """
+    if model.kind == "2d" and model.control is None and _walks(model):
+        raise ValueError("steady_state: this machine walks (lateral transport without a steering loop); "
+                         "its steady operation is steady_walk's")
+    solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
+    return _steady(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles)
+
+
+def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, y0: BeltState | None = None,
+                 period_steps: int | None = None,
+                tol: float = DEFAULT_TOL_UM, max_newton: int = DEFAULT_MAX_NEWTON,
+                restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES) -> SteadyState:
+    """The open-loop walking machine's steady walk: stationary up to a uniform lateral drift whose
+    rate (``walk_rate``, m/s) is an unknown (module docstring). Arguments as :func:`steady_state`;
+    a steering loop, if the model has one, is removed (the loop held open at zero angle)."""
+    if model.kind != "2d":
+        raise ValueError("steady_walk: a 1D belt has no lateral motion")
+    model = model.replace(control=None)
+    solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
+    return _walk(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles)
+
+
+def _walks(model: BeltModel) -> bool:
+    return bool(model.lateral_transport)

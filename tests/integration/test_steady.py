@@ -1,0 +1,97 @@
+"""Steady operation solved directly (:mod:`jaxbelt.steady`) against long time-stepped runs, its
+implicit derivatives against central differences, and the machines without one."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbelt as jb
+from jaxbelt.design.metrics import check_steady
+from jaxbelt.misalignment import apply, parameter_space
+from jaxbelt.steady import NoSteadyStateError, period_steps, quiet, steady_state, steady_walk
+
+SCENE = "two-roller-steered"  # drive skewed 0.15 mrad, PI loop on the idle roller (N = 180)
+
+
+@pytest.fixture(scope="module")
+def machine():
+    scene = jb.load_scene(SCENE)
+    return jb.build_model(scene), jb.RunOptions.from_scene(scene)
+
+
+@pytest.fixture(scope="module")
+def steady(machine):
+    model, opts = machine
+    return steady_state(model, opts.solver, dt=opts.dt)
+
+
+def test_steady_state_is_where_a_long_run_settles(machine, steady):
+    """The fixed point of the time stepper's own map: a 160 s run of the noise-free machine
+    approaches it (closer at every record) and ends within 0.1 % of a 20 µm limit of it; the loop's
+    slow integral mode is what is still settling."""
+    model, opts = machine
+    assert bool(steady.converged) and float(steady.residual) < 1e-4
+    _, tr = jb.simulate(quiet(model), opts.solver, n_steps=8000, dt=opts.dt, saveat=jb.SaveAt(every=1000))
+    dv = np.abs(np.asarray(tr.tracer_v - steady.tracer_v)).max(axis=1) * 1e6  # per record, µm
+    du = np.abs(np.asarray(tr.tracer_u[-1] - steady.tracer_u)).max() * 1e6
+    assert np.all(np.diff(dv[2:]) < 0), dv
+    assert dv[-1] < 0.02 and du < 0.02, (dv, du)
+    # the loop holds the sensor on its setpoint with a non-zero angle (the drive is skewed)
+    assert abs(float(steady.sensor_v[0])) < 1e-10
+    assert abs(float(steady.angle[0])) > 1e-5
+    np.testing.assert_allclose(np.asarray(tr.control_u[-1]), np.asarray(steady.angle), rtol=1e-3)
+
+
+def test_steady_state_gradient_matches_central_differences(machine):
+    """The implicit-function-theorem tangent of the steady tracers and angle with respect to a roller
+    translation equals central differences of converged steady solves."""
+    model, opts = machine
+    space = parameter_space(model, "idle:dz,drive:ay")
+    n_p = period_steps(model, opts.dt)
+
+    @jax.jit
+    def outputs(theta):
+        s = steady_state(apply(model, space, theta), opts.solver, dt=opts.dt, period_steps=n_p, tol=1e-9)
+        return jnp.concatenate([s.tracer_u, s.tracer_v, s.angle]) * 1e6
+
+    theta0 = jnp.zeros(space.size)
+    J = np.asarray(jax.jacfwd(outputs)(theta0))
+    h = 1e-2  # mm / mrad: the response is nearly linear, and the solves' own error stays far below h J
+    scale = np.max(np.abs(J))  # the tangents against the Jacobian's own size (a component the
+    assert scale > 1.0  # machine hardly feels has a column near zero, which relative terms cannot judge)
+    for k in range(space.size):
+        e = jnp.zeros(space.size).at[k].set(h)
+        fd = (np.asarray(outputs(theta0 + e)) - np.asarray(outputs(theta0 - e))) / (2 * h)
+        np.testing.assert_allclose(J[:, k], fd, rtol=0, atol=1e-5 * scale)
+
+
+def test_hold_angle_beyond_the_range_is_named(machine):
+    """The loop needs more than its range to hold the skewed belt: one line saying how much."""
+    model, opts = machine
+    narrow = eqx.tree_at(lambda m: m.control.limit, model, jnp.full_like(model.control.limit, 1e-6))
+    s = steady_state(narrow, opts.solver, dt=opts.dt)
+    with pytest.raises(NoSteadyStateError, match=r"needs .* mrad .* beyond its ±0.001 mrad range"):
+        check_steady(s, narrow)
+
+
+def test_steady_walk_rate_matches_an_open_loop_run(machine):
+    """The open-loop machine's walk, solved as a fixed point up to a uniform lateral drift, equals
+    the slope of the belt's lateral position in a long open-loop run after its transient."""
+    model, opts = machine
+    walk = steady_walk(model, opts.solver, dt=opts.dt)
+    assert bool(walk.converged)
+    open_loop = model.replace(control=None)
+    _, tr = jb.simulate(open_loop, opts.solver, n_steps=3000, dt=opts.dt)
+    t, v = np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1)
+    late = t > 40.0
+    slope = np.polyfit(t[late], v[late], 1)[0]
+    assert abs(slope) > 1e-7
+    np.testing.assert_allclose(float(walk.walk_rate), slope, rtol=0.01)
+
+
+def test_a_walking_machine_has_no_stationary_steady_state(machine):
+    model, opts = machine
+    with pytest.raises(ValueError, match="walks"):
+        steady_state(model.replace(control=None), opts.solver, dt=opts.dt)
