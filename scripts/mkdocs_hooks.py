@@ -267,6 +267,14 @@ BENCHMARKS = {
     "bending_locking": ("Bending locking of the 2D element", "In-plane bending of a clamped belt strip against "
                         "the Timoshenko beam: the bilinear quad locks when its elements are long and few across, "
                         "the incompatible-modes element (QM6, the default) does not."),
+    "steady_state": ("Steady operation solved directly", "The steered design machine's steady state as the fixed "
+                     "point of its one-period map (`jaxbelt.steady.steady_state`): Newton steps, residual and time "
+                     "per solve, aligned and misaligned, beside a time-stepped run of the same noise-free machine, "
+                     "when it settles within 0.5 % of a 20 µm limit of the steady deviation, and what those steps "
+                     "cost ([tolerance design](tolerance.md#steady-operation))."),
+    "design_steady": ("The main job's answer", "`jaxbelt tolerance --json` on the default scene (steady operation, "
+                      "error bars on) and on the source's variant `three-roller-tolerance`, as a user runs them; the "
+                      "README's table and figures are written from this file (`scripts/readme_results.py`)."),
     "closed_loop": ("What the steering loop costs", "A 100 s closed-loop run of `three-roller-steered` against the "
                     "open-loop run of the same machine (its `[[control]]` removed), the same solver and step count, "
                     "best of several runs side by side in one process ([belt steering](steering.md))."),

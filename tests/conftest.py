@@ -67,7 +67,7 @@ def pytest_addoption(parser):
 # turns off xdist's own reordering by test count). Seconds per module from a --durations run (a
 # stale or missing entry, default 5, only costs balance).
 MODULE_SECONDS = {
-    "test_design_steered": 20, "test_steering": 16, "test_cli_design": 16, "test_tune": 14,
+    "test_steady": 75, "test_design_steered": 20, "test_steering": 16, "test_cli_design": 16, "test_tune": 14,
     "test_model2d": 12, "test_rom_box": 12, "test_design": 11, "test_linalg": 11,
     "test_simulate_api": 10, "test_cli_reduce": 10, "test_reuse": 9, "test_validation": 7,
     "test_plot_fields": 7, "test_design_surrogate": 6, "test_rom_indicator": 6, "test_bench": 6,

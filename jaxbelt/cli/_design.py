@@ -24,12 +24,17 @@ DESIGN_SCENE = "three-roller-steered"
 def add_design_arguments(p, metric_default: str, limit: bool = False):
     p.add_argument("scene", nargs="?", default=DESIGN_SCENE,
                    help=f"{SCENE_HELP} (default {DESIGN_SCENE}: the aligned three-roller machine with its "
-                        "steering loop closed, 20 s, metrics over the last 4 s)")
+                        "steering loop closed, judged in steady operation)")
     p.add_argument("--metric", default=None,
                    help=f"{' | '.join(METRICS)} (default {metric_default}; on a 1D scene, which has no lateral "
                         f"deviation, {one_d_metric(metric_default)})")
     p.set_defaults(metric_default=metric_default)
-    p.add_argument("--at", type=float, default=None, metavar="T", help="evaluation time in s (default: the scene's end)")
+    p.add_argument("--at", type=float, default=None, metavar="T",
+                   help="evaluation time in s (default: the scene's end); on a steered machine, judge this time of "
+                        "a time-stepped run instead of steady operation")
+    p.add_argument("--window", type=float, default=None, metavar="S",
+                   help="steered machine: judge the last S seconds before --at of a time-stepped run (the "
+                        "transient question) instead of steady operation (the default)")
     p.add_argument("--solver", choices=tuple(LINEAR_SOLVERS), default=None,
                    help="linear solver of the runs (default: the scene's, kept-interior unless it names one; "
                         "reuse: the first step's factors kept, refined every step)")
@@ -75,13 +80,23 @@ def load_design_model(args):
     and its run settings (:class:`jaxbelt.RunOptions`)."""
     if args.at is not None and not (math.isfinite(args.at) and args.at > 0):
         raise UsageError(f"--at = {args.at}: must be a positive time in s")
+    if args.window is not None and not (math.isfinite(args.window) and args.window > 0):
+        raise UsageError(f"--window = {args.window}: must be a positive time in s")
     scene, _, model, options = load_run(args.scene, linear_solver=args.solver)
+    if args.window is not None and not scene.control:
+        raise UsageError(f"--window = {args.window}: the scene has no steering loop (its metrics read one instant, "
+                         "--at)")
+    if args.window is not None and args.window > (options.t_end if args.at is None else args.at) + 1e-12:
+        raise UsageError(f"--window = {args.window}: longer than the run it reads "
+                         f"({options.t_end if args.at is None else args.at:g} s)")
     if args.metric is None:
         args.metric = one_d_metric(args.metric_default) if scene.kind == "1d" else args.metric_default
     if args.metric in METRICS:  # an unknown metric is reported by make_design_study
         # the metric reads the window before t_eval: the error is asked there, not at the start-up
         t_eval = scene.time.t_end if args.at is None else args.at
         frac = CLOSED_LOOP_WINDOW if scene.control else OPEN_LOOP_WINDOW
+        if args.window is not None:
+            frac = min(1.0, args.window / t_eval)
         chosen = choose_accuracy(args, scene, metric_quantities(args.metric, scene), t_from=(1 - frac) * t_eval,
                                  allow_reuse=False)
         if chosen is not None:
@@ -121,11 +136,24 @@ def make_design_study(args, model, options, components=None, jacobian: bool = Fa
         raise UsageError(f"--metric = {args.metric!r}: unknown (one of {', '.join(METRICS)})")
     if args.at is not None and args.at > options.t_end + 1e-12:
         raise UsageError(f"--at = {args.at}: after the scene's end ({options.t_end:g} s); lengthen [time] t_end_s")
+    steady = judges_steady_operation(args, model)
+    t_eval = args.at if args.at is not None else options.t_end
+    fraction = None if args.window is None else args.window / t_eval
     try:
+        if steady:
+            return make_study(model, args.metric, dt=options.dt, components=components, integrator=options.solver,
+                              jacobian=jacobian, steady=True)
         return make_study(model, args.metric, t_eval=args.at, dt=options.dt, n_steps=options.n_steps,
-                          components=components, integrator=options.solver, jacobian=jacobian)
-    except ValueError as e:
+                          components=components, integrator=options.solver, jacobian=jacobian,
+                          window_fraction=fraction)
+    except ValueError as e:  # NoSteadyStateError included: what was found, in one line
         raise UsageError(str(e)) from None
+
+
+def judges_steady_operation(args, model) -> bool:
+    """Whether a design command judges steady operation: on a steered machine unless ``--at`` or
+    ``--window`` asks for a time-stepped run."""
+    return model.control is not None and args.at is None and args.window is None
 
 
 def stage(args, text):

@@ -25,7 +25,8 @@ def run(args):
 
 
 def _print(r):
-    print(f"{r['metric']} = {r['value_um']:.6g} µm at t = {r['t_eval_s']:g} s "
+    when = "in steady operation" if r["t_eval_s"] is None else f"at t = {r['t_eval_s']:g} s"
+    print(f"{r['metric']} = {r['value_um']:.6g} µm {when} "
           f"(forward {r['forward_s']:.3g} s, gradient {r['gradient_s']:.3g} s = ×{r['gradient_s'] / r['forward_s']:.2f})")
     print(f"{'roller':14s} {'translation x, y, z [µm/mm]':>36s}   {'rotation x, y, z [µm/mrad]':>36s}")
     for name, g in r["gradient"].items():

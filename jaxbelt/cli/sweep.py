@@ -9,8 +9,8 @@ from ..design import distribution_from_dict, run_sweep
 from ..design.store import open_sweep
 from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finer_model, finish, load_design_model,
-                      make_design_study, read_toml, stage)
+from ._design import (add_design_arguments, check_limit, check_plot, finer_model, finish, judges_steady_operation,
+                      load_design_model, make_design_study, read_toml, stage)
 
 
 def add_parser(subparsers):
@@ -45,6 +45,9 @@ def run(args):
         dist = distribution_from_dict(data, model)
     except ValueError as e:
         raise UsageError(f"--dist {args.dist}: {e}") from None
+    if args.rom == "auto" and judges_steady_operation(args, model):
+        raise UsageError("--rom auto: steady operation is solved directly; a reduced model stands in for "
+                         "time-stepped runs (--window or --at)")
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise UsageError(f"--out = {args.out!r}: exists and is not a directory")
     # FORM and the RSS stack-up read the linear response at θ = 0: taken with the reference run

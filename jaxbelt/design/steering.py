@@ -7,10 +7,13 @@ own actuator path: the controller is saturated (``k_p = 1``, a setpoint 1 m away
 to the step), so the angle ``u = a`` is held from the first step on, through the actuator lag
 (the rate limit is lifted: the identified plant is the linear one).
 
-**Walk rates** are least-squares slopes of the sensor displacement over the second half of the
-run (``t ∈ [t_end / 2, t_end]``), after the transient: at least several belt transits. The
-response is linear in the angle, so the coefficient is the slope of the stepped run minus the
-unstepped one, per mrad.
+**Walk rates** come from the open-loop machine's *steady walk* (:func:`jaxbelt.steady.steady_walk`):
+the fixed point of its one-step map up to a uniform lateral drift, whose rate is solved for — the
+walk once every transient has died out, with no run length or fitting window to choose. The
+coefficient and every misalignment's walk sensitivity are its derivatives (implicit function
+theorem, :func:`steady_walk_jacobian`), the disturbance the scene's walk minus the aligned
+machine's. The step response that the plant is identified from is still a time-stepped run (its
+transient is the point).
 
 **The sampled loop's timing.** The controller reads the sensor at the state of ``t_k`` and its
 angle acts through the step ``t_k → t_{k+1}``, held for the sample period ``T_s`` (zero-order
@@ -37,7 +40,8 @@ import jax.numpy as jnp
 from jax import lax
 import numpy as np
 
-from ..misalignment import TO_SI, parameter_space
+from ..misalignment import parameter_space
+from ..steady import steady_walk
 from ..timeloop import RunOptions, belt_speed, simulate
 from ..control import samples_per_update
 from .plant import SteeringPlant, gain_margin, plant_step_response
@@ -225,8 +229,8 @@ class SteeringReport:
     the walk; ``limit_mrad`` the loop's range; ``saturated`` whether the hold angle is beyond it
     (then a :class:`SteeringWarning` names the loop and the angle); ``walk_sensitivity``
     ``{roller: {"translation_mm_s_per_mm": [x, y, z], "rotation_mm_s_per_mrad": [x, y, z]}}`` the
-    walk rate per unit of each misalignment component at the scene's misalignment (``jax.jacfwd``
-    of the open-loop walk rate; structurally zero components, such as the drive rotation about
+    walk rate per unit of each misalignment component at the scene's misalignment (derivatives
+    of the open-loop steady walk; structurally zero components, such as the drive rotation about
     z, are 0), or ``None`` when not asked for; ``plant`` the identified transfer function
     (:class:`~jaxbelt.design.plant.SteeringPlant` as a dict: SI, m/s per rad, s, m per rad; ``None``
     when not identified);
@@ -279,28 +283,37 @@ def _period_of(w):
     return float(2 * np.pi / w) if np.isfinite(w) else float("nan")
 
 
-def walk_sensitivity(model, options: RunOptions, loop: int = 0) -> dict:
+@eqx.filter_jit
+def _steady_walk_rates(model, solver, dt, chis):
+    """The open-loop steady walk rates (m/s) of ``model`` at each row of ``chis`` (m, q), one batch."""
+    return jax.vmap(lambda chi: steady_walk(model.replace(chi_static=chi), solver, dt=dt).walk_rate)(chis)
+
+
+@eqx.filter_jit
+def _steady_walk_jacobian(model, solver, dt, idx):
+    def rate(theta):
+        return steady_walk(model.replace(chi_static=model.chi_static.at[idx].add(theta)), solver, dt=dt).walk_rate
+
+    return jax.jacfwd(rate)(jnp.zeros(idx.shape, model.chi_static.dtype))
+
+
+def steady_walk_jacobian(model, options: RunOptions, dofs) -> np.ndarray:
+    """The open-loop steady walk rate's derivatives (m/s per m or rad) with respect to the roller
+    DOFs ``dofs`` (flat indices of ``chi_static``), at the model's own misalignment: one forward
+    tangent of :func:`jaxbelt.steady.steady_walk` each (implicit function theorem)."""
+    return np.asarray(_steady_walk_jacobian(model.replace(control=None), options.solver,
+                                            jnp.asarray(options.dt, model.ell.dtype), jnp.asarray(dofs, jnp.int32)))
+
+
+def walk_sensitivity(model, options: RunOptions, loop: int = 0, jacobian=None) -> dict:
     """``{roller: {"translation_mm_s_per_mm": [x, y, z], "rotation_mm_s_per_mrad": [x, y, z]}}``:
-    ``jax.jacfwd`` of the open-loop walk rate at the sensor (the slope over the run's second half)
-    w.r.t. every misalignment component that can vary, at the model's own misalignment."""
+    the derivatives of the open-loop steady walk rate w.r.t. every misalignment component that
+    can vary, at the model's own misalignment (:func:`steady_walk_jacobian`; ``jacobian`` the
+    derivatives already taken in the order of the components)."""
     _require_loop(model, loop)
     space = parameter_space(model)
-    base = _open(model, loop)
-    n = int(options.n_steps)
-    t = np.arange(1, n + 1) * float(options.dt)
-    sel = np.flatnonzero(t >= t[-1] / 2)  # static indices: the second half
-    ts = jnp.asarray(t[sel] - t[sel].mean())
-    idx = jnp.asarray(space.chi_index, dtype=jnp.int32)
-
-    @jax.jit
-    def rate(theta):
-        m = base.replace(chi_static=base.chi_static.at[idx].add(TO_SI * theta))
-        _, tr = simulate(m, options.solver, n_steps=n, dt=float(options.dt), check=False)
-        v = tr.sensor_v[sel, loop]
-        return (v - v.mean()) @ ts / (ts @ ts) * 1e3  # mm/s
-
-    g = np.asarray(jax.jacfwd(rate)(jnp.zeros(space.size)))
-    per = space.per_roller(g)
+    g = steady_walk_jacobian(model, options, space.chi_index) if jacobian is None else np.asarray(jacobian)
+    per = space.per_roller(g)  # m/s per m = mm/s per mm; m/s per rad = mm/s per mrad
     return {name: {"translation_mm_s_per_mm": d["translation"], "rotation_mm_s_per_mrad": d["rotation"]}
             for name, d in per.items()}
 
@@ -309,10 +322,11 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
                     sensitivity: bool = True, identify: bool = True) -> SteeringReport:
     """The plant of loop ``loop`` (:class:`SteeringReport`; module docstring for the method).
 
-    Three open-loop runs in one vmapped batch (the scene's machine, the same with the actuator
-    stepped by ``step_mrad``, the aligned machine), ``options.n_steps`` steps of ``options.dt``;
-    the walk sensitivity (when asked) by forward-mode differentiation of the open-loop run; the
-    plant by :func:`identify_plant` on the step response (``identify=False``: skipped, the plant
+    The walk rates from steady walks (module docstring): the scene's and the aligned machine's in
+    one batch, the coefficient and the walk sensitivity as the derivatives of the scene's. Three
+    open-loop runs in one vmapped batch (the scene's machine, the same with the actuator stepped by
+    ``step_mrad``, the aligned machine), ``options.n_steps`` steps of ``options.dt``, give the
+    step response and the plant by :func:`identify_plant` (``identify=False``: skipped, the plant
     fields ``None``/NaN). A hold angle beyond the loop's range sets ``saturated`` and warns
     (:class:`SteeringWarning`).
     """
@@ -322,9 +336,14 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     opened = _open(model, loop)
     aligned = opened.replace(chi_static=jnp.zeros_like(model.chi_static))
     t, v, _, _ = run_batch([opened, _stepped(opened, a, loop), aligned], options, loop)
-    slopes = walk_slope(t, v) * 1e3  # mm/s
-    coeff = float((slopes[1] - slopes[0]) / step_mrad)
-    disturbance = float(slopes[0] - slopes[2])
+    dt = jnp.asarray(options.dt, model.ell.dtype)
+    walks = np.asarray(_steady_walk_rates(opened.replace(control=None), options.solver, dt,
+                                          jnp.stack([opened.chi_static, aligned.chi_static])))
+    disturbance = float(walks[0] - walks[1]) * 1e3  # mm/s
+    space = parameter_space(model)
+    dofs = list(space.chi_index) + [model.control.actuator_dof[loop]]
+    J = steady_walk_jacobian(opened, options, dofs)
+    coeff = float(J[-1])  # m/s per rad = mm/s per mrad
     hold = -disturbance / coeff
     limit = float(model.control.limit[loop]) * 1e3
     label = model.control.labels[loop]
@@ -342,7 +361,7 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
         plant, err = identify_plant(t, resp, coeff, loop_time)  # mm/s per mrad = m/s per rad
         gm, _, w_pc, _ = plant.margins(1.0, sample_delay=delay)
     rgm, rw_pc = response_gain_margin(resp, coeff, options.dt, n_s)
-    sens = walk_sensitivity(model, options, loop) if sensitivity else None
+    sens = walk_sensitivity(model, options, loop, J[:-1]) if sensitivity else None
     return SteeringReport(
         loop=label, coefficient_mm_s_per_mrad=coeff, disturbance_mm_s=disturbance, hold_angle_mrad=float(hold),
         limit_mrad=limit, saturated=saturated, walk_sensitivity=sens,

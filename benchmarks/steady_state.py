@@ -1,0 +1,100 @@
+"""Steady operation solved directly against time-stepping to the same settledness.
+
+On the design scene (the steered three-roller machine), aligned and with misalignments of the size
+the tolerance box allows, noise and edge profile off (:func:`jaxbelt.steady.quiet`): the steady
+solve (:func:`jaxbelt.steady.steady_state`: compile time, best warm time of ``--repeat``, Newton
+steps, residual) beside a time-stepped run of the same machine from its static equilibrium, the
+time it needs until its lateral deviation from the aligned machine stays within 0.5 % of a 20 µm
+limit of the steady one, and the wall time of those steps. Also the steady deviation against the
+run's at its end.
+
+Run: ``python benchmarks/steady_state.py [--t-end 80] [--repeat 3]``. Writes
+``results/steady_state.json``.
+"""
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxbelt as jb
+from _common import load, write
+from jaxbelt.misalignment import aligned, with_misalignment
+from jaxbelt.steady import quiet, steady_state
+from jaxbelt.timeloop import compile_simulation
+
+LIMIT_UM = 20.0
+SETTLED = 0.005 * LIMIT_UM  # µm
+CASES = {  # roller translations (m) and rotations (rad) per roller
+    "aligned": (None, None),
+    "roller 1 dy 18.4 um": ([[0, 18.4e-6, 0], [0, 0, 0], [0, 0, 0]], None),
+    "roller 1 about x 3.45 urad": (None, [[3.45e-6, 0, 0], [0, 0, 0], [0, 0, 0]]),
+    "roller 2 about y 0.139 mrad": (None, [[0, 0, 0], [0, 0.139e-3, 0], [0, 0, 0]]),
+}
+
+
+def timed_solve(model, solver, dt, repeat):
+    t0 = time.perf_counter()
+    s = jax.block_until_ready(steady_state(model, solver, dt=dt))
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        s = jax.block_until_ready(steady_state(model, solver, dt=dt))
+        times.append(time.perf_counter() - t0)
+    return s, first, min(times)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scene", default="three-roller-steered")
+    ap.add_argument("--t-end", type=float, default=80.0)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    model, opts = load(args.scene)
+    model = quiet(aligned(model))
+    dt, solver = opts.dt, opts.solver
+    n = int(round(args.t_end / dt))
+    every = 5
+    run = compile_simulation(model, solver, n_steps=n, dt=dt, saveat=jb.SaveAt(every=every))
+    ref_s, first, warm = timed_solve(model, solver, dt, args.repeat)
+    _, ref_tr = jax.block_until_ready(run(model, dt))
+    t0 = time.perf_counter()
+    jax.block_until_ready(run(model, dt))
+    run_s = time.perf_counter() - t0
+    rows = []
+    for name, (tr_, rot) in CASES.items():
+        m = model if tr_ is None and rot is None else with_misalignment(
+            model, translation=None if tr_ is None else jnp.asarray(tr_), rotation=None if rot is None else jnp.asarray(rot))
+        s, first_s, warm_s = timed_solve(m, solver, dt, args.repeat)
+        _, tr = jax.block_until_ready(run(m, dt))
+        dev_run = (np.asarray(tr.tracer_v) - np.asarray(ref_tr.tracer_v)) * 1e6  # (k, n_tr) µm
+        dev_steady = (np.asarray(s.tracer_v) - np.asarray(ref_s.tracer_v)) * 1e6
+        du_run = (np.asarray(tr.tracer_u[-1]) - np.asarray(ref_tr.tracer_u[-1])) * 1e6
+        du_steady = (np.asarray(s.tracer_u) - np.asarray(ref_s.tracer_u)) * 1e6
+        gap = np.abs(dev_run - dev_steady[None]).max(axis=1)
+        outside = np.flatnonzero(gap > SETTLED)
+        k_settled = 0 if outside.size == 0 else int(outside[-1]) + 1
+        settled = k_settled < len(gap)
+        t_settle = float(np.asarray(tr.t)[k_settled]) if settled else None
+        rows.append(dict(
+            case=name, newton_steps=int(s.newton_steps), residual_um=float(s.residual), converged=bool(s.converged),
+            solve_first_s=first_s, solve_warm_s=warm_s,
+            lateral_max_steady_um=float(np.abs(dev_steady).max()), lateral_max_run_end_um=float(np.abs(dev_run[-1]).max()),
+            longitudinal_max_steady_um=float(np.abs(du_steady).max()),
+            longitudinal_max_run_end_um=float(np.abs(du_run).max()),
+            lateral_gap_end_um=float(gap[-1]), settled_within_um=SETTLED, settles_at_s=t_settle,
+            time_stepping_to_settle_s=None if t_settle is None else run_s * t_settle / args.t_end,
+            angle_mrad_steady=float(np.asarray(s.angle)[0] * 1e3),
+            angle_mrad_run_end=float(np.asarray(tr.control_u)[-1, 0] * 1e3)))
+        print(rows[-1])
+    write("steady_state", dict(
+        scene=args.scene, unknowns=model.n_unknowns, dt_s=dt, period_steps=int(ref_s.period_steps),
+        t_end_s=args.t_end, run_s=run_s, aligned_solve_first_s=first, aligned_solve_warm_s=warm,
+        limit_um=LIMIT_UM, device=jax.devices()[0].device_kind, cases=rows))
+
+
+if __name__ == "__main__":
+    main()
