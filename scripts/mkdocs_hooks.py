@@ -275,6 +275,10 @@ BENCHMARKS = {
     "design_steady": ("The main job's answer", "`jaxbelt tolerance --json` on the default scene (steady operation, "
                       "error bars on) and on the source's variant `three-roller-tolerance`, as a user runs them; the "
                       "README's table and figures are written from this file (`scripts/readme_results.py`)."),
+    "steady_box_check": ("The steady box checked by time-stepping", "The steady tolerance box's worst corner run "
+                         "by time-stepping beside the aligned machine until it settles, against the steady solves; "
+                         "and the box judged over 16–20 s of a 20 s run (`jaxbelt tolerance --window 4`) for the "
+                         "comparison in [tolerance design](tolerance.md#the-steady-box-beside-the-1620-s-window-box)."),
     "closed_loop": ("What the steering loop costs", "A 100 s closed-loop run of `three-roller-steered` against the "
                     "open-loop run of the same machine (its `[[control]]` removed), the same solver and step count, "
                     "best of several runs side by side in one process ([belt steering](steering.md))."),
