@@ -1,12 +1,13 @@
 """Where the main job's time goes: ``jaxbelt tolerance`` on the default design scene, stage by
 stage, with an empty compilation cache and with a warm one, and the whole command as a user
-runs it.
+runs it (``--command-only``: only the whole command with error bars, empty and warm cache).
 
 Each measurement is its own process (the CLI's persistent compilation cache in a fresh
 directory: the first process fills it, the second reads it). Stages: imports and start-up, the
-model build (mesh, static solve), the aligned reference run and its Jacobian as one
-forward-mode program (first call: compile and run; second call: run alone), the linear response
-with the limits read from it, one batch of eight verification runs (first and second call),
+model build (mesh, static solve), the aligned steady state and its Jacobian as one
+forward-mode program with the actuator jitter's run (first call: compile and run; second call:
+run alone), the linear response with the limits read from it, one batch of eight verification
+steady solves (first and second call),
 the whole box (optimisation and verification), then the error bars: the scene one level finer
 built, and its aligned reference and the box's worst corners run as one batch. ``command``: the
 wall time of ``jaxbelt tolerance --json`` (error bars on, the default) and of ``--no-error-bars``,
@@ -47,10 +48,10 @@ configure_process(); enable_compilation_cache()  # the command line's process se
 mark("imports_s")
 scene, mesh, model, opts = load_run(DESIGN_SCENE)
 jax.block_until_ready(model.chi_static); mark("model_build_s")
-study = make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver, jacobian=True)
-jax.block_until_ready(study.linearisation); mark("aligned_run_and_jacobian_s")
-study = make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver, jacobian=True)
-jax.block_until_ready(study.linearisation); mark("aligned_run_and_jacobian_again_s")
+study = make_study(model, "lateral_max", dt=opts.dt, integrator=opts.solver, jacobian=True, steady=True)
+jax.block_until_ready(study.linearisation); mark("aligned_steady_jacobian_and_jitter_s")
+study = make_study(model, "lateral_max", dt=opts.dt, integrator=opts.solver, jacobian=True, steady=True)
+jax.block_until_ready(study.linearisation); mark("aligned_steady_jacobian_and_jitter_again_s")
 limits = {"longitudinal_max": 20.0, "steering_max": 3.0}
 work = with_limits(study, (("lateral_max", 20.0),) + tuple(limits.items()))
 response_jacobian(work); mark("linear_response_s")
@@ -62,7 +63,7 @@ _, _, fine, fine_opts = rebuild(refine(scene, n_xi=2.0, n_eta=2.0, dt=2.0))
 jax.block_until_ready(fine.chi_static); mark("finer_model_build_s")
 bars = tol.box_discretisation(res, study, fine, dt=fine_opts.dt, integrator=fine_opts.solver); mark("error_bars_s")
 marks["total_s"] = time.perf_counter() - T0
-print(json.dumps(dict(scene=DESIGN_SCENE, n_unknowns=int(model.n_unknowns), n_steps=int(opts.n_steps),
+print(json.dumps(dict(scene=DESIGN_SCENE, n_unknowns=int(model.n_unknowns), steady=True,
                       parameters=int(study.space.size), iterations=int(res.iterations), stages=marks)))
 """
 
@@ -75,19 +76,26 @@ def _command(argv, env):
 
 
 def main():
-    out = {}
+    import argparse
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--command-only", action="store_true",
+                    help="only the whole command with error bars, empty and warm cache (no stages, no variants)")
+    args = ap.parse_args()
+    out = {"command_only": args.command_only}
     base = {**os.environ, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1"}
     with tempfile.TemporaryDirectory() as cache:
         env = {**base, "JAXBELT_CACHE_DIR": cache}
-        for label in ("empty_cache", "warm_cache"):
+        for label in () if args.command_only else ("empty_cache", "warm_cache"):
             r = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, check=True)
             out[label] = json.loads(r.stdout.strip().splitlines()[-1])
             print(label, json.dumps(out[label]["stages"]), flush=True)
     out["command"] = {}
     # the last pair: the command with XLA:CPU's MLIR fusion emitters, which it otherwise switches off
     # (the user's XLA_FLAGS win), to measure what that switch saves
-    for name, argv, xla in (("error_bars", [], None), ("no_error_bars", ["--no-error-bars"], None),
-                            ("error_bars_mlir_fusion_emitters", [], "--xla_cpu_use_fusion_emitters=true")):
+    variants = (("error_bars", [], None), ("no_error_bars", ["--no-error-bars"], None),
+                ("error_bars_mlir_fusion_emitters", [], "--xla_cpu_use_fusion_emitters=true"))
+    for name, argv, xla in variants[:1] if args.command_only else variants:
         with tempfile.TemporaryDirectory() as cache:
             env = {**base, "JAXBELT_CACHE_DIR": cache, **({"XLA_FLAGS": xla} if xla else {})}
             out["command"][name] = {"empty_cache_s": _command(argv, env), "warm_cache_s": _command(argv, env)}
