@@ -245,10 +245,10 @@ class RelativeGMRES(lx.AbstractLinearSolver):
         return unravel(x), result, {}
 
     def transpose(self, state, options):
-        return state.transpose()
+        return state.transpose(), options
 
     def conj(self, state, options):
-        return state.conj()
+        return state.conj(), options
 
     def assume_full_rank(self):
         return True

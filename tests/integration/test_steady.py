@@ -45,8 +45,9 @@ def test_steady_state_is_where_a_long_run_settles(machine, steady):
 
 
 def test_steady_state_gradient_matches_central_differences(machine):
-    """The implicit-function-theorem tangent of the steady tracers and angle with respect to a roller
-    translation equals central differences of converged steady solves."""
+    """The implicit-function-theorem tangents of the steady tracers and angle with respect to a
+    roller translation and tilt equal central differences of converged steady solves, and reverse
+    mode (one transposed solve) equals the forward tangents."""
     model, opts = machine
     space = parameter_space(model, "idle:dz,drive:ay")
     n_p = period_steps(model, opts.dt)
@@ -59,6 +60,10 @@ def test_steady_state_gradient_matches_central_differences(machine):
     theta0 = jnp.zeros(space.size)
     J = np.asarray(jax.jacfwd(outputs)(theta0))
     h = 1e-2  # mm / mrad: the response is nearly linear, and the solves' own error stays far below h J
+    # reverse mode (one transposed solve) gives the same derivatives as the forward tangents
+    weights = jnp.linspace(-1.0, 1.0, J.shape[0])
+    g = np.asarray(jax.grad(lambda t: outputs(t) @ weights)(theta0))
+    np.testing.assert_allclose(g, J.T @ np.asarray(weights), rtol=0, atol=1e-5 * np.abs(g).max())
     scale = np.max(np.abs(J))  # the tangents against the Jacobian's own size (a component the
     assert scale > 1.0  # machine hardly feels has a column near zero, which relative terms cannot judge)
     for k in range(space.size):
