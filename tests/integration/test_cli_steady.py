@@ -43,3 +43,17 @@ def test_transient_options_refused_before_any_run(argv, message, tmp_path, capsy
     dist.write_text('[roller."idle"]\nrotation_mrad = {dist = "normal", sigma = [0.05, 0.05, 0.0]}\n')
     assert main([a.replace("{dist}", str(dist)) for a in argv]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_barely_felt_component_is_left_at_the_cap_where_it_counts_as_unconstrained():
+    """A component the metric barely feels (an axial roller offset of the steered machine in steady
+    operation) ends at the cap, within the fraction above which ``tolerance_box`` lists it as
+    unconstrained rather than as a tolerance; a felt one ends below it."""
+    import numpy as np
+
+    from jaxbelt.design.linear_box import H_MAX, LinearResponse, optimise_box
+    from jaxbelt.design.tolerance import CAP_FRACTION
+
+    J = np.array([[1.0, 1e-9], [0.5, -1e-9]])  # the second component: felt at 1e-9 µm/mm only
+    h = optimise_box(LinearResponse(np.zeros(2), J, "max"), 20.0, None, H_MAX)
+    assert h[1] >= CAP_FRACTION * H_MAX and h[0] < CAP_FRACTION * H_MAX
