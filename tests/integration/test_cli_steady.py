@@ -54,6 +54,6 @@ def test_a_barely_felt_component_is_left_at_the_cap_where_it_counts_as_unconstra
     from jaxbelt.design.linear_box import H_MAX, LinearResponse, optimise_box
     from jaxbelt.design.tolerance import CAP_FRACTION
 
-    J = np.array([[1.0, 1e-9], [0.5, -1e-9]])  # the second component: felt at 1e-9 µm/mm only
+    J = np.array([[100.0, 1e-9], [50.0, -1e-9]])  # the second component: felt at 1e-9 µm/mm only
     h = optimise_box(LinearResponse(np.zeros(2), J, "max"), 20.0, None, H_MAX)
     assert h[1] >= CAP_FRACTION * H_MAX and h[0] < CAP_FRACTION * H_MAX
