@@ -47,10 +47,11 @@ is jit- and vmap-able over misalignments and gains.
 damps them by far over a period) and close to the identity only in the slow ones: the loop's
 lateral modes and the lightly damped low belt modes. GMRES's iterations go to those few slow
 directions, so an unpreconditioned GMRES needs some tens of Jacobian-vector products per
-Newton step, each one period of steps with the step's factors kept; the response is nearly
-linear in the misalignments, so Newton needs two steps (the second checks the first). A
-preconditioner from the step's factors (one Backward-Euler step's inverse) targets the fast
-modes, which GMRES already resolves in a few iterations; it is not used.
+Newton step, each one period of linearised steps with the step's factors kept. Newton takes
+3–5 steps: the first removes the start guess's large velocity residual, the response is nearly
+linear after it (measured: ``benchmarks/steady_state.py``). No preconditioner is used: one from
+the step's factors would act on the fast modes, which GMRES resolves in its first iterations
+anyway; the slow, transported directions are where its iterations go.
 """
 
 from __future__ import annotations
