@@ -313,12 +313,11 @@ BENCHMARKS = {
                    "reach by splitting the one process's work perfectly."),
     "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene, "
                           "stage by stage, in a process with an empty compilation cache and in a second one that "
-                          "reads it: start-up, model build, the aligned run and its Jacobian as one forward-mode "
-                          "program (first call and again), the linear response with the limits read from it, a batch "
-                          "of eight verification runs (first call and again), the whole box, and the error bars (the scene "
-                          "one level finer, its aligned reference and the box's worst corners as one batch); then "
-                          "the whole command with and without error bars, empty cache and warm, and with error bars once more "
-                          "with XLA:CPU's MLIR fusion emitters on, which the command line switches off."),
+                          "reads it, then the whole command, empty cache and warm. The stage names say which "
+                          "question was timed: `aligned_run_and_jacobian_s` the time-stepped 16–20 s window "
+                          "(what `--window 4` asks), `aligned_steady_jacobian_and_jitter_s` steady operation; "
+                          "the steady path's figures are in [steady operation](#steady_state) and "
+                          "[the main job's answer](#design_steady) (`command_s`)."),
     "design_error_bars": ("The design scenes' grids and their error bars", "The tolerance box's worst corner on "
                           "each built-in design scene's grid and one level finer, as a share of the 20 µm limit "
                           "(the rule: at most 5 %), and the half-widths' relative change "
