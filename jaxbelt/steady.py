@@ -9,7 +9,8 @@ steps :func:`jaxbelt.simulate` takes — steady operation is the fixed point
     x* = Φ(x*),
 
 solved here by Newton's method on ``F(x) = Φ(x) − x`` with GMRES on the Jacobian-vector products
-of ``Φ`` (:mod:`optimistix` ``root_find`` with ``Newton``, :mod:`lineax` ``GMRES``). Because ``Φ``
+of ``Φ`` (:mod:`optimistix` ``root_find`` with ``Newton``, restarted GMRES as a :mod:`lineax` solver,
+:class:`RelativeGMRES`). Because ``Φ``
 is the time stepper's own map, a long time-stepped run settles onto ``x*`` to the solver's
 tolerance, not to a discretisation error. Derivatives come from the implicit function theorem
 (``optimistix.ImplicitAdjoint``): ``dx*/dθ = (I − ∂Φ/∂x)⁻¹ ∂Φ/∂θ``, one linear solve per tangent
@@ -25,7 +26,7 @@ is jit- and vmap-able over misalignments and gains.
   belt's travel are not unknowns: they only time the sensor noise and the edge profile, which
   steady operation leaves out (:func:`quiet`: both act alike on an aligned and a misaligned
   machine, and cancel in a deviation; the actuator jitter they cause is measured once by a
-  time-stepped run, :func:`jaxbelt.design.steady.actuator_jitter`).
+  time-stepped run, :func:`actuator_jitter`).
 - *The actuator range and rate limit* are lifted in the solve: steady operation has a constant
   angle, so the rate limit never acts, and the angle the loop needs is found even where it lies
   beyond the range — which is then reported against the range (no steady state), not clipped.
@@ -73,10 +74,11 @@ from .control import ControllerState, samples_per_update, sensor_displacement
 from .integrators import AbstractIntegrator, make_solver
 from .model import BeltModel
 from .state import BeltState, initial_state
-from .timeloop import check_time_step, edge_margin, make_step, tracer_values
+from .timeloop import SaveAt, belt_speed, check_time_step, edge_margin, make_step, simulate, tracer_values
 
 UNIT = 1e6  # m → µm, rad → µrad: the scaled unknowns' unit
 DEFAULT_TOL_UM = 1e-5
+JITTER_TURNS = 2.0  # belt turns of the time-stepped run that measures the actuator jitter
 DEFAULT_MAX_NEWTON = 8
 DEFAULT_GMRES_RESTART = 200
 DEFAULT_GMRES_CYCLES = 6
@@ -174,15 +176,15 @@ def _period_map(model: BeltModel, solver: AbstractIntegrator, dt, n: int, run_da
     return phi
 
 
-def _lateral_direction(model: BeltModel, y):
+def _lateral_direction(y):
     """``e_v`` in the scaled unknowns: a uniform unit lateral shift of every belt node."""
     e = jax.tree.map(jnp.zeros_like, y)
     u = e[0].at[:, 1::2].set(1.0)
     return (u,) + tuple(e[1:])
 
 
-def _residual(model: BeltModel, solver, dt, n, sc, template, walking: bool):
-    """``F(y, model)`` of the root find (and the augmented walk system)."""
+def _residual(solver, dt, n, sc, template, walking: bool):
+    """``F(y, (model, run_data))`` of the root find (and of the augmented walk system)."""
 
     def phi_scaled(y, args):
         m, run_data = args
@@ -201,7 +203,7 @@ def _residual(model: BeltModel, solver, dt, n, sc, template, walking: bool):
 
     def fn_walk(yc, args):
         y, c = yc
-        e = _lateral_direction(model, y)
+        e = _lateral_direction(y)
         f = jax.tree.map(lambda a, b, d: a - b - c * d, phi_scaled(y, args), y, e)
         f = mass_row(y, f)
         phase = jnp.mean(y[0][:, 1::2]) - jnp.mean(template.u[:, 1::2]) * UNIT
@@ -267,7 +269,7 @@ def _solve(fn, y0, model, solver, template, dt, tol, max_steps, restart, gmres_s
     return sol
 
 
-def _result(model, solver, dt, n, y, sc, template, walk_per_period, sol, tol):
+def _result(model, dt, n, y, sc, template, walk_per_period, sol, tol):
     state = _unpack(y, template, sc)
     tu, tv = tracer_values(model, state.u)
     f = sol.state.f  # the residual where the last Newton step started
@@ -297,19 +299,19 @@ def _setup(model, solver, dt, y0, n=None):
 @eqx.filter_jit
 def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps):
     q = quiet(model)
-    fn = _residual(q, solver, dt, n, sc, template, walking=False)
+    fn = _residual(solver, dt, n, sc, template, walking=False)
     y0 = _pack(template, sc)
     sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps)
-    return _result(q, solver, dt, n, sol.value, sc, template, jnp.zeros((), dt.dtype), sol, tol)
+    return _result(q, dt, n, sol.value, sc, template, jnp.zeros((), dt.dtype), sol, tol)
 
 
 @eqx.filter_jit
 def _walk(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps):
     q = quiet(model)
-    fn = _residual(q, solver, dt, n, sc, template, walking=True)
+    fn = _residual(solver, dt, n, sc, template, walking=True)
     y0 = (_pack(template, sc), jnp.zeros((), dt.dtype))
     sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps)
-    return _result(q, solver, dt, n, sol.value[0], sc, template, sol.value[1], sol, tol)
+    return _result(q, dt, n, sol.value[0], sc, template, sol.value[1], sol, tol)
 
 
 def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, y0: BeltState | None = None,
@@ -349,3 +351,43 @@ def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, d
 
 def _walks(model: BeltModel) -> bool:
     return bool(model.lateral_transport)
+
+
+def check_steady(s, model: BeltModel, what: str = "the aligned machine"):
+    """:class:`NoSteadyStateError` unless ``s`` (concrete) is a steady operation the
+    machine can hold: converged, its actuators within their range, the belt on its rollers."""
+    if not bool(s.converged) or not np.all(np.isfinite(np.asarray(s.tracer_u))):
+        raise NoSteadyStateError(f"no steady operation of {what}: the fixed-point iteration did not converge "
+                                 f"(residual {float(s.residual):.3g} µm after {int(s.newton_steps)} Newton steps)")
+    if s.angle is not None:
+        need, limit = np.abs(np.asarray(s.angle)), np.asarray(model.control.limit)
+        for label, a, lim in zip(model.control.labels, need, limit):
+            if a > lim:
+                raise NoSteadyStateError(f"no steady operation of {what}: the loop on {label} needs {a * 1e3:.4g} mrad "
+                                         f"to hold the belt, beyond its ±{lim * 1e3:.4g} mrad range")
+    if s.edge_margin is not None and np.min(np.asarray(s.edge_margin)) < 0:
+        raise NoSteadyStateError(f"no steady operation of {what}: the belt edge runs off a roller "
+                                 f"({-np.min(np.asarray(s.edge_margin)) * 1e3:.3g} mm beyond its face)")
+
+
+def actuator_jitter(model: BeltModel, integrator, dt, s: SteadyState, turns: float = JITTER_TURNS):
+    """The aligned machine's actuator jitter around its steady angle, mrad (n_c,): the largest
+    ``|angle − steady angle|`` of a time-stepped run of ``model`` (sensor noise and edge profile
+    on) from its steady state ``s`` over ``turns`` belt turns. A loop whose steady state is not
+    stable shows here: the deviation growing from the first turn to the last is named
+    (:class:`NoSteadyStateError`)."""
+    loops = model.control
+    n = max(2, int(np.ceil(turns * float(loops.loop_length) / belt_speed(model) / float(dt))))
+    y0 = dataclasses.replace(s.state, control=dataclasses.replace(s.state.control, travel=jnp.zeros((), dt.dtype)))
+    _, tr = simulate(model, integrator, n_steps=n, dt=dt, y0=y0, saveat=SaveAt(), check=False)
+    dev = np.abs(np.asarray(tr.control_u) - np.asarray(s.angle)[None])
+    if not np.all(np.isfinite(dev)):
+        raise NoSteadyStateError("no steady operation: the aligned machine's run from its steady state diverged "
+                                 "(an unstable loop)")
+    half = n // 2
+    first, last = dev[:half].max(axis=0), dev[half:].max(axis=0)
+    if np.any((last > 4 * first) & (last > 0.05 * np.asarray(loops.limit))):
+        raise NoSteadyStateError(f"no steady operation: the steady state is unstable (actuator deviation grows from "
+                                 f"{first.max() * 1e3:.3g} to {last.max() * 1e3:.3g} mrad over {turns:g} belt turns: "
+                                 "a growing loop mode; lower the gains)")
+    return jnp.asarray(dev.max(axis=0) * 1e3, dt.dtype)

@@ -41,7 +41,7 @@ history then has one row — the steady state — so the table above applies wit
 lateral and longitudinal deviation of every tracer from the aligned machine's steady state, and
 the actuator's steady angle. ``steering_max``'s response is that angle widened by the aligned
 machine's own actuator jitter ``j`` (sensor noise and edge waviness, measured once by a
-time-stepped run from the aligned steady state over :data:`JITTER_TURNS` belt turns): the pair
+time-stepped run from the aligned steady state over :data:`jaxbelt.steady.JITTER_TURNS` belt turns): the pair
 ``(a + j, a − j)``, whose max-abs is ``|a| + j``, still affine in the misalignments. A misalignment
 the loop absorbs (the steering roller's own tilt about its actuated axis) then costs only actuator
 range.
@@ -66,8 +66,8 @@ from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..state import BeltState
-from ..steady import NoSteadyStateError, period_steps, steady_state
-from ..timeloop import SaveAt, check_finite, simulate
+from ..steady import NoSteadyStateError, actuator_jitter, check_steady, period_steps, steady_state
+from ..timeloop import check_finite, simulate
 
 M_TO_UM = 1e6
 RAD_TO_MRAD = 1e3
@@ -244,9 +244,6 @@ def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | No
     return study
 
 
-JITTER_TURNS = 2.0  # belt turns of the time-stepped run that measures the actuator jitter
-
-
 def _steady_rows(s):
     """A steady state's tracers and angles as one-row histories ``(u, v, angle)`` (m, m, rad)."""
     row = lambda a: None if a is None else a[None]  # noqa: E731
@@ -278,48 +275,6 @@ def _steady_batch(model, space, integrator, dt, n_p, chis, y0):
     return jax.vmap(one)(chis)
 
 
-def check_steady(s, model: BeltModel, what: str = "the aligned machine"):
-    """:class:`jaxbelt.steady.NoSteadyStateError` unless ``s`` (concrete) is a steady operation the
-    machine can hold: converged, its actuators within their range, the belt on its rollers."""
-    if not bool(s.converged) or not np.all(np.isfinite(np.asarray(s.tracer_u))):
-        raise NoSteadyStateError(f"no steady operation of {what}: the fixed-point iteration did not converge "
-                                 f"(residual {float(s.residual):.3g} µm after {int(s.newton_steps)} Newton steps)")
-    if s.angle is not None:
-        need, limit = np.abs(np.asarray(s.angle)), np.asarray(model.control.limit)
-        for label, a, lim in zip(model.control.labels, need, limit):
-            if a > lim:
-                raise NoSteadyStateError(f"no steady operation of {what}: the loop on {label} needs {a * 1e3:.4g} mrad "
-                                         f"to hold the belt, beyond its ±{lim * 1e3:.4g} mrad range")
-    if s.edge_margin is not None and np.min(np.asarray(s.edge_margin)) < 0:
-        raise NoSteadyStateError(f"no steady operation of {what}: the belt edge runs off a roller "
-                                 f"({-np.min(np.asarray(s.edge_margin)) * 1e3:.3g} mm beyond its face)")
-
-
-def actuator_jitter(model: BeltModel, integrator, dt, s, turns: float = JITTER_TURNS):
-    """The aligned machine's actuator jitter around its steady angle, mrad (n_c,): the largest
-    ``|angle − steady angle|`` of a time-stepped run of ``model`` (sensor noise and edge profile
-    on) from its steady state ``s`` over ``turns`` belt turns. A loop whose steady state is not
-    stable shows here: the deviation growing from the first turn to the last is named
-    (:class:`jaxbelt.steady.NoSteadyStateError`)."""
-    from ..timeloop import belt_speed
-
-    loops = model.control
-    n = max(2, int(np.ceil(turns * float(loops.loop_length) / belt_speed(model) / float(dt))))
-    y0 = dataclasses.replace(s.state, control=dataclasses.replace(s.state.control, travel=jnp.zeros((), dt.dtype)))
-    _, tr = simulate(model, integrator, n_steps=n, dt=dt, y0=y0, saveat=SaveAt(), check=False)
-    dev = np.abs(np.asarray(tr.control_u) - np.asarray(s.angle)[None])
-    if not np.all(np.isfinite(dev)):
-        raise NoSteadyStateError("no steady operation: the aligned machine's run from its steady state diverged "
-                                 "(an unstable loop)")
-    half = n // 2
-    first, last = dev[:half].max(axis=0), dev[half:].max(axis=0)
-    if np.any((last > 4 * first) & (last > 0.05 * np.asarray(loops.limit))):
-        raise NoSteadyStateError(f"no steady operation: the steady state is unstable (actuator deviation grows from "
-                                 f"{first.max() * 1e3:.3g} to {last.max() * 1e3:.3g} mrad over {turns:g} belt turns: "
-                                 "a growing loop mode; lower the gains)")
-    return jnp.asarray(dev.max(axis=0) * RAD_TO_MRAD, dt.dtype)
-
-
 def _steady_frame(model, metric, dt, components, integrator) -> dict:
     _check_metric(model, metric)
     dt = jnp.asarray(dt, model.ell.dtype)
@@ -328,7 +283,7 @@ def _steady_frame(model, metric, dt, components, integrator) -> dict:
                 steady=True, period_steps=period_steps(model, dt))
 
 
-def _make_steady_study(model, metric, dt, components, integrator, jacobian, jitter=None) -> Study:
+def _make_steady_study(model, metric, dt, components, integrator, jacobian) -> Study:
     """:func:`make_study` of steady operation (module docstring)."""
     frame = _steady_frame(model, metric, dt, components, integrator)
     if model.kind == "2d" and model.control is None and model.lateral_transport:
@@ -341,8 +296,7 @@ def _make_steady_study(model, metric, dt, components, integrator, jacobian, jitt
     else:
         s = steady_state(aligned(model), frame["integrator"], dt=frame["dt"], period_steps=frame["period_steps"])
     check_steady(s, model)
-    if model.control is not None and jitter is None:
-        jitter = actuator_jitter(aligned(model), frame["integrator"], frame["dt"], s)
+    jitter = None if model.control is None else actuator_jitter(aligned(model), frame["integrator"], frame["dt"], s)
     u, v, angle = _steady_rows(s)
     study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,
                   steady_start=s.state)
@@ -428,10 +382,10 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
         if not np.all(np.asarray(converged)):
             raise NoSteadyStateError(f"no steady operation at {int(np.sum(~np.asarray(converged)))} of "
                                      f"{len(chis)} configurations: the fixed-point iteration did not converge")
+        aligned_steady = jax.tree.map(lambda a: a[0], first)
         if model.control is not None and jitter_mrad is None:
-            aligned_state = jax.tree.map(lambda a: a[0], first)
-            jitter_mrad = actuator_jitter(aligned(model), frame["integrator"], frame["dt"], aligned_state)
-        frame.update(jitter_mrad=jitter_mrad, steady_start=jax.tree.map(lambda a: a[0], first.state))
+            jitter_mrad = actuator_jitter(aligned(model), frame["integrator"], frame["dt"], aligned_steady)
+        frame.update(jitter_mrad=jitter_mrad, steady_start=aligned_steady.state)
     else:
         frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
         thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)

@@ -284,25 +284,28 @@ def _period_of(w):
 
 
 @eqx.filter_jit
-def _steady_walk_rates(model, solver, dt, chis):
-    """The open-loop steady walk rates (m/s) of ``model`` at each row of ``chis`` (m, q), one batch."""
-    return jax.vmap(lambda chi: steady_walk(model.replace(chi_static=chi), solver, dt=dt).walk_rate)(chis)
+def _steady_walk_rate(model, solver, dt):
+    """The open-loop steady walk rate (m/s) of ``model``."""
+    return steady_walk(model, solver, dt=dt).walk_rate
 
 
 @eqx.filter_jit
-def _steady_walk_jacobian(model, solver, dt, idx):
+def _steady_walk_and_jacobian(model, solver, dt, idx):
     def rate(theta):
-        return steady_walk(model.replace(chi_static=model.chi_static.at[idx].add(theta)), solver, dt=dt).walk_rate
+        r = steady_walk(model.replace(chi_static=model.chi_static.at[idx].add(theta)), solver, dt=dt).walk_rate
+        return r, r
 
-    return jax.jacfwd(rate)(jnp.zeros(idx.shape, model.chi_static.dtype))
+    return jax.jacfwd(rate, has_aux=True)(jnp.zeros(idx.shape, model.chi_static.dtype))
 
 
-def steady_walk_jacobian(model, options: RunOptions, dofs) -> np.ndarray:
+def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, float]:
     """The open-loop steady walk rate's derivatives (m/s per m or rad) with respect to the roller
     DOFs ``dofs`` (flat indices of ``chi_static``), at the model's own misalignment: one forward
-    tangent of :func:`jaxbelt.steady.steady_walk` each (implicit function theorem)."""
-    return np.asarray(_steady_walk_jacobian(model.replace(control=None), options.solver,
-                                            jnp.asarray(options.dt, model.ell.dtype), jnp.asarray(dofs, jnp.int32)))
+    tangent of :func:`jaxbelt.steady.steady_walk` each (implicit function theorem). **Returns:**
+    ``(derivatives, the walk rate itself)`` (the solve the tangents ride on)."""
+    J, rate = _steady_walk_and_jacobian(model.replace(control=None), options.solver,
+                                        jnp.asarray(options.dt, model.ell.dtype), jnp.asarray(dofs, jnp.int32))
+    return np.asarray(J), float(rate)
 
 
 def walk_sensitivity(model, options: RunOptions, loop: int = 0, jacobian=None) -> dict:
@@ -312,7 +315,7 @@ def walk_sensitivity(model, options: RunOptions, loop: int = 0, jacobian=None) -
     derivatives already taken in the order of the components)."""
     _require_loop(model, loop)
     space = parameter_space(model)
-    g = steady_walk_jacobian(model, options, space.chi_index) if jacobian is None else np.asarray(jacobian)
+    g = steady_walk_jacobian(model, options, space.chi_index)[0] if jacobian is None else np.asarray(jacobian)
     per = space.per_roller(g)  # m/s per m = mm/s per mm; m/s per rad = mm/s per mrad
     return {name: {"translation_mm_s_per_mm": d["translation"], "rotation_mm_s_per_mrad": d["rotation"]}
             for name, d in per.items()}
@@ -322,8 +325,8 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
                     sensitivity: bool = True, identify: bool = True) -> SteeringReport:
     """The plant of loop ``loop`` (:class:`SteeringReport`; module docstring for the method).
 
-    The walk rates from steady walks (module docstring): the scene's and the aligned machine's in
-    one batch, the coefficient and the walk sensitivity as the derivatives of the scene's. Three
+    The walk rates from steady walks (module docstring): the scene's with its derivatives (the
+    coefficient and the walk sensitivity) in one program, the aligned machine's beside it. Three
     open-loop runs in one vmapped batch (the scene's machine, the same with the actuator stepped by
     ``step_mrad``, the aligned machine), ``options.n_steps`` steps of ``options.dt``, give the
     step response and the plant by :func:`identify_plant` (``identify=False``: skipped, the plant
@@ -336,13 +339,12 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     opened = _open(model, loop)
     aligned = opened.replace(chi_static=jnp.zeros_like(model.chi_static))
     t, v, _, _ = run_batch([opened, _stepped(opened, a, loop), aligned], options, loop)
-    dt = jnp.asarray(options.dt, model.ell.dtype)
-    walks = np.asarray(_steady_walk_rates(opened.replace(control=None), options.solver, dt,
-                                          jnp.stack([opened.chi_static, aligned.chi_static])))
-    disturbance = float(walks[0] - walks[1]) * 1e3  # mm/s
     space = parameter_space(model)
     dofs = list(space.chi_index) + [model.control.actuator_dof[loop]]
-    J = steady_walk_jacobian(opened, options, dofs)
+    J, walk = steady_walk_jacobian(opened, options, dofs)
+    walk_aligned = float(_steady_walk_rate(aligned.replace(control=None), options.solver,
+                                           jnp.asarray(options.dt, model.ell.dtype)))
+    disturbance = (walk - walk_aligned) * 1e3  # mm/s
     coeff = float(J[-1])  # m/s per rad = mm/s per mrad
     hold = -disturbance / coeff
     limit = float(model.control.limit[loop]) * 1e3

@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
-from jaxbelt.design.metrics import check_steady
 from jaxbelt.misalignment import apply, parameter_space
-from jaxbelt.steady import NoSteadyStateError, period_steps, quiet, steady_state, steady_walk
+from jaxbelt.steady import NoSteadyStateError, check_steady, period_steps, quiet, steady_state, steady_walk
 
 SCENE = "two-roller-steered"  # drive skewed 0.15 mrad, PI loop on the idle roller (N = 180)
 
