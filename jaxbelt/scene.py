@@ -247,14 +247,26 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
         tension_stiffening=_choice(solver, "tension_stiffening", "solver", (True, False), default=True),
         accuracy_um=_number(solver, "accuracy_um", "solver", required=False, positive=True),
     )
+    if data.get("control") and kind == "1d":
+        raise _err("control", "[[control]]", "a steering loop needs a 2D scene (model.kind = \"2d\"): the 1D model "
+                   "has no lateral displacement to steer")
     if solver_spec.lateral_transport and kind == "1d":
         raise _err("solver.lateral_transport", True, "the 1D model has no lateral displacement")
     raw_control = data.get("control", [])
     if isinstance(raw_control, dict):
-        raw_control = [raw_control]
+        # one loop per [[control]] table: a single [control] table reads as "the machine's control
+        # settings", and a second loop added later would need the file rewritten
+        raise _err("control", "[control]", "write a steering loop as an array of tables, [[control]] (one per loop)")
     if not isinstance(raw_control, list):
         raise _err("control", raw_control, "must be [[control]] tables")
     control = tuple(_control(c, i, rollers, belt_spec, time_spec) for i, c in enumerate(raw_control))
+    seen = {}
+    for i, c in enumerate(control):
+        other = seen.setdefault((c.actuator, c.axis), i)
+        if other != i:
+            raise _err(f"control[{i}]", f"{c.actuator} about {c.axis}",
+                       f"control[{other}] already drives this actuator about this axis: one loop per actuated "
+                       "rotation (two would both act on it)")
     if control and not solver_spec.lateral_transport:
         raise _err("solver.lateral_transport", False,
                    "a [[control]] steering loop needs lateral_transport = true (without it the belt cannot walk)")

@@ -13,7 +13,7 @@ of ``Φ`` (:mod:`optimistix` ``root_find`` with ``Newton``, restarted GMRES as a
 :class:`RelativeGMRES`). Because ``Φ``
 is the time stepper's own map, a long time-stepped run settles onto ``x*`` to the solver's
 tolerance, not to a discretisation error. Derivatives come from the implicit function theorem
-(``optimistix.ImplicitAdjoint``): ``dx*/dθ = (I − ∂Φ/∂x)⁻¹ ∂Φ/∂θ``, one linear solve per tangent
+(``jax.lax.custom_root``): ``dx*/dθ = (I − ∂Φ/∂x)⁻¹ ∂Φ/∂θ``, one linear solve per tangent
 (forward mode) or one transposed solve (reverse mode), never through the iterations; the solve
 is jit- and vmap-able over misalignments and gains.
 
@@ -78,6 +78,7 @@ from .timeloop import SaveAt, belt_speed, check_time_step, edge_margin, make_ste
 
 UNIT = 1e6  # m → µm, rad → µrad: the scaled unknowns' unit
 DEFAULT_TOL_UM = 1e-5
+UNBOUNDED = 1e30  # the lifted actuator range and rate limit of the steady map (rad, rad/s)
 JITTER_TURNS = 2.0  # belt turns of the time-stepped run that measures the actuator jitter
 DEFAULT_MAX_NEWTON = 8
 DEFAULT_GMRES_RESTART = 200
@@ -123,7 +124,9 @@ def quiet(model: BeltModel) -> BeltModel:
     loops = model.control
     if loops is None:
         return model
-    inf = jnp.full_like(loops.limit, jnp.inf)
+    # "no limit" as a huge finite bound, not inf: the implicit derivative differentiates the map with
+    # respect to every model field, and a zero tangent times an infinite bound is NaN
+    inf = jnp.full_like(loops.limit, UNBOUNDED)
     loops = eqx.tree_at(lambda c: (c.noise, c.profile_amplitude, c.limit, c.rate_limit), loops,
                         (jnp.zeros_like(loops.noise), jnp.zeros_like(loops.profile_amplitude), inf, inf))
     return model.replace(control=loops)
@@ -166,14 +169,14 @@ def _unpack(y, template: BeltState, sc: _Scales) -> BeltState:
                      m_e=(1.0 + m / UNIT) * sc.m_e0, step=jnp.zeros((), jnp.int32), control=control)
 
 
-def _period_map(model: BeltModel, solver: AbstractIntegrator, dt, n: int, run_data):
-    """``Φ``: ``n`` steps of :func:`jaxbelt.timeloop.make_step` from a state at step 0."""
+@eqx.filter_jit
+def _period_map(model: BeltModel, solver: AbstractIntegrator, dt, n: int, run_data, state: BeltState) -> BeltState:
+    """``Φ(state)``: ``n`` steps of :func:`jaxbelt.timeloop.make_step` from a state at step 0. Its own
+    ``jit``: the Newton solve, its linearisation, transposition and batching all call the one period
+    map, which is then traced once per solve instead of once per use (the step is a large program,
+    and its Python tracing was most of a solve's start-up)."""
     step = make_step(model, solver, dt, run_data)
-
-    def phi(state: BeltState) -> BeltState:
-        return lax.scan(lambda s, _: (step(s)[0], None), state, None, length=n)[0]
-
-    return phi
+    return lax.scan(lambda s, _: (step(s)[0], None), state, None, length=n)[0]
 
 
 def _lateral_direction(y):
@@ -189,7 +192,7 @@ def _residual(solver, dt, n, sc, template, walking: bool):
     def phi_scaled(y, args):
         m, run_data = args
         s = _unpack(y, template, sc)
-        return _pack(_period_map(m, solver, dt, n, run_data)(s), sc)
+        return _pack(_period_map(m, solver, dt, n, run_data, s), sc)
 
     def mass_row(y, f):
         total = jnp.sum((1.0 + y[4] / UNIT) * sc.m_e0) - jnp.sum(sc.m_e0)
@@ -212,6 +215,27 @@ def _residual(solver, dt, n, sc, template, walking: bool):
     return fn_walk
 
 
+def staged_gmres(matvec, b, rtol: float, restart: int = DEFAULT_GMRES_RESTART, cycles: int = DEFAULT_GMRES_CYCLES):
+    """Restarted GMRES on ``matvec(x) = b`` (pytrees) stopped at ``‖r‖₂ ≤ rtol ‖b‖₂``: ``(x, missed)``,
+    ``missed`` true where the solve ended a thousand times above the tolerance. A tight tolerance is
+    met in stages of at most :data:`STAGE_RTOL` each (iterative refinement: each stage solves for the
+    residual the ones before left): a single GMRES asked for a residual near round-off breaks down in
+    its least-squares update and returns NaN."""
+    b_flat, unravel = jax.flatten_util.ravel_pytree(b)
+    mv = lambda x: jax.flatten_util.ravel_pytree(matvec(unravel(x)))[0]  # noqa: E731
+    stages = max(1, math.ceil(math.log(rtol) / math.log(STAGE_RTOL) - 1e-9))
+    stage_rtol = rtol ** (1.0 / stages)
+    x, r = jnp.zeros_like(b_flat), b_flat
+    for _ in range(stages):
+        zero = jnp.linalg.norm(r) == 0  # (e.g. a tangent the map does not feel): 0, not GMRES's 0/0
+        dx, _ = jax.scipy.sparse.linalg.gmres(mv, jnp.where(zero, 1.0, r), tol=stage_rtol, atol=0.0,
+                                              restart=restart, maxiter=cycles, solve_method="incremental")
+        x = x + jnp.where(zero | ~jnp.all(jnp.isfinite(dx)), 0.0, dx)
+        r = b_flat - mv(x)
+    missed = jnp.linalg.norm(r) > 1e3 * rtol * jnp.linalg.norm(b_flat)
+    return unravel(x), missed
+
+
 class RelativeGMRES(lx.AbstractLinearSolver):
     """Restarted GMRES (:func:`jax.scipy.sparse.linalg.gmres`) as a :mod:`lineax` solver, stopped when
     ``‖r‖₂ ≤ rtol ‖b‖₂``: the usual inexact-Newton criterion, one scale for the whole vector.
@@ -228,24 +252,9 @@ class RelativeGMRES(lx.AbstractLinearSolver):
         return operator
 
     def compute(self, state, vector, options):
-        b, unravel = jax.flatten_util.ravel_pytree(vector)
-        mv = lambda x: jax.flatten_util.ravel_pytree(state.mv(unravel(x)))[0]  # noqa: E731
-        # A tight tolerance is met in stages of at most STAGE_RTOL each (iterative refinement: each
-        # stage solves for the residual the ones before left): a single GMRES asked for a residual
-        # near round-off breaks down in its least-squares update and returns NaN.
-        stages = max(1, math.ceil(math.log(self.rtol) / math.log(STAGE_RTOL) - 1e-9))
-        stage_rtol = self.rtol ** (1.0 / stages)
-        x, r = jnp.zeros_like(b), b
-        for _ in range(stages):
-            zero = jnp.linalg.norm(r) == 0  # (e.g. a tangent the map does not feel): 0, not GMRES's 0/0
-            dx, _ = jax.scipy.sparse.linalg.gmres(mv, jnp.where(zero, 1.0, r), tol=stage_rtol, atol=0.0,
-                                                  restart=self.restart, maxiter=self.cycles,
-                                                  solve_method="incremental")
-            x = x + jnp.where(zero | ~jnp.all(jnp.isfinite(dx)), 0.0, dx)
-            r = b - mv(x)
-        missed = jnp.linalg.norm(r) > 1e3 * self.rtol * jnp.linalg.norm(b)  # far from it: reported
+        x, missed = staged_gmres(state.mv, vector, self.rtol, self.restart, self.cycles)
         result = lx.RESULTS.where(missed, lx.RESULTS.max_steps_reached, lx.RESULTS.successful)
-        return unravel(x), result, {}
+        return x, result, {}
 
     def transpose(self, state, options):
         return state.transpose(), options
@@ -257,23 +266,51 @@ class RelativeGMRES(lx.AbstractLinearSolver):
         return True
 
 
-def _solve(fn, y0, model, solver, template, dt, tol, max_steps, restart, gmres_steps):
+class _Solution(eqx.Module):
+    value: object  # the root, scaled unknowns
+    residual: jax.Array  # max |F| where the last Newton step started, µm
+    newton_steps: jax.Array
+    successful: jax.Array
+
+
+def _solve(fn, y0, model, solver, template, dt, tol, max_steps, restart, gmres_steps, tangent_rtol) -> _Solution:
+    """Newton on ``fn(y, (model, run_data)) = 0`` from ``y0`` (optimistix), its derivatives by the
+    implicit function theorem (:func:`jax.lax.custom_root`): a tangent ``dy`` solves
+    ``(∂F/∂y) dy = −(∂F/∂θ) dθ`` by :func:`staged_gmres` on the linearised map, the transposed solve of
+    reverse mode by the same GMRES on the transposed linearisation (:func:`jax.lax.custom_linear_solve`).
+    ``optimistix.ImplicitAdjoint`` does the same through ``lineax.linear_solve``, which checks its
+    result with a host callback; a program holding a host callback is never written to JAX's
+    persistent compilation cache, so every process compiled the tangents again (measured: 69 s on
+    the default scene)."""
     gmres = RelativeGMRES(NEWTON_KRYLOV_RTOL, restart, gmres_steps)
     # ended by the residual: RMS(F) < tol (the step only has to be smaller than the state itself). A
     # criterion on the step's size alone keeps Newton going once F is at round-off, where GMRES
     # cannot reduce it further.
     newton = optx.Newton(rtol=1.0, atol=tol, linear_solver=gmres, norm=optx.rms_norm)
-    adjoint = optx.ImplicitAdjoint(linear_solver=RelativeGMRES(ADJOINT_KRYLOV_RTOL, restart, gmres_steps))
     run_data = lax.stop_gradient(solver.init(model, template, dt))
-    sol = optx.root_find(fn, newton, y0, args=(model, run_data), max_steps=max_steps, adjoint=adjoint, throw=False)
-    return sol
+    f = lambda y: fn(y, (model, run_data))  # noqa: E731
+
+    def newton_solve(f, guess):
+        sol = optx.root_find(lambda y, _: f(y), newton, guess, max_steps=max_steps, throw=False)
+        residual = jax.tree.reduce(jnp.maximum, jax.tree.map(lambda a: jnp.max(jnp.abs(a)), sol.state.f))
+        ok = sol.result == optx.RESULTS.successful
+        # aux as floats: custom_root gives its aux float tangents, which integer outputs cannot take
+        return sol.value, (residual, jnp.asarray(sol.stats["num_steps"], residual.dtype), ok.astype(residual.dtype))
+
+    def tangent_solve(g, b):
+        def gm(mv, r):  # a tangent GMRES could not find is NaN, never a silent number
+            x, missed = staged_gmres(mv, r, tangent_rtol, restart, gmres_steps)
+            return jax.tree.map(lambda a: jnp.where(missed, jnp.nan, a), x)
+        return lax.custom_linear_solve(g, b, solve=gm, transpose_solve=gm)
+
+    value, (residual, steps, ok) = lax.custom_root(f, y0, newton_solve, tangent_solve, has_aux=True)
+    return _Solution(value, lax.stop_gradient(residual), lax.stop_gradient(steps).astype(jnp.int32),
+                     lax.stop_gradient(ok) > 0)
 
 
-def _result(model, dt, n, y, sc, template, walk_per_period, sol, tol):
+def _result(model, dt, n, y, sc, template, walk_per_period, sol: _Solution, tol):
     state = _unpack(y, template, sc)
     tu, tv = tracer_values(model, state.u)
-    f = sol.state.f  # the residual where the last Newton step started
-    residual = jax.tree.reduce(jnp.maximum, jax.tree.map(lambda a: jnp.max(jnp.abs(a)), f))
     loops = model.control
     return SteadyState(
         state=state, tracer_u=tu, tracer_v=tv,
@@ -281,8 +318,8 @@ def _result(model, dt, n, y, sc, template, walk_per_period, sol, tol):
         sensor_v=None if loops is None else sensor_displacement(loops, state.u),
         edge_margin=edge_margin(model, state.u, state.chi) if model.kind == "2d" else None,
         walk_rate=walk_per_period / (UNIT * n * dt),
-        residual=lax.stop_gradient(residual), newton_steps=sol.stats["num_steps"],
-        converged=(sol.result == optx.RESULTS.successful) | (residual <= tol), period_steps=n)
+        residual=sol.residual, newton_steps=sol.newton_steps,
+        converged=sol.successful | (sol.residual <= tol), period_steps=n)
 
 
 def _setup(model, solver, dt, y0, n=None):
@@ -297,27 +334,28 @@ def _setup(model, solver, dt, y0, n=None):
 
 
 @eqx.filter_jit
-def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps):
+def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol):
     q = quiet(model)
     fn = _residual(solver, dt, n, sc, template, walking=False)
     y0 = _pack(template, sc)
-    sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps)
+    sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps, tangent_rtol)
     return _result(q, dt, n, sol.value, sc, template, jnp.zeros((), dt.dtype), sol, tol)
 
 
 @eqx.filter_jit
-def _walk(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps):
+def _walk(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol):
     q = quiet(model)
     fn = _residual(solver, dt, n, sc, template, walking=True)
     y0 = (_pack(template, sc), jnp.zeros((), dt.dtype))
-    sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps)
+    sol = _solve(fn, y0, q, solver, template, dt, tol, max_steps, restart, gmres_steps, tangent_rtol)
     return _result(q, dt, n, sol.value[0], sc, template, sol.value[1], sol, tol)
 
 
 def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, y0: BeltState | None = None,
                  period_steps: int | None = None,
                  tol: float = DEFAULT_TOL_UM, max_newton: int = DEFAULT_MAX_NEWTON,
-                 restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES) -> SteadyState:
+                 restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES,
+                 tangent_rtol: float = ADJOINT_KRYLOV_RTOL) -> SteadyState:
     """Steady operation of a machine that is stationary on its grid: a steered machine, or one
     without lateral transport (module docstring). jit-, vmap- and differentiable (implicit
     function theorem) in the model's array fields.
@@ -326,19 +364,23 @@ def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, 
     ``dt`` the time step, s (concrete: it fixes the period); ``y0`` the start of the iteration
     (default the static equilibrium); ``period_steps`` steps per period (default
     :func:`period_steps`; give it under ``jit``/``vmap``/``grad``); ``tol`` the residual tolerance, µm; ``max_newton`` Newton
-    steps; ``restart`` and ``krylov_cycles`` GMRES's Krylov vectors per cycle and cycles per solve.
+    steps; ``restart`` and ``krylov_cycles`` GMRES's Krylov vectors per cycle and cycles per solve;
+    ``tangent_rtol`` GMRES's relative residual in each derivative's solve (forward tangent or
+    transposed solve; the default's derivatives equal central differences to 1e-5 and better; a
+    linear model that nonlinear solves verify needs far less: 1e-6 gives 1e-4).
     """
     if model.kind == "2d" and model.control is None and _walks(model):
         raise ValueError("steady_state: this machine walks (lateral transport without a steering loop); "
                          "its steady operation is steady_walk's")
     solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
-    return _steady(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles)
+    return _steady(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles, tangent_rtol)
 
 
 def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, y0: BeltState | None = None,
                  period_steps: int | None = None,
                 tol: float = DEFAULT_TOL_UM, max_newton: int = DEFAULT_MAX_NEWTON,
-                restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES) -> SteadyState:
+                restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES,
+                 tangent_rtol: float = ADJOINT_KRYLOV_RTOL) -> SteadyState:
     """The open-loop walking machine's steady walk: stationary up to a uniform lateral drift whose
     rate (``walk_rate``, m/s) is an unknown (module docstring). Arguments as :func:`steady_state`;
     a steering loop, if the model has one, is removed (the loop held open at zero angle)."""
@@ -346,11 +388,30 @@ def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, d
         raise ValueError("steady_walk: a 1D belt has no lateral motion")
     model = model.replace(control=None)
     solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
-    return _walk(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles)
+    return _walk(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles, tangent_rtol)
 
 
 def _walks(model: BeltModel) -> bool:
     return bool(model.lateral_transport)
+
+
+def state_fields(state: BeltState):
+    """The fields of a state that steady operation solves for (module docstring, *The unknowns*), as
+    a tuple: what :func:`linear_start` takes derivatives of."""
+    c = state.control
+    ctrl = None if c is None else (c.integral, c.error, c.command, c.angle)
+    return state.u, state.u_dot, state.chi, state.chi_dot, state.m_e, ctrl
+
+
+def linear_start(state: BeltState, tangents, theta) -> BeltState:
+    """``x* + (dx*/dθ) θ``: a steady state moved along its derivatives (``tangents``: the
+    :func:`state_fields` of ``dx*/dθ``, each with a trailing axis P; ``theta`` (P,)) — the start of
+    a nearby steady solve, whose Newton iteration then only removes the nonlinear remainder."""
+    u, ud, chi, chid, m, ctrl = jax.tree.map(lambda a, d: a + d @ theta, state_fields(state), tangents)
+    control = state.control
+    if ctrl is not None:
+        control = dataclasses.replace(control, integral=ctrl[0], error=ctrl[1], command=ctrl[2], angle=ctrl[3])
+    return dataclasses.replace(state, u=u, u_dot=ud, chi=chi, chi_dot=chid, m_e=m, control=control)
 
 
 def check_steady(s, model: BeltModel, what: str = "the aligned machine"):

@@ -73,8 +73,22 @@ def model_info(scene, mesh, model, options: RunOptions | None = None) -> dict:
         n_tracers=model.n_tracers, output_every=options.saveat.every, full_fields=options.saveat.fields,
         pretension_strain=float(mesh.length / (scene.belt.length or mesh.length) - 1.0),
         dynamic_roller_rows=int(np.sum(dyn)), rollers=rollers, segments=segments,
+        control=[loop_info(c, options.dt) for c in scene.control],
+        lateral_transport=scene.solver.lateral_transport,
         automatic=automatic_choices(scene, mesh),
     )
+
+
+def loop_info(c, dt: float) -> dict:
+    """One steering loop of a scene (``[[control]]``) in the units of its table: the actuator and
+    axis, the sensor, the gains, the sample period (default: every step), range, rate limit, lag,
+    set point, noise and edge profile."""
+    return dict(actuator=c.actuator, axis=c.axis, sensor_mm=[c.sensor[0] * 1e3, c.sensor[1] * 1e3],
+                kp_mrad_per_mm=c.kp, ki_mrad_per_mm_s=c.ki, kd_mrad_s_per_mm=c.kd,
+                sample_s=c.sample if c.sample is not None else dt, limit_mrad=c.limit * 1e3,
+                rate_limit_mrad_s=None if c.rate_limit is None else c.rate_limit * 1e3, lag_s=c.lag,
+                setpoint_mm=c.setpoint * 1e3, noise_um=c.noise * 1e6,
+                edge_profile_um=[[h, a * 1e6, ph] for h, a, ph in c.edge_profile])
 
 
 def automatic_choices(scene, mesh) -> list[str]:
@@ -119,6 +133,14 @@ def _print_info(info):
         print(f"  roller {r['name']!r}: {r['role']}, {r['side']}, r = {r['radius_mm']:g} mm at {r['center_mm']}, "
               f"wrap {r['wrap_deg']:.1f}° ({r['elements']} elements), dynamic DOFs {r['dynamic_dofs'] or '-'}"
               + (f", prescribed {r['prescribed']}" if any(r["prescribed"].values()) else ""))
+    for c in info["control"]:
+        rate = "no rate limit" if c["rate_limit_mrad_s"] is None else f"rate ≤ {c['rate_limit_mrad_s']:g} mrad/s"
+        kd = f", kd {c['kd_mrad_s_per_mm']:g} mrad·s/mm" if c["kd_mrad_s_per_mm"] else ""
+        print(f"  steering loop: {c['actuator']!r} tilted about {c['axis']}, edge sensor at s = {c['sensor_mm'][0]:g} mm, "
+              f"z = {c['sensor_mm'][1]:g} mm, sampled every {c['sample_s']:g} s; PI gains kp {c['kp_mrad_per_mm']:g} "
+              f"mrad/mm, ki {c['ki_mrad_per_mm_s']:g} mrad/(mm s){kd}; range ±{c['limit_mrad']:g} mrad, {rate}, "
+              f"lag {c['lag_s']:g} s; sensor noise {c['noise_um']:g} µm, edge profile "
+              + (", ".join(f"{a:g} µm × {h:g}/turn" for h, a, _ in c["edge_profile_um"]) or "none"))
     for line in info["automatic"]:
         print(f"  automatic: {line}")
     for s in info["segments"]:

@@ -230,6 +230,9 @@ def _check_outputs(args):
         raise UsageError(f"--exaggerate = {args.exaggerate:g}: needs --plot-3d")
 
 
+EXTRAPOLATION_REFUSED = 0.5  # transport weights this far outside [0, 1): the run is refused (exit 3), not warned
+
+
 def run(args, demo=False):
     _check_outputs(args)
     scene, mesh, model, options = load_run(args.scene, args.t_end, args.dt, args.integrator,
@@ -262,6 +265,12 @@ def _run(args, demo, scene, mesh, model, options, chosen):
         check_finite(traj, options.dt)
     except NonFiniteStateError as e:
         raise SimulationError(f"{e} (transport weights {s['transport_weight_range']})") from None
+    lo, hi = s["transport_weight_range"]
+    if lo < -EXTRAPOLATION_REFUSED or hi > 1 + EXTRAPOLATION_REFUSED:  # not a slight overshoot: no answer
+        advice = "a smaller dt" + (" or --transport shift" if s["transport"] != "shift" else "")
+        raise SimulationError(f"the {s['transport']!r} transport step extrapolated by more than half an element "
+                              f"(weights in [{lo:.3g}, {hi:.3g}]): the run diverged and its results are not a "
+                              f"solution; use {advice}")
     if chosen is not None:
         s["chosen"] = chosen.as_dict()
         s["discretisation_error_um"] = s["chosen"].pop("discretisation_error_um")

@@ -58,6 +58,8 @@ def run(args):
     check_plot(args.plot)
     weights_data = read_toml(args.weights, "--weights") if args.weights else None
     model, options = load_design_model(args)
+    if args.steering_limit_mrad is not None and model.control is None:  # before any computation
+        raise UsageError(f"--steering-limit-mrad = {args.steering_limit_mrad}: the scene has no steering loop")
     try:
         space = parameter_space(model, args.components)
         weights = None if weights_data is None else weights_from_dict(weights_data, space)

@@ -38,9 +38,11 @@ def _print(r):
     p = r["plant"]
     print(f"{r['scene']}: loop {r['loop']}, objective {r['objective']} over {r['skip_s']:g}–{r['t_end_s']:g} s "
           f"({r['objective_unit']}), GM ≥ {r['gm_min_db']:g} dB, PM ≥ {r['pm_min_deg']:g}°")
-    lap = p.get("loop_delay", 0.0) + 2 * p.get("loop_lag", 0.0)
+    recirculation = p.get("loop_delay", 0.0) + 2 * p.get("loop_lag", 0.0)
     print(f"plant: k = {p['gain']:.4g} mm/s per mrad, τ = {p['lag']:.3g} s, θ = {p['delay']:.3g} s, "
-          f"lap {lap:.3g} s ({r['plant_source']}); measured walk rate {r['response_rate']:.4g} mm/s per mrad")
+          f"recirculation {recirculation:.3g} s ({r['plant_source']}); measured walk rate {r['response_rate']:.4g} "
+          "mm/s per mrad")
+    print(f"{r['start_note']}")
     print(f"{'gains':16s} {'kp':>8s} {'ki':>8s} {'objective':>11s} {'peak µm':>8s} {'GM dB':>7s} {'PM °':>6s} "
           f"{'GM* dB':>7s} {'PM* °':>6s}  ok")
     for q in [r["start"], r["tuned"], *r["classical"]]:

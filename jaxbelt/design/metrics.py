@@ -66,7 +66,8 @@ from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..state import BeltState
-from ..steady import NoSteadyStateError, actuator_jitter, check_steady, period_steps, steady_state
+from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, linear_start, period_steps, state_fields,
+                      steady_state)
 from ..timeloop import check_finite, simulate
 
 M_TO_UM = 1e6
@@ -118,7 +119,10 @@ class Study(eqx.Module):
     row, the steady state's; ``period_steps`` the steady map's period in steps; ``jitter_mrad``
     (n_c,) the aligned machine's actuator jitter around its steady angle from sensor noise and
     edge profile, mrad (steady studies of a steered machine, else ``None``); ``steady_start``
-    the aligned machine's steady state, where every steady solve of the study starts.
+    the aligned machine's steady state; ``steady_tangents`` its derivatives with respect to ``θ``
+    (:func:`jaxbelt.steady.state_fields`, trailing axis P; a steady study with a Jacobian): every
+    steady solve of the study starts at the linear prediction
+    :func:`jaxbelt.steady.linear_start`, or without them at the aligned steady state.
     """
 
     model: BeltModel
@@ -139,6 +143,7 @@ class Study(eqx.Module):
     period_steps: int = eqx.field(static=True, default=1)
     jitter_mrad: jax.Array | None = None
     steady_start: BeltState | None = None
+    steady_tangents: tuple | None = None
 
     @property
     def limits(self) -> tuple:
@@ -250,17 +255,23 @@ def _steady_rows(s):
     return row(s.tracer_u), row(s.tracer_v), row(s.angle)
 
 
+DESIGN_TANGENT_RTOL = 1e-6  # GMRES's relative residual of a steady study's tangents (a linear model
+# that nonlinear solves verify: its columns are then right to 1e-4 of their size, against 1e-8's)
+
+
 @eqx.filter_jit
 def _steady_reference_and_tangents(model, space, integrator, dt, n_p):
-    """The steady state of ``model`` and the derivatives of its tracers and actuator angles with
-    respect to ``θ`` at ``θ = 0`` (implicit function theorem, one tangent solve per component)."""
+    """The steady state of ``model`` and the derivatives of its tracers and actuator angles, and of
+    the state itself (:func:`jaxbelt.steady.state_fields`), with respect to ``θ`` at ``θ = 0``
+    (implicit function theorem, one tangent solve per component)."""
 
     def solve(theta):
-        s = steady_state(apply(model, space, theta), integrator, dt=dt, period_steps=n_p)
-        return (s.tracer_u, s.tracer_v, s.angle), s
+        s = steady_state(apply(model, space, theta), integrator, dt=dt, period_steps=n_p,
+                         tangent_rtol=DESIGN_TANGENT_RTOL)
+        return (s.tracer_u, s.tracer_v, s.angle, state_fields(s.state)), s
 
     J, ref = jax.jacfwd(solve, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
-    return ref, J
+    return ref, J[:3], J[3]
 
 
 @eqx.filter_jit
@@ -292,14 +303,15 @@ def _make_steady_study(model, metric, dt, components, integrator, jacobian) -> S
     args = (frame["space"], frame["integrator"], frame["dt"], frame["period_steps"])
     base_is_zero = not np.any(np.asarray(frame["base"]))
     if jacobian and base_is_zero:
-        s, (du, dv, dangle) = _steady_reference_and_tangents(model, *args)
+        s, (du, dv, dangle), tangents = _steady_reference_and_tangents(model, *args)
     else:
+        tangents = None
         s = steady_state(aligned(model), frame["integrator"], dt=frame["dt"], period_steps=frame["period_steps"])
     check_steady(s, model)
     jitter = None if model.control is None else actuator_jitter(aligned(model), frame["integrator"], frame["dt"], s)
     u, v, angle = _steady_rows(s)
     study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,
-                  steady_start=s.state)
+                  steady_start=s.state, steady_tangents=tangents)
     if jacobian:
         if base_is_zero:
             row = lambda a, k: None if a is None else a[None] * k  # noqa: E731
@@ -371,7 +383,9 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
     :func:`with_limits` (then the study is the one with the limits). **Returns:** ``(study,
     values)``: ``values`` (m,) the metric, or with ``limits`` (m, n_limits) each limit's value in
     its own unit (:func:`limit_values`). With ``steady``, the study of steady operation, its m + 1
-    steady solves one batch; ``jitter_mrad`` its actuator jitter (default: measured here)."""
+    steady solves one batch from the static equilibrium (measured on the finer grid of the error
+    bars: starting the configurations from the aligned steady state saves one Newton step of five
+    but costs a separate aligned solve); ``jitter_mrad`` its actuator jitter (default: measured here)."""
     if steady:
         frame = _steady_frame(model, metric, dt, components, integrator)
         thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
@@ -438,7 +452,8 @@ def with_limits(study: Study, limits) -> Study:
                  limit_names=tuple(n for n, _ in pairs),
                  limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None,
                  ref_angle=study.ref_angle, linearisation=study.linearisation, steady=study.steady,
-                 period_steps=study.period_steps, jitter_mrad=study.jitter_mrad, steady_start=study.steady_start)
+                 period_steps=study.period_steps, jitter_mrad=study.jitter_mrad, steady_start=study.steady_start,
+                 steady_tangents=study.steady_tangents)
 
 
 def _evaluation_step(t_eval, dt, n_steps) -> int:
@@ -461,8 +476,10 @@ def run_deviation(study: Study, theta):
     (n_steps, n_tr) µm (``d_v`` ``None`` in 1D), and the steering actuators' angles (n_steps,
     n_c), mrad (``None`` without a loop)."""
     if study.steady:
+        y0 = study.steady_start if study.steady_tangents is None else \
+            linear_start(study.steady_start, study.steady_tangents, theta)
         s = steady_state(study.configured(theta), study.integrator, dt=study.dt, period_steps=study.period_steps,
-                         y0=study.steady_start)
+                         y0=y0)
         u, v, angle = _steady_rows(s)
         bad = jnp.where(s.converged, 0.0, jnp.nan)  # an unconverged solve is NaN, never a number
         u = u + bad

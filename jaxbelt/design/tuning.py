@@ -218,7 +218,8 @@ class TuningResult:
     the measured response is constrained too; ``plant`` the identified plant (SI,
     :class:`~jaxbelt.design.plant.SteeringPlant`'s fields) and ``plant_source`` what identified it;
     ``response_rate`` m/s per rad, the measured walk rate; ``iterations``, ``learning_rate``;
-    ``start``, ``tuned`` (:class:`TuningPoint`); ``classical`` the classical tunings
+    ``start``, ``tuned`` (:class:`TuningPoint`); ``start_note`` where the start comes from, in words
+    (the scene's gains, or why others: a missing integral gain, margins the scene's gains miss); ``classical`` the classical tunings
     (:class:`TuningPoint` each); ``history`` the objective at each iterate (``nan`` where the run was
     not finite); ``improvement`` ``1 − tuned / start`` objective; ``wall_s`` seconds in all."""
 
@@ -237,6 +238,7 @@ class TuningResult:
     iterations: int
     learning_rate: float
     start: TuningPoint
+    start_note: str
     tuned: TuningPoint
     classical: tuple[TuningPoint, ...]
     history: tuple[float, ...]
@@ -353,19 +355,29 @@ def tune(model: BeltModel, options: RunOptions, *, kind: str = "ise", iterations
     kd = float(loops.kd[0])
 
     kp0, ki0 = (float(loops.kp[0]), float(loops.ki[0])) if start is None else map(float, start)
+    origin = "the scene's gains" if start is None else "the given gains"
+    notes = []
     if ki0 <= 0:
         ki0 = kp0 / (8 * (plant.delay + plant.lag / 2))
+        notes.append(f"no integral gain: k_i = k_p / (8 θ_eff) = {ki0:.4g} mrad/(mm s) (the SIMC ratio)")
     kp, ki = kp0, ki0
+    halved = [0, 0]
     for _ in range(80):
         if check.ok(kp, ki, kd):
             break
         if check.ok(kp, 0.0, kd):
             ki /= 2
+            halved[1] += 1
         else:
             kp /= 2
+            halved[0] += 1
     else:
         raise ValueError(f"no feasible start from (kp, ki) = ({kp0:g}, {ki0:g}): "
                          "halving them does not meet the margins")
+    if any(halved):
+        notes.append(f"({kp0:.4g}, {ki0:.4g}) miss GM ≥ {gm_min_db:g} dB or PM ≥ {pm_min_deg:g}°: k_p halved "
+                     f"{halved[0]} and k_i {halved[1]} time(s) until they hold")
+    start_note = f"start: {origin} (k_p, k_i) = ({kp:.4g}, {ki:.4g})" + ("; " + "; ".join(notes) if notes else "")
     x = jnp.log(jnp.array([kp, ki]))
     kd_arr = jnp.asarray([kd]) if kd > 0 else jnp.zeros((0,))
     dt_arr = jnp.asarray(dt, model.ell.dtype)
@@ -433,6 +445,6 @@ def tune(model: BeltModel, options: RunOptions, *, kind: str = "ise", iterations
         scene=scene_name, loop=loops.labels[0], objective=kind, objective_unit=OBJECTIVES[kind], t_end_s=n * dt,
         skip_s=skip * dt, gm_min_db=gm_min_db, pm_min_deg=pm_min_deg, constrain_response=constrain_response,
         plant=plant, plant_source=plant_source, response_rate=response.rate, iterations=iterations,
-        learning_rate=learning_rate, start=start_pt, tuned=tuned, classical=tuple(classical),
+        learning_rate=learning_rate, start=start_pt, start_note=start_note, tuned=tuned, classical=tuple(classical),
         history=tuple(float(h) for h in history), improvement=1.0 - tuned.objective / start_pt.objective,
         wall_s=time.perf_counter() - t0)

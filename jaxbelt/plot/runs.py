@@ -9,7 +9,8 @@ from .fields import tracer_legend, belt_segments, select_times, tracer_labels, t
 
 
 def plot_run(traj, mesh, path=None, times=None, title: str = ""):
-    """Tracer trajectories over time and the displacement along the belt at chosen times.
+    """Tracer trajectories over time and the displacement along the belt at chosen times (on a 2D
+    belt both components: u along the belt and v across it).
 
     **Arguments:** ``traj``: a :class:`~jaxbelt.Trajectory`; ``mesh``: the scene's
     :class:`~jaxbelt.Mesh`; ``path``: output PNG (``None``: return the figure); ``times``: times (s) for the profile panel
@@ -23,9 +24,10 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     lateral = traj.tracer_v is not None
     steered = getattr(traj, "control_u", None) is not None
     labels, styles = tracer_labels(mesh), tracer_styles(mesh)
-    n_ax = 2 + lateral + steered
+    n_ax = 2 + 2 * lateral + steered  # 2D: v over time and a v profile as well
     fig, axes = plt.subplots(n_ax, 1, figsize=(11, 2.5 + 2.5 * n_ax), constrained_layout=True)
-    ax1, ax2 = axes[0], axes[-1]
+    ax1 = axes[0]
+    profile_axes = axes[-2:] if lateral else axes[-1:]
     if steered:
         plot_steering(axes[2], t, traj.sensor_v, traj.control_u)
     for k in range(tu.shape[1]):
@@ -48,26 +50,29 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
     else:  # the nearest recorded times; ValueError for a time outside the run
         idx = select_times(t, times)
     seg_x = np.asarray(mesh.x)[np.asarray(mesh.segment_starts)] * 1e3
-    if traj.u is not None:
-        x = np.asarray(mesh.x) * 1e3
-        prof = np.asarray(traj.u)[:, :, 0 if mesh.n_eta == 1 else 2 * (mesh.n_eta // 2)] * 1e3  # centre row
-        for i in idx:
-            ax2.plot(x, prof[i], lw=1, label=f"t = {t[i]:.3g} s")
-    else:
-        order = np.argsort(mesh.tracer_x)
-        x = np.asarray(mesh.tracer_x)[order] * 1e3
-        for i in idx:
-            ax2.plot(x, tu[i, order], "o-", ms=3, lw=1, label=f"t = {t[i]:.3g} s")
-    for k, xs in enumerate(seg_x):
-        ax2.axvline(xs, color="0.6", lw=0.7, ls="--" if k % 2 == 0 else ":")
     segs = belt_segments(mesh)
-    top = ax2.secondary_xaxis("top")
-    top.set_xticks([0.5e3 * (g["x0"] + g["x1"]) for g in segs], [g["label"] for g in segs], fontsize=7)
-    top.tick_params(length=0)
-    ax2.set_xlabel("position along the belt x [mm] (dashed: roller arc starts, dotted: free spans)")
-    ax2.set_ylabel("u [mm]")
-    ax2.legend(fontsize=8)
-    ax2.grid(alpha=0.3)
+    for comp, ax2 in zip(("u", "v"), profile_axes):
+        if traj.u is not None:
+            x = np.asarray(mesh.x) * 1e3
+            centre = 0 if mesh.n_eta == 1 else 2 * (mesh.n_eta // 2)  # the centre row's u; its v next to it
+            prof = np.asarray(traj.u)[:, :, centre + (comp == "v")] * 1e3
+            for i in idx:
+                ax2.plot(x, prof[i], lw=1, label=f"t = {t[i]:.3g} s")
+        else:
+            order = np.argsort(mesh.tracer_x)
+            x = np.asarray(mesh.tracer_x)[order] * 1e3
+            values = tu if comp == "u" else np.asarray(traj.tracer_v) * 1e3
+            for i in idx:
+                ax2.plot(x, values[i, order], "o-", ms=3, lw=1, label=f"t = {t[i]:.3g} s")
+        for k, xs in enumerate(seg_x):
+            ax2.axvline(xs, color="0.6", lw=0.7, ls="--" if k % 2 == 0 else ":")
+        top = ax2.secondary_xaxis("top")
+        top.set_xticks([0.5e3 * (g["x0"] + g["x1"]) for g in segs], [g["label"] for g in segs], fontsize=7)
+        top.tick_params(length=0)
+        ax2.set_xlabel("position along the belt x [mm] (dashed: roller arc starts, dotted: free spans)")
+        ax2.set_ylabel("u (along) [mm]" if comp == "u" else "v (lateral) [mm]")
+        ax2.legend(fontsize=8)
+        ax2.grid(alpha=0.3)
     return finish_figure(fig, path)
 
 

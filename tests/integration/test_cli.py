@@ -29,6 +29,19 @@ def test_info_text(capsys):
     assert "dynamic DOFs ['dx', 'az']" in out and "N = 224" in out
 
 
+def test_info_shows_the_steering_loops(capsys):
+    assert main(["info", "three-roller-steered", "--json"]) == 0
+    (loop,) = json.loads(capsys.readouterr().out)["control"]
+    assert (loop["actuator"], loop["axis"], loop["sensor_mm"]) == ("roller 2", "y", [1430.0, 200.0])
+    assert (loop["kp_mrad_per_mm"], loop["ki_mrad_per_mm_s"], loop["sample_s"]) == (2.0, 0.5, 0.04)
+    assert loop["limit_mrad"] == pytest.approx(3.0) and loop["rate_limit_mrad_s"] == pytest.approx(5.0)
+    assert main(["info", "three-roller-steered"]) == 0
+    out = capsys.readouterr().out
+    assert "steering loop: 'roller 2' tilted about y" in out and "range ±3 mrad" in out and "every 0.04 s" in out
+    assert main(["info", "two-roller-1d", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["control"] == []
+
+
 def test_scenes_lists_builtins(capsys):
     assert main(["scenes"]) == 0
     out = capsys.readouterr().out
@@ -91,9 +104,10 @@ def test_bad_scene_file_no_traceback(tmp_path):
 def test_diverging_run_is_reported(capsys):
     # eq. 3.56 literally, on a 10 mm translation with 3.9 mm elements: the weights extrapolate
     rc = main(["simulate", "two-roller-1d-train1", "--t-end", "1", "--transport", "source"])
-    err = capsys.readouterr().err
-    assert rc in (0, 3)
-    assert "extrapolated" in err or "diverged" in err
+    out, err = capsys.readouterr()
+    assert rc == 3, (out, err)
+    assert "extrapolated by more than half an element" in err and "diverged" in err
+    assert "simulated" not in out  # no figures of a run that is not a solution
 
 
 def test_plot_scene_and_2d_simulate(tmp_path, capsys):

@@ -57,3 +57,14 @@ def test_a_barely_felt_component_is_left_at_the_cap_where_it_counts_as_unconstra
     J = np.array([[100.0, 1e-9], [50.0, -1e-9]])  # the second component: felt at 1e-9 µm/mm only
     h = optimise_box(LinearResponse(np.zeros(2), J, "max"), 20.0, None, H_MAX)
     assert h[1] >= CAP_FRACTION * H_MAX and h[0] < CAP_FRACTION * H_MAX
+
+
+def test_a_steering_limit_on_a_machine_without_a_loop_is_refused_before_any_computation(monkeypatch, capsys):
+    import jaxbelt.cli.tolerance as tolerance
+
+    def no_study(*a, **k):
+        raise AssertionError("the study was computed before the options were checked")
+
+    monkeypatch.setattr(tolerance, "make_design_study", no_study)
+    assert main(["tolerance", "three-roller-tolerance", "--steering-limit-mrad", "1"]) == 2
+    assert "--steering-limit-mrad = 1.0: the scene has no steering loop" in capsys.readouterr().err

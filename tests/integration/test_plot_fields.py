@@ -220,3 +220,16 @@ def test_figure_functions_keep_the_backend_and_return_figures(run2d, tmp_path):
         plt.close("all")
     finally:
         plt.switch_backend(before)
+
+
+def test_run_plot_profiles_show_v_on_a_2d_belt(run2d):
+    """On a 2D belt the profile along the belt is drawn for both components: u, and v across."""
+    _, mesh2, _, _, traj2 = run2d
+    fig = plot.plot_run(traj2, mesh2, times=[0.02, 0.1])
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert "u (along) [mm]" in labels and "v (lateral) [mm]" in labels
+    v_ax = fig.axes[labels.index("v (lateral) [mm]")]
+    i = int(np.argmin(np.abs(np.asarray(traj2.t) - 0.1)))  # the run keeps full fields: the centre row's v
+    centre = 2 * (mesh2.n_eta // 2)
+    np.testing.assert_allclose(v_ax.get_lines()[1].get_ydata(), np.asarray(traj2.u)[i, :, centre + 1] * 1e3)
+    plt.close(fig)

@@ -58,6 +58,16 @@ def test_tuning_lowers_the_objective_within_the_margins(result):
         assert p.feasible and p.gain_margin_db >= 6.0 and p.phase_margin_deg >= 45.0
         assert p.response_gain_margin_db >= 6.0 and p.response_phase_margin_deg >= 45.0
     assert {c.rule for c in r.classical} == {"SIMC", "Ziegler–Nichols"}
+    # the start is the scene's gains (they meet the margins), and the result says so
+    kp, ki = float(r.start.kp_mrad_per_mm), float(r.start.ki_mrad_per_mm_s)
+    assert r.start_note == f"start: the scene's gains (k_p, k_i) = ({kp:.4g}, {ki:.4g})"
+
+
+def test_a_start_that_misses_the_margins_is_halved_and_said(setup):
+    model, options, response = setup
+    r = tuning.tune(model, options, iterations=0, response=response, start=(20.0, 5.0))
+    assert r.start.kp_mrad_per_mm < 20.0 and r.start.feasible
+    assert "the given gains" in r.start_note and "miss GM" in r.start_note and "halved" in r.start_note
 
 
 def _control_margins(plant: SteeringPlant, kp, ki):

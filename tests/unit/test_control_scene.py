@@ -5,7 +5,7 @@ import math
 import pytest
 
 import jaxbelt as jb
-from helpers import scene_with
+from helpers import builtin_dict, scene_with
 
 
 def _steered(mutate=None):
@@ -86,3 +86,32 @@ def test_a_sensor_beyond_the_path_is_refused_when_the_grid_is_built():
     sc = _steered(lambda d: _loop(d).update(sensor_mm=[5000.0, 0.0]))
     with pytest.raises(jb.SceneError, match=r"control\[0\].sensor_mm.*off the belt"):
         jb.build_model(sc)
+
+
+def test_two_loops_on_one_actuated_rotation_are_refused():
+    def edit(d):
+        d["control"].append(dict(_loop(d), sensor_mm=[100.0, 0.0]))
+    _reject(edit, "control[1]", "already drives this actuator about this axis")
+
+
+def test_two_loops_on_different_axes_of_one_roller_are_accepted():
+    def edit(d):
+        d["control"].append(dict(_loop(d), axis="x"))
+    assert [(c.actuator, c.axis) for c in _steered(edit).control] == [("idle", "y"), ("idle", "x")]
+
+
+def test_a_single_control_table_is_refused():
+    def edit(d):
+        d["control"] = _loop(d)  # [control], not [[control]]
+    _reject(edit, "control", "[[control]]", "one per loop")
+
+
+def test_a_loop_on_a_1d_scene_names_the_2d_model_at_once():
+    def edit(d, lateral):  # the 2D scene's valid loop, on the 1D machine
+        d["control"] = [dict(builtin_dict("two-roller-steered")["control"][0], sensor_mm=[100.0, 0.0])]
+        if lateral:
+            d.setdefault("solver", {})["lateral_transport"] = True
+    for lateral in (False, True):
+        with pytest.raises(jb.SceneError) as e:
+            scene_with(lambda d: edit(d, lateral), "two-roller-1d")
+        assert "needs a 2D scene" in str(e.value), str(e.value)

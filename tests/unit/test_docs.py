@@ -137,3 +137,14 @@ def test_links_into_the_readme_point_at_its_headings():
     for path in sources:
         for anchor in re.findall(r"readme\.md#([\w-]+)", path.read_text(), re.I):
             assert anchor in slugs, f"{path.relative_to(ROOT)}: readme.md#{anchor} is not a README heading"
+
+
+def test_scene_format_lists_every_builtin_scene():
+    """docs/scene-format.md names every built-in scene; the tables' numbered variants (``-t73-test1..6``,
+    ``-a1-run1..12``) and the 1D scene's suffixed variants by family."""
+    import jaxbelt as jb
+
+    text = (DOCS / "scene-format.md").read_text()
+    families = ("three-roller-t7", "three-roller-a1-run", "two-roller-1d-")
+    missing = [n for n in jb.builtin_scene_names() if f"`{n}`" not in text and not n.startswith(families)]
+    assert not missing, missing

@@ -99,7 +99,13 @@ def test_stable_drops_growing_modes():
     from jaxbelt.rom.dmd import DMDModel
 
     grown = DMDModel(jnp.concatenate([m.eigs, jnp.array([1.2 + 0j])]), jnp.concatenate([m.modes, m.modes[:, :1]], 1))
-    assert grown.stable().eigs.shape[0] == m.eigs.shape[0]
+    kept = grown.stable()
+    assert kept.eigs.shape[0] == m.eigs.shape[0]
+    assert np.all(np.abs(np.asarray(kept.eigs)) <= 1 + 1e-5)  # what is kept is stable, not just as many
+    np.testing.assert_allclose(np.sort_complex(np.asarray(kept.eigs)), np.sort_complex(np.asarray(m.eigs)))
+    # the tolerance band: a mode at 1 + 1e-6 (the static offset's, from a fit) stays; 1 + 1e-4 goes
+    edge = DMDModel(jnp.array([1.0 + 1e-6 + 0j, 1.0 + 1e-4 + 0j]), m.modes[:, :2])
+    np.testing.assert_allclose(np.abs(np.asarray(edge.stable().eigs)), [1.0 + 1e-6])
 
 
 def test_rmse_and_rrmse_definitions_on_hand_made_arrays():
