@@ -70,3 +70,26 @@ def print_accuracy(s: dict):
         orders = ", ".join(f"{d} {'-' if p is None else f'{p:.2f}'}" for d, p in e["orders"].items())
         print(f"  discretisation error (estimate): longitudinal {e['longitudinal']:.3g} µm{lat}; dominant "
               f"{e['dominant']}; observed orders {orders}; the estimate cost {e['cost_runs']:.1f} runs")
+        for line in estimate_caveats(s):
+            print(f"  warning: {line}")
+
+
+def estimate_caveats(s: dict) -> list[str]:
+    """What makes a summary's error estimate doubtful, in words: an observed order held at a bound
+    of its admissible range (the differences do not show the asymptotic rate), and an estimate
+    larger than the signal it is the error of (the grid resolves too little of it)."""
+    e = s.get("discretisation_error_um")
+    if e is None:
+        return []
+    out = []
+    for d, x in e.get("directions", {}).items():
+        if x.get("order_clamped"):
+            order = "-" if x.get("order") is None else f"{x['order']:.2g}"
+            out.append(f"the observed order in {d} sits at a bound of its range ({order}): the runs are not in "
+                       "the asymptotic range, and the estimate is a rough one")
+    for name, key in (("longitudinal", "tracer_u_max_abs_mm"), ("lateral", "tracer_v_max_abs_mm")):
+        err, signal = e.get(name), s.get(key)
+        if err is not None and signal is not None and err > 1e3 * signal:
+            out.append(f"the {name} error estimate ({err:.3g} µm) exceeds the {name} signal itself "
+                       f"(max |tracer| {1e3 * signal:.3g} µm): the grid resolves too little of it; refine it")
+    return out

@@ -64,6 +64,7 @@ def _summary(scene, options, model, traj, timing):
         scene=scene.name, integrator=scene.solver.integrator, n_steps=int(round(t[-1] / options.dt)),
         t_end_s=float(t[-1]), n_unknowns=model.n_unknowns, wall_s=timing["run_s"], compile_s=timing["compile_s"],
         tracer_u_max_abs_mm=float(np.max(np.abs(tu)) * 1e3), tracer_u_final_mm=(tu[-1] * 1e3).round(6).tolist(),
+        tracer_v_max_abs_mm=None if traj.tracer_v is None else float(np.max(np.abs(np.asarray(traj.tracer_v))) * 1e3),
         roller_speed_m_s={r.name: float(abs(rv[-1, j, az]) * r.radius) for j, r in enumerate(scene.rollers)},
         belt_mass_kg=float(mass[-1]), belt_mass_rel_drift=float(np.max(np.abs(mass - mass[0])) / mass[0]),
         transport=options.solver.transport,

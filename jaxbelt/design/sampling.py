@@ -149,6 +149,15 @@ def _map(study, thetas, chunk, progress=None):
     return jax.tree.map(lambda a: a[:n], out)
 
 
+def passes(metric, limit_um: float, saturated=None) -> np.ndarray:
+    """The one pass rule of every yield (Monte Carlo here, :func:`jaxbelt.design.run_sweep`):
+    the metric within the limit **and**, on a steered machine, the actuator not saturated — a loop
+    at its range no longer holds the belt, whatever the metric reads (``saturated`` ``None``
+    without a loop). A NaN metric (an unconverged solve) fails."""
+    ok = np.asarray(metric) <= limit_um
+    return ok if saturated is None else ok & ~np.asarray(saturated, bool)
+
+
 def evaluate_metric(study: Study, thetas, chunk: int | None = None):
     """The metric (n,) at every row of ``thetas`` (n, P) (full model, batched)."""
     return np.asarray(_map(study, thetas, chunk)["metric"])
@@ -177,7 +186,7 @@ def standard_normal_samples(n: int, P: int, seed: int) -> np.ndarray:
 @dataclasses.dataclass(frozen=True)
 class MonteCarloResult:
     """A Monte-Carlo yield (:func:`monte_carlo`). **Fields:** ``yield_`` the fraction of samples
-    that pass; ``ci95`` its Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the
+    that pass (:func:`passes`: on a steered machine a saturated actuator fails); ``ci95`` its Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the
     configurations, mm / mrad; ``metric`` (n,) their metric; ``outputs`` everything
     :func:`~jaxbelt.design.metrics.evaluate` returned, per sample."""
 
@@ -199,7 +208,7 @@ def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed:
     thetas = np.asarray(dist.transform(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
     out = evaluate_configs(study, thetas, chunk, progress)
     metric = np.asarray(out["metric"])
-    passed = int(np.sum(metric <= limit_um))
+    passed = int(np.sum(passes(metric, limit_um, out.get("saturated"))))
     return MonteCarloResult(yield_=passed / n, ci95=wilson_interval(passed, n), samples=n, passed=passed,
                             theta=thetas, metric=metric, outputs=out)
 

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .metrics import SATURATION_FRACTION, Study, study_on
-from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling,
+from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
 from .store import MODEL_CODES, append_chunk, load_sweep, open_sweep
@@ -285,10 +285,9 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     elif rom == "auto" and done < n:
         surrogate, rom_info = _surrogate(study, dist, limit_um, seed, rom_method)
     metric, code, steering = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
-    ok = metric <= limit_um
+    ok = passes(metric, limit_um, None if steering is None else steering[1])
     extra = {}
-    if steering is not None:  # a saturated actuator fails whatever the metric says
-        ok &= ~steering[1]
+    if steering is not None:
         extra.update(saturated=int(np.sum(steering[1])), range_mrad=study.range_mrad,
                      steering_max_mrad=float(np.max(steering[0])) if len(steering[0]) else 0.0)
     passed = int(np.sum(ok))
