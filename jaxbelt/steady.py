@@ -153,10 +153,10 @@ class _Scales(eqx.Module):
 
 
 def _pack(state: BeltState, sc: _Scales):
-    c = state.control
-    ctrl = None if c is None else (c.integral * UNIT, c.error * UNIT, c.command * UNIT, c.angle * UNIT)
-    return (state.u * UNIT, state.u_dot * UNIT * sc.period, state.chi * UNIT, state.chi_dot * UNIT * sc.period,
-            (state.m_e / sc.m_e0 - 1.0) * UNIT, ctrl)
+    """The scaled unknowns of ``state`` (:func:`state_fields`, in the units of the module docstring)."""
+    u, ud, chi, chid, m, ctrl = state_fields(state)
+    ctrl = None if ctrl is None else tuple(a * UNIT for a in ctrl)
+    return (u * UNIT, ud * UNIT * sc.period, chi * UNIT, chid * UNIT * sc.period, (m / sc.m_e0 - 1.0) * UNIT, ctrl)
 
 
 def _unpack(y, template: BeltState, sc: _Scales) -> BeltState:

@@ -196,9 +196,13 @@ def _warn(s):
               file=sys.stderr)
     lo, hi = s["transport_weight_range"]
     if lo < 0 or hi >= 1:
-        advice = "a smaller dt" + (" or --transport shift" if s["transport"] != "shift" else "")
         print(f"jaxbelt: warning: the {s['transport']!r} transport step extrapolated (weights in [{lo:.3g}, {hi:.3g}], "
-              f"outside [0, 1)); the results are not reliable. Use {advice}.", file=sys.stderr)
+              f"outside [0, 1)); the results are not reliable. Use {_transport_advice(s)}.", file=sys.stderr)
+
+
+def _transport_advice(s) -> str:
+    """What lowers the transport step's interpolation weights back into [0, 1)."""
+    return "a smaller dt" + (" or --transport shift" if s["transport"] != "shift" else "")
 
 
 def _text(s, scene, model, demo):
@@ -268,10 +272,9 @@ def _run(args, demo, scene, mesh, model, options, chosen):
         raise SimulationError(f"{e} (transport weights {s['transport_weight_range']})") from None
     lo, hi = s["transport_weight_range"]
     if lo < -EXTRAPOLATION_REFUSED or hi > 1 + EXTRAPOLATION_REFUSED:  # not a slight overshoot: no answer
-        advice = "a smaller dt" + (" or --transport shift" if s["transport"] != "shift" else "")
         raise SimulationError(f"the {s['transport']!r} transport step extrapolated by more than half an element "
                               f"(weights in [{lo:.3g}, {hi:.3g}]): the run diverged and its results are not a "
-                              f"solution; use {advice}")
+                              f"solution; use {_transport_advice(s)}")
     if chosen is not None:
         s["chosen"] = chosen.as_dict()
         s["discretisation_error_um"] = s["chosen"].pop("discretisation_error_um")

@@ -42,7 +42,7 @@ def _print(r):
     print(f"plant: k = {p['gain']:.4g} mm/s per mrad, τ = {p['lag']:.3g} s, θ = {p['delay']:.3g} s, "
           f"recirculation {recirculation:.3g} s ({r['plant_source']}); measured walk rate {r['response_rate']:.4g} "
           "mm/s per mrad")
-    print(f"{r['start_note']}")
+    print(r["start_note"])
     print(f"{'gains':16s} {'kp':>8s} {'ki':>8s} {'objective':>11s} {'peak µm':>8s} {'GM dB':>7s} {'PM °':>6s} "
           f"{'GM* dB':>7s} {'PM* °':>6s}  ok")
     for q in [r["start"], r["tuned"], *r["classical"]]:

@@ -186,9 +186,10 @@ def standard_normal_samples(n: int, P: int, seed: int) -> np.ndarray:
 @dataclasses.dataclass(frozen=True)
 class MonteCarloResult:
     """A Monte-Carlo yield (:func:`monte_carlo`). **Fields:** ``yield_`` the fraction of samples
-    that pass (:func:`passes`: on a steered machine a saturated actuator fails); ``ci95`` its Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the
-    configurations, mm / mrad; ``metric`` (n,) their metric; ``outputs`` everything
-    :func:`~jaxbelt.design.metrics.evaluate` returned, per sample."""
+    that pass (:func:`passes`: on a steered machine a saturated actuator fails); ``ci95`` its
+    Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the configurations, mm / mrad;
+    ``metric`` (n,) their metric; ``outputs`` everything :func:`~jaxbelt.design.metrics.evaluate`
+    returned, per sample."""
 
     yield_: float
     ci95: tuple

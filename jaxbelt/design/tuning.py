@@ -219,8 +219,8 @@ class TuningResult:
     :class:`~jaxbelt.design.plant.SteeringPlant`'s fields) and ``plant_source`` what identified it;
     ``response_rate`` m/s per rad, the measured walk rate; ``iterations``, ``learning_rate``;
     ``start``, ``tuned`` (:class:`TuningPoint`); ``start_note`` where the start comes from, in words
-    (the scene's gains, or why others: a missing integral gain, margins the scene's gains miss); ``classical`` the classical tunings
-    (:class:`TuningPoint` each); ``history`` the objective at each iterate (``nan`` where the run was
+    (the scene's gains, or why others: a missing integral gain, margins the scene's gains miss);
+    ``classical`` the classical tunings (:class:`TuningPoint` each); ``history`` the objective at each iterate (``nan`` where the run was
     not finite); ``improvement`` ``1 − tuned / start`` objective; ``wall_s`` seconds in all."""
 
     scene: str
