@@ -26,6 +26,11 @@ TRANSPORT_RULES = {
     "source": "each node interpolated by its own displacement, masses transported (eq. 3.56)",
 }
 
+START_RULES = {
+    "rest": "belt and idle rollers at rest, the drive at speed: an impulsive start (model specification section 2)",
+    "running": "belt and idle rollers already at the drive speed, consistent with no slip: no start-up swing",
+}
+
 DEFAULT_INTEGRATOR = "direct"
 DEFAULT_LINEAR_SOLVER = "kept-interior"
 DEFAULT_TRANSPORT = "shift"

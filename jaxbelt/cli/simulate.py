@@ -12,7 +12,8 @@ from .. import plot
 from ..accuracy import precision_scope
 from ..control import loop_summary
 from ..prestress import overstrain_message, overstrained_spans, slack_message, slack_spans, span_forces
-from ..registry import INTEGRATORS, LINEAR_SOLVERS, TRANSPORT_RULES
+from ..registry import INTEGRATORS, LINEAR_SOLVERS, START_RULES, TRANSPORT_RULES
+from ..state import initial_state
 from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
 from ._accuracy import add_accuracy_arguments, choose_accuracy, error_estimate, print_accuracy
 from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, output_file, rebuild
@@ -22,6 +23,9 @@ def add_parser(subparsers):
     s = subparsers.add_parser("simulate", help="run a scene")
     s.add_argument("scene", help=SCENE_HELP)
     s.add_argument("--t-end", type=float, default=None, help="end time, s")
+    s.add_argument("--start", choices=tuple(START_RULES), default="rest",
+                   help="rest: belt and idle rollers at rest, the drive at speed (an impulsive start, model "
+                        "specification); running: everything at the drive speed already (no start-up swing)")
     s.add_argument("--dt", type=float, default=None, help="time step, s (checked against CFL)")
     s.add_argument("--integrator", choices=tuple(INTEGRATORS), default=None,
                    help="time integrator (default: the scene's, direct unless it names one)")
@@ -261,7 +265,8 @@ def _run(args, demo, scene, mesh, model, options, chosen):
     if overstrained:
         print(f"jaxbelt: warning: {overstrain_message(overstrained)}", file=sys.stderr)
     progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
-    chunked = simulate_in_chunks(model, **options, field_rows=None if request is None else request["rows"],
+    y0 = None if args.start == "rest" else initial_state(model, start=args.start)
+    chunked = simulate_in_chunks(model, **options, y0=y0, field_rows=None if request is None else request["rows"],
                                  progress=progress)
     traj, fields = chunked.trajectory, chunked.fields
     s = _summary(scene, options, model, traj, {"compile_s": chunked.compile_s, "run_s": chunked.run_s})

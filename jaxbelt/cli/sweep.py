@@ -23,7 +23,9 @@ def add_parser(subparsers):
     p.add_argument("--samples", type=int, default=1000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--chunk", type=int, default=64, help="configurations per vmap batch (memory)")
-    p.add_argument("--rom", default="off", help="off | auto: a reduced model stands in where validated")
+    p.add_argument("--rom", default=None, help="off | auto: a reduced model stands in where validated (default: auto "
+                                               "in steady operation, where it is the steady state's linear response, "
+                                               "off for time-stepped runs)")
     p.add_argument("--no-form", action="store_true", help="skip FORM and importance sampling")
     p.add_argument("--out", default=None, metavar="DIR", help="Zarr store (appended per chunk; a rerun resumes)")
     p.set_defaults(func=run)
@@ -37,7 +39,7 @@ def run(args):
         raise UsageError(f"--samples = {args.samples}: must be at least 1")
     if args.chunk < 1:
         raise UsageError(f"--chunk = {args.chunk}: must be at least 1")
-    if args.rom not in ("off", "auto"):
+    if args.rom not in (None, "off", "auto"):
         raise UsageError(f"--rom = {args.rom!r}: one of off, auto")
     data = read_toml(args.dist, "--dist")
     model, options = load_design_model(args)
@@ -45,9 +47,7 @@ def run(args):
         dist = distribution_from_dict(data, model)
     except ValueError as e:
         raise UsageError(f"--dist {args.dist}: {e}") from None
-    if args.rom == "auto" and judges_steady_operation(args, model):
-        raise UsageError("--rom auto: steady operation is solved directly; a reduced model stands in for "
-                         "time-stepped runs (--window or --at)")
+    rom = args.rom or ("auto" if judges_steady_operation(args, model) else "off")
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise UsageError(f"--out = {args.out!r}: exists and is not a directory")
     # FORM and the RSS stack-up read the linear response at θ = 0: taken with the reference run
@@ -59,7 +59,7 @@ def run(args):
         except ValueError as e:
             raise UsageError(str(e)) from None
     res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
-                    rom=args.rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
+                    rom=rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
     out = res.to_dict()
     if not args.no_error_bars:
         stage(args, "error bar: the samples nearest the limit on the grid one level finer")

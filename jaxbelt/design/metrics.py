@@ -66,8 +66,8 @@ from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..state import BeltState
-from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, linear_start, period_steps, state_fields,
-                      steady_state)
+from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
+                      map_configurations, period_steps, state_fields, steady_state)
 from ..timeloop import check_finite, simulate
 
 M_TO_UM = 1e6
@@ -270,20 +270,21 @@ def _steady_reference_and_tangents(model, space, integrator, dt, n_p):
                          tangent_rtol=DESIGN_TANGENT_RTOL)
         return (s.tracer_u, s.tracer_v, s.angle, state_fields(s.state)), s
 
-    J, ref = jax.jacfwd(solve, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
+    J, ref = forward_jacobian(solve, jnp.zeros(space.size, model.chi_static.dtype), has_aux=True)
     return ref, J[:3], J[3]
 
 
 @eqx.filter_jit
 def _steady_batch(model, space, integrator, dt, n_p, chis, y0):
-    """Steady states of ``model`` at each row of ``chis`` (m, q), as one ``vmap`` batch:
-    ``((tracer rows and angles, converged (m,)), the SteadyStates)``."""
+    """Steady states of ``model`` at each row of ``chis`` (m, q), as one batch
+    (:func:`jaxbelt.steady.map_configurations`): ``((tracer rows and angles, converged (m,)), the
+    SteadyStates)``."""
 
     def one(chi):
         s = steady_state(model.replace(chi_static=chi), integrator, dt=dt, period_steps=n_p, y0=y0)
         return (_steady_rows(s), s.converged), s
 
-    return jax.vmap(one)(chis)
+    return map_configurations(one, chis)
 
 
 def _steady_frame(model, metric, dt, components, integrator) -> dict:
@@ -340,9 +341,16 @@ def _reference_and_tangents(model, space, integrator, dt, n_steps):
 @eqx.filter_jit
 def _deviation_tangents(study: Study):
     """:func:`run_deviation` at ``θ = 0`` and its derivatives (``Study.linearisation``)."""
-    J, primal = jax.jacfwd(lambda t: (run_deviation(study, t),) * 2, has_aux=True)(
-        jnp.zeros(study.space.size, study.base.dtype))
+    fn, theta = (lambda t: (run_deviation(study, t),) * 2), jnp.zeros(study.space.size, study.base.dtype)
+    J, primal = forward_jacobian(fn, theta, has_aux=True) if study.steady else jax.jacfwd(fn, has_aux=True)(theta)
     return primal, J
+
+
+def with_linearisation(study: Study) -> Study:
+    """``study`` with its :attr:`Study.linearisation`, computed here where it has none."""
+    if study.linearisation is not None:
+        return study
+    return dataclasses.replace(study, linearisation=_deviation_tangents(study))
 
 
 def _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction) -> dict:

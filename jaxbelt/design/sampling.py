@@ -33,11 +33,13 @@ import numpy as np
 from jax.scipy.stats import norm
 
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
+from ..steady import map_configurations
 from .metrics import Study, evaluate, for_runs, metric_value
 from .sensitivity import response_jacobian
 from .sharding import batched_map
 
 DISTRIBUTIONS = ("normal", "uniform")
+STEADY_CHUNK = 4  # steady solves per compiled block (they run in sequence: a block only bounds the padding)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -140,12 +142,17 @@ def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=No
 
 def _map(study, thetas, chunk, progress=None):
     """:func:`~jaxbelt.design.sharding.batched_map` with the rows padded to a whole number of
-    chunks, so that every call with the same ``chunk`` reuses one compilation."""
+    chunks, so that every call with the same ``chunk`` reuses one compilation. Steady solves run
+    one after another (:func:`jaxbelt.steady.map_configurations`), where a padded row costs a whole
+    solve: their chunk is at most :data:`STEADY_CHUNK`."""
     thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
+    if study.steady:
+        chunk = min(chunk or STEADY_CHUNK, STEADY_CHUNK)
     n = thetas.shape[0]
     if chunk is not None and n % chunk:
         thetas = np.concatenate([thetas, np.repeat(thetas[-1:], chunk - n % chunk, axis=0)])
-    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=for_runs(study))
+    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=for_runs(study),
+                      batch=map_configurations if study.steady else None)
     return jax.tree.map(lambda a: a[:n], out)
 
 
@@ -324,14 +331,16 @@ class ImportanceSamplingResult:
 
 
 def importance_sampling(study: Study, dist: Distribution, limit_um: float, u_star, n: int = 1000,
-                        seed: int = 1, chunk: int | None = None) -> ImportanceSamplingResult:
+                        seed: int = 1, chunk: int | None = None, metric_of=None) -> ImportanceSamplingResult:
     """Yield by importance sampling around the design point ``u_star``
-    (:class:`ImportanceSamplingResult`)."""
+    (:class:`ImportanceSamplingResult`); ``metric_of(thetas (n, P)) -> (n,)`` evaluates the samples
+    (default: the full model, :func:`evaluate_metric`)."""
     check_distribution(dist, study)
     u_star = np.asarray(u_star, float)
     u = u_star + np.random.default_rng(seed).standard_normal((n, len(u_star)))
     w = np.exp(-u @ u_star + 0.5 * u_star @ u_star)
-    metric = evaluate_metric(study, np.asarray(dist.transform(jnp.asarray(u))), chunk)
+    thetas = np.asarray(dist.transform(jnp.asarray(u)))
+    metric = evaluate_metric(study, thetas, chunk) if metric_of is None else np.asarray(metric_of(thetas))
     fail = (metric > limit_um).astype(float)
     pf = float(np.mean(fail * w))
     se = float(np.std(fail * w, ddof=1) / math.sqrt(n)) if n > 1 else float("inf")

@@ -47,28 +47,33 @@ def config_mesh(devices: Sequence[jax.Device] | None = None) -> Mesh:
     return Mesh(np.asarray(devices, dtype=object), (AXIS,))
 
 
+def _batched(fn: Callable, batch: Callable | None) -> Callable:
+    """``fn`` over a leading batch axis: ``vmap``, or ``batch(fn, x)``."""
+    return jax.vmap(fn) if batch is None else functools.partial(batch, fn)
+
+
 @functools.lru_cache(maxsize=32)
-def _jitted(fn: Callable, mesh: Mesh):
+def _jitted(fn: Callable, mesh: Mesh, batch: Callable | None):
     sharding = NamedSharding(mesh, PartitionSpec(AXIS))
-    return jax.jit(jax.vmap(fn), in_shardings=sharding, out_shardings=sharding)
+    return jax.jit(_batched(fn, batch), in_shardings=sharding, out_shardings=sharding)
 
 
 @functools.lru_cache(maxsize=32)
-def _jitted_with_operand(fn: Callable, mesh: Mesh):
+def _jitted_with_operand(fn: Callable, mesh: Mesh, batch: Callable | None):
     @eqx.filter_jit
     def run(operand, x):
-        return jax.vmap(lambda theta: fn(operand, theta))(x)
+        return _batched(lambda theta: fn(operand, theta), batch)(x)
 
     return run
 
 
-def _compiled(fn, mesh):
-    """``jit(vmap(fn))`` with the batch axis sharded over ``mesh``, cached per ``(fn, mesh)``
-    (jit then caches one executable per input shape)."""
+def _compiled(fn, mesh, batch):
+    """``jit(vmap(fn))`` (or ``batch``) with the batch axis sharded over ``mesh``, cached per
+    ``(fn, mesh, batch)`` (jit then caches one executable per input shape)."""
     try:
-        return _jitted(fn, mesh)
+        return _jitted(fn, mesh, batch)
     except TypeError:  # unhashable callable: no cache
-        return _jitted.__wrapped__(fn, mesh)
+        return _jitted.__wrapped__(fn, mesh, batch)
 
 
 def _pad_rows(x: np.ndarray, rows: int) -> np.ndarray:
@@ -82,20 +87,20 @@ def _round_up(n: int, k: int) -> int:
     return -(-n // k) * k
 
 
-def _run_sharded(fn, block: np.ndarray, mesh: Mesh, operand=None):
+def _run_sharded(fn, block: np.ndarray, mesh: Mesh, operand=None, batch=None):
     """Evaluate one padded block (rows a multiple of the mesh size); device arrays, sharded.
     With an ``operand``, its arrays are arguments of the compiled program, replicated on every
     device of the mesh (not constants folded into it)."""
     x = jax.device_put(block, NamedSharding(mesh, PartitionSpec(AXIS)))
     if operand is None:
-        return _compiled(fn, mesh)(x)
+        return _compiled(fn, mesh, batch)(x)
     arrays, rest = eqx.partition(operand, eqx.is_array)
     arrays = jax.device_put(arrays, NamedSharding(mesh, PartitionSpec()))
-    return _jitted_with_operand(fn, mesh)(eqx.combine(arrays, rest), x)
+    return _jitted_with_operand(fn, mesh, batch)(eqx.combine(arrays, rest), x)
 
 
 def batched_map(fn: Callable, configs, *, chunk: int | None = None, mesh: Mesh | None = None,
-                progress: Callable | None = None, operand=None):
+                progress: Callable | None = None, operand=None, batch: Callable | None = None):
     """Evaluate ``fn`` on every configuration, the batch sharded over the local devices.
 
     ``jax.vmap(fn)`` runs under ``jax.jit`` with the batch axis split over the mesh axis
@@ -119,6 +124,8 @@ def batched_map(fn: Callable, configs, *, chunk: int | None = None, mesh: Mesh |
     - ``progress``: optional callback ``progress(done, chunk_result)`` after each chunk, with
       ``done`` the number of configurations finished so far and ``chunk_result`` that chunk's
       pytree of numpy arrays (leading axis its configurations, pad rows removed).
+    - ``batch``: ``batch(one, x)`` evaluates ``one`` over the rows of a block in place of
+      ``jax.vmap(one)(x)`` (e.g. :func:`jaxbelt.steady.map_configurations` for steady solves).
 
     **Returns:** the pytree of ``fn``'s outputs stacked along a leading axis n, as numpy arrays.
     """
@@ -146,7 +153,7 @@ def batched_map(fn: Callable, configs, *, chunk: int | None = None, mesh: Mesh |
     pending = None
     for start in range(0, n, size):
         block = configs[start:start + size]
-        out = _run_sharded(fn, _pad_rows(block, size), mesh, operand)  # dispatched asynchronously
+        out = _run_sharded(fn, _pad_rows(block, size), mesh, operand, batch)  # dispatched asynchronously
         if pending is not None:  # the previous chunk goes to the host while this one runs
             collect(*pending)
         pending = (out, start, len(block))

@@ -41,7 +41,7 @@ from jax import lax
 import numpy as np
 
 from ..misalignment import parameter_space
-from ..steady import steady_walk
+from ..steady import forward_jacobian, steady_walk
 from ..timeloop import RunOptions, belt_speed, simulate
 from ..control import samples_per_update
 from .plant import SteeringPlant, gain_margin, plant_step_response
@@ -295,7 +295,7 @@ def _steady_walk_and_jacobian(model, solver, dt, idx):
         r = steady_walk(model.replace(chi_static=model.chi_static.at[idx].add(theta)), solver, dt=dt).walk_rate
         return r, r
 
-    return jax.jacfwd(rate, has_aux=True)(jnp.zeros(idx.shape, model.chi_static.dtype))
+    return forward_jacobian(rate, jnp.zeros(idx.shape, model.chi_static.dtype), has_aux=True)
 
 
 def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, float]:

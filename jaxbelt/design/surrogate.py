@@ -101,8 +101,9 @@ from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, trace
 from ..rom.reduced import reduced_operators
 from ..state import initial_state
 from ..timeloop import simulate
-from .metrics import M_TO_UM, RAD_TO_MRAD, Study, aggregate, response_from_deviation, saturation
-from .sampling import Distribution, check_distribution, standard_normal_samples
+from .metrics import (M_TO_UM, RAD_TO_MRAD, Study, aggregate, response_from_deviation, saturation,
+                      with_linearisation)
+from .sampling import STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, standard_normal_samples
 
 ROUNDOFF_UM = 1e-9
 METHODS = ("response", "pod")
@@ -324,6 +325,19 @@ def _fit_response(study: Study, train, widths) -> ResponseSurface:
                            angle0=a0, angle_linear=a1, angle_curvature=a2)
 
 
+def _steady_surface(study: Study) -> ResponseSurface:
+    """:class:`ResponseSurface` of a steady study without a training run: the aligned steady
+    state's deviations and their implicit-function derivatives (the study's linearisation, or
+    computed here), no curvature — the linear response of steady operation, whose departure from
+    the nonlinear solves the validation measures."""
+    (du, dv, angle), (ju, jv, jangle) = with_linearisation(study).linearisation
+    d0 = jnp.stack([du] + ([] if dv is None else [dv]))  # (c, 1, n_tr)
+    linear = jnp.moveaxis(jnp.stack([ju] + ([] if jv is None else [jv])), -1, 0)  # (P, c, 1, n_tr)
+    a1 = None if angle is None else jnp.moveaxis(jangle, -1, 0)
+    return ResponseSurface(d0=d0, linear=linear, curvature=jnp.zeros_like(linear), n_steps=1, angle0=angle,
+                           angle_linear=a1, angle_curvature=None if a1 is None else jnp.zeros_like(a1))
+
+
 def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     """Fully reduced POD step from the training runs' snapshots, and its nominal anchor."""
     snaps = []
@@ -355,7 +369,11 @@ def _calibrate(surrogate: Surrogate, dist: Distribution, seed: int, n_validation
     study = surrogate.study
     u = standard_normal_samples(n_validation, study.space.size, seed)
     thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(u)))  # one small program, not op by op
-    runs = [_metric_jit(study, *full_deviations(study, th)) for th in thetas]
+    if study.steady:  # one batch of steady solves (the sweep's own program for its full evaluations)
+        batch = evaluate_configs(study, thetas, STEADY_CHUNK)
+        runs = [{k: batch[k][i] for k in ("metric", "steering_mrad") if k in batch} for i in range(len(thetas))]
+    else:
+        runs = [_metric_jit(study, *full_deviations(study, th)) for th in thetas]
     full = np.array([float(r["metric"]) for r in runs])
     predicted = surrogate.predict(thetas)
     err = np.abs(predicted["metric"] - full)
@@ -420,7 +438,13 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     t0 = time.perf_counter()
     widths = training_widths(dist, spread)
     train = training_configurations(dist, spread)
-    if method == "response":
+    if study.steady and method != "response":
+        raise ValueError(f"method = {method!r}: steady operation's surrogate is its linear response (method = 'response')")
+    if study.steady:  # the implicit tangents of the aligned steady state: no training solve
+        train = train[:0]
+        rom, anchor, info = _steady_surface(study), None, {"steps_kept": 1}
+        t_train = t_fitted = time.perf_counter()
+    elif method == "response":
         rom, anchor, info = _fit_response(study, train, widths), None, {"steps_kept": steps_needed(study)}
         t_train = t_fitted = time.perf_counter()
     else:
@@ -430,11 +454,12 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     t2 = time.perf_counter()
     checks = _calibrate(surrogate, dist, seed, n_validation, safety)
     t_full = time.perf_counter() - t2
-    described = {
-        "response": "response surface of the tracer deviations (nominal run + per-component slope and curvature "
-                    "from the +-w runs)",
-        "pod": "fully reduced POD step (jaxbelt.rom), nominal-anchored",
-    }[method]
+    described = "linear response of steady operation (implicit derivatives of the aligned steady state)" \
+        if study.steady else {
+            "response": "response surface of the tracer deviations (nominal run + per-component slope and curvature "
+                        "from the +-w runs)",
+            "pod": "fully reduced POD step (jaxbelt.rom), nominal-anchored",
+        }[method]
     surrogate.validation = {
         "method": method,
         "description": described + "; bound = safety x largest validation error, growing with (rho / rho_max)^2 "

@@ -9,6 +9,10 @@ Per chunk of configurations (fixed by the seed, :func:`~jaxbelt.design.sampling.
    10 % of the limit. Then every configuration is predicted by it, and those whose predicted
    metric lies within the bound of the limit are re-run in full (so the pass/fail call of a
    reduced sample is certain up to the bound). Otherwise the sweep falls back to full runs.
+   In steady operation (a steady study) the surrogate is the steady state's linear response:
+   the implicit derivatives the study already holds, no training solve; its validation solves
+   and the re-runs near the limit are steady solves, and the importance samples are evaluated
+   the same way.
 
 Each finished chunk is appended to the Zarr store (``out``), so a rerun resumes.
 
@@ -197,8 +201,10 @@ def _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate,
     return metric, (np.concatenate(codes) if codes else np.zeros(0, np.int8)), steering
 
 
-def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples) -> dict:
-    """The RSS stack-up, FORM and (yield near 1) importance sampling: :class:`SweepResult` fields."""
+def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate=None) -> dict:
+    """The RSS stack-up, FORM and (yield near 1) importance sampling: :class:`SweepResult` fields.
+    With a ``surrogate``, the importance samples are evaluated as the Monte Carlo's are (the
+    surrogate, and in full where it cannot decide)."""
     r0, J = response_jacobian(study)
     sigma = [s if k == "normal" else s / np.sqrt(3.0) for k, s in zip(dist.kind, dist.scale)]
     f = form(study, dist, limit_um)
@@ -206,7 +212,10 @@ def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_sampl
                form_yield=f.yield_, form_beta=f.beta, form_converged=f.converged,
                design_point=study.space.per_roller(f.theta_star))
     if n - passed <= max(5, int(0.001 * n)) and f.beta > 0:  # yield near 1: MC sees few failures
-        i = importance_sampling(study, dist, limit_um, f.u_star, n=importance_samples, seed=seed + 1, chunk=chunk)
+        metric_of = None if surrogate is None else \
+            (lambda th: _chunk_outputs(study, surrogate, th, limit_um, chunk)[0]["metric"])  # noqa: E731
+        i = importance_sampling(study, dist, limit_um, f.u_star, n=importance_samples, seed=seed + 1, chunk=chunk,
+                                metric_of=metric_of)
         out.update(is_yield=i.yield_, is_ci95=list(i.ci95), is_samples=i.samples)
     return out
 
@@ -296,7 +305,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
         per_full = rom_info["validation_s"] / rom_info["n_validation"]
         extra["speedup_estimate"] = (n - done) * per_full / max(time.perf_counter() - t0, 1e-9)
     if with_form:
-        extra.update(_reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples))
+        extra.update(_reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate))
     wall = time.perf_counter() - t0
     return SweepResult(
         metric=study.metric, limit_um=float(limit_um), samples=int(n), seed=int(seed),

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
+from ..steady import map_configurations
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
 from .metrics import (METRICS, Study, aggregate, aligned_values, for_runs, limit_values, metric_unit, response_sizes,
                       study_on, with_limits)
@@ -154,7 +155,8 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
 
 @eqx.filter_jit
 def _limit_values_batch(study: Study, thetas):
-    return jax.vmap(lambda t: limit_values(study, t))(thetas)
+    one = lambda t: limit_values(study, t)  # noqa: E731
+    return map_configurations(one, thetas) if study.steady else jax.vmap(one)(thetas)
 
 
 def _per_limit(lin, h, names, sizes, limit_um, table):
@@ -234,12 +236,18 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
         limits=per_limit, binding_limit=binding_limit, corners=thetas, limit_names=names)
 
 
+NEAR_WORST = 1e-3  # corners run on the finer grid: within this fraction of the worst excess over the floor
+# (an optimal box has several corners near the limit; the finer grid moves them alike, by the grid's
+# systematic error, so the worst one stands for them: an error bar needs its size, not a fourth digit)
+
+
 @dataclasses.dataclass(frozen=True)
 class BoxDiscretisation:
     """The discretisation uncertainty of a tolerance box (:func:`box_discretisation`).
 
     **Fields:** ``worst_case_um``/``worst_case_fine_um`` the largest metric over the box's
-    worst corners on the box's grid and on the grid one level finer (on the scale of
+    worst corners on the box's grid and (those within :data:`NEAR_WORST` of it) on the grid one
+    level finer (on the scale of
     ``limit_um`` with several limits); ``floor_um``/``floor_fine_um`` the metric of the scene's
     own misalignment (no tolerance) on both; ``half_width_relative_change`` the relative change
     of every half-width the finer grid asks for (the box scaled until its worst corner is back at
@@ -281,8 +289,8 @@ def _on_limit_scale(values, limit_um: float, names=None) -> np.ndarray:
 
 def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integrator=None,
                        grid=None, grid_fine=None) -> BoxDiscretisation:
-    """The box's worst corners (those of the last verification) and the scene's own misalignment
-    on ``study``'s grid and on ``fine_model``'s — the same scene one level finer, run at ``dt``
+    """The box's worst corners (those of the last verification within :data:`NEAR_WORST` of the
+    worst one's excess over the floor) and the scene's own misalignment on ``study``'s grid and on ``fine_model``'s — the same scene one level finer, run at ``dt``
     with ``integrator`` (the metric, components, evaluation time and window those of ``study``)
     — and the half-widths' relative change that follows (:class:`BoxDiscretisation`).
 
@@ -292,10 +300,12 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integ
     where the scene is aligned (its own misalignment zero) the run at ``θ = 0`` is that
     reference itself, read from it (:func:`jaxbelt.design.metrics.aligned_values`), not
     repeated."""
-    worst_rows = [row["full_um"] for row in box.verification if row["kind"] == "worst corner"]
+    worst_rows = np.array([row["full_um"] for row in box.verification if row["kind"] == "worst corner"])
     floor, worst = _box_floor(box, study.aggregate), float(np.max(worst_rows))
+    # the corners that can be the worst on the finer grid: within NEAR_WORST of the excess over the floor
+    corners = box.corners[worst_rows >= worst - NEAR_WORST * max(worst - floor, 0.0)]
     aligned_scene = not np.any(np.asarray(study.base))
-    thetas = box.corners if aligned_scene else np.concatenate([np.zeros((1, box.corners.shape[1])), box.corners])
+    thetas = corners if aligned_scene else np.concatenate([np.zeros((1, corners.shape[1])), corners])
     fine_study, values = study_on(fine_model, study, thetas, dt=dt, integrator=integrator, limits=box.limit_names or ())
     fine = _on_limit_scale(values, box.limit_um, box.limit_names)
     if aligned_scene:

@@ -36,7 +36,7 @@ def test_tolerance_in_steady_operation(capsys):
     (["tolerance", "three-roller-tolerance", "--window", "1"], "no steering loop"),
     (["tolerance", SCENE, "--window", "0"], "--window"),
     (["tolerance", SCENE, "--window", "100"], "longer than the run"),
-    (["sweep", SCENE, "--dist", "{dist}", "--rom", "auto"], "steady operation is solved directly"),
+    (["sweep", SCENE, "--dist", "{dist}", "--rom", "pod"], "--rom"),
 ])
 def test_transient_options_refused_before_any_run(argv, message, tmp_path, capsys):
     dist = tmp_path / "d.toml"

@@ -347,3 +347,48 @@ def test_very_coarse_and_very_fine_grids_across_the_width(n_eta, t72_default_gri
     for a, b in ((tr.tracer_u, ref.tracer_u), (tr.tracer_v, ref.tracer_v)):
         a, b = np.asarray(a[-1]), np.asarray(b[-1])
         assert np.max(np.abs(a - b)) < 0.1 * np.max(np.abs(b))
+
+
+def _idle_translated():
+    sc = jb.load_scene("two-roller-1d-idle-translated")
+    return jb.build_model(sc), jb.RunOptions.from_scene(sc)
+
+
+def test_small_time_steps_converge_from_a_running_start():
+    """From a running start (belt and idle roller at the drive speed, consistent with no slip) the
+    1D machine with its idle roller 1 mm out converges at first order as Δt → 0 on a fixed grid:
+    Δt, Δt/10, Δt/100 and Δt/1000 (Courant numbers 0.64 down to 6.4e-4) differ by a tenth as much
+    at each level, and the idle roller turns with the drive."""
+    model, opts = _idle_translated()
+    y0 = jb.initial_state(model, start="running")
+    ends = []
+    for k in (1, 10, 100, 1000):
+        n = 40 * k
+        final, tr = jb.simulate(model, opts.solver, n_steps=n, dt=opts.dt / k, y0=y0, saveat=jb.SaveAt(every=n))
+        ends.append(np.asarray(tr.tracer_u[-1]) * 1e6)
+        assert abs(float(final.chi_dot[-1]) / float(final.chi_dot[1]) - 1.0) < 1e-4
+    gaps = [np.abs(a - b).max() for a, b in zip(ends, ends[1:])]
+    assert gaps[0] > 1.0  # µm: the coarse step's own error is visible
+    assert gaps[1] < 0.15 * gaps[0] and gaps[2] < 0.15 * gaps[1], gaps
+
+
+def test_a_start_from_rest_swings_the_idle_roller_at_its_torsional_frequency():
+    """From rest (model specification §2) the impulsive start sets the idle roller swinging on the
+    two spans, undamped but for Backward Euler's numerical damping: at a small Δt the swing has the
+    torsional frequency of the roller's inertia on the spans' stiffness, √(2 EA / L / (m_r / 2)) —
+    physics, not an error — and its mean speed is the drive's (no slip)."""
+    sc = jb.load_scene("two-roller-1d")
+    model = jb.build_model(sc)
+    dt, n = 2e-5, 2500
+    _, tr = jb.simulate(model, jb.RunOptions.from_scene(sc).solver, n_steps=n, dt=dt)
+    w = np.asarray(tr.roller_velocity)[:, 1, -1]  # idle roller's α̇_z, rad/s
+    belt = sc.belt
+    EA = belt.youngs_modulus * belt.width * belt.thickness
+    span = np.hypot(*np.subtract(sc.rollers[1].center, sc.rollers[0].center))
+    omega_t = math.sqrt(2 * EA / span / (0.5 * sc.rollers[1].mass))
+    up = np.flatnonzero((w[:-1] < 10.0) & (w[1:] >= 10.0))  # upward crossings of the drive's speed
+    period = np.mean(np.diff(up)) * dt
+    assert abs(2 * math.pi / period / omega_t - 1) < 0.03, (2 * math.pi / period, omega_t)
+    assert w.max() > 18.0 and w.min() < 2.0  # swinging between rest and twice the drive speed
+    whole = slice(up[0], up[-1])
+    assert abs(np.mean(w[whole]) / 10.0 - 1) < 0.01

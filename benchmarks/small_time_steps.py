@@ -1,0 +1,78 @@
+"""Small time steps on a fixed grid: the impulsive start against a running start.
+
+``two-roller-1d`` (idle roller aligned) and ``two-roller-1d-idle-translated`` (idle roller 1 mm
+out) run 0.2 s from the static equilibrium at the scene's Δt and at Δt/10, /100, /1000, once
+from rest (model specification §2: belt and idle roller at rest, the drive at speed) and once
+running (:func:`jaxbelt.initial_state` with ``start="running"``). Recorded: the idle roller's
+speed at the end, the largest tracer displacement over the run, and the gap between successive
+levels. Also the idle roller's swing after a start from rest at Δt = 2e-5 s against the torsional
+frequency of its inertia on the spans, ``√(2 EA / L / (m_r / 2))``.
+
+Run: ``python benchmarks/small_time_steps.py``. Writes ``results/small_time_steps.json``.
+"""
+
+import math
+
+import numpy as np
+
+import jaxbelt as jb
+from jaxbelt.timeloop import belt_speed
+from _common import load, write
+
+T_END = 0.2
+LEVELS = (1, 10, 100, 1000)
+
+
+def runs(scene, start):
+    model, opts = load(scene)
+    y0 = jb.initial_state(model, start=start)
+    rows, prev = [], None
+    for k in LEVELS:
+        dt = opts.dt / k
+        n = int(round(T_END / dt))
+        final, tr = jb.simulate(model, opts.solver, n_steps=n, dt=dt, y0=y0, saveat=jb.SaveAt(every=max(1, n // 200)))
+        u = np.asarray(tr.tracer_u) * 1e6
+        row = {"dt_s": dt, "courant": float(belt_speed(model) * dt / float(np.min(np.asarray(model.ell)))),
+               "idle_speed_rad_s": float(np.asarray(final.chi_dot)[-1]),
+               "drive_speed_rad_s": float(np.asarray(final.chi_dot)[1]),
+               "max_abs_tracer_u_um": float(np.abs(u).max())}
+        if prev is not None:
+            row["gap_to_previous_level_um"] = float(np.abs(u[-1] - prev).max())
+        prev = u[-1]
+        rows.append(row)
+        print(scene, start, row, flush=True)
+    return rows
+
+
+def swing():
+    scene = jb.load_scene("two-roller-1d")
+    model, opts = load(scene)
+    dt, n = 2e-5, 2500
+    _, tr = jb.simulate(model, opts.solver, n_steps=n, dt=dt)
+    w = np.asarray(tr.roller_velocity)[:, 1, -1]
+    b, r = scene.belt, scene.rollers[1]
+    EA = b.youngs_modulus * b.width * b.thickness
+    span = math.hypot(*np.subtract(r.center, scene.rollers[0].center))
+    omega_t = math.sqrt(2 * EA / span / (0.5 * r.mass))
+    up = np.flatnonzero((w[:-1] < 10.0) & (w[1:] >= 10.0))
+    f = 1.0 / (np.mean(np.diff(up)) * dt)
+    return {"dt_s": dt, "frequency_hz": float(f), "torsional_frequency_hz": omega_t / (2 * math.pi),
+            "idle_speed_min_rad_s": float(w.min()), "idle_speed_max_rad_s": float(w.max()),
+            "idle_speed_mean_rad_s": float(np.mean(w[up[0]:up[-1]])),
+            # Backward Euler's amplification of an undamped mode: 1 / sqrt(1 + (ω Δt)²) per step
+            "swing_left_after_one_step_at_scene_dt": 1.0 / math.sqrt(1.0 + (omega_t * opts.dt) ** 2),
+            "swing_decay_rate_per_s_at_dt_over_1000": omega_t**2 * (opts.dt / 1000) / 2}
+
+
+def main():
+    out = {"t_end_s": T_END, "levels": list(LEVELS), "runs": {}}
+    for scene in ("two-roller-1d", "two-roller-1d-idle-translated"):
+        for start in ("rest", "running"):
+            out["runs"][f"{scene} {start}"] = runs(scene, start)
+    out["swing"] = swing()
+    print(out["swing"])
+    write("small_time_steps", out)
+
+
+if __name__ == "__main__":
+    main()
