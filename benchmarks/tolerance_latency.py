@@ -7,12 +7,16 @@ directory: the first process fills it, the second reads it). Stages: imports and
 model build (mesh, static solve), the aligned steady state and its Jacobian as one
 forward-mode program with the actuator jitter's run (first call: compile and run; second call:
 run alone), the linear response with the limits read from it, one batch of eight verification
-steady solves (first and second call),
+steady solves (first and second call; in the warm-cache process also the same batch as one
+``vmap``, against which :func:`jaxbelt.steady.map_configurations` runs the solves in sequence),
 the whole box (optimisation and verification), then the error bars: the scene one level finer
 built, and its aligned reference and the box's worst corners run as one batch. ``command``: the
 wall time of ``jaxbelt tolerance --json`` (error bars on, the default) and of ``--no-error-bars``,
 each with an empty cache and again with the cache it filled, and of the default once more with
 XLA:CPU's MLIR fusion emitters on (the command line switches them off: :data:`jaxbelt.cli.CLI_XLA_FLAGS`).
+``other_commands``: ``jaxbelt steering`` and a 1000-sample ``jaxbelt sweep`` (the distribution
+``data/three-roller-steered-dist.toml``; with and without its error bar) on the same scene,
+each with an empty cache and again with the cache it filled.
 The stages run with the command line's process settings (:func:`jaxbelt.cli.configure_process`). Run:
 ``OPENBLAS_NUM_THREADS=1 python benchmarks/tolerance_latency.py``. Writes
 ``results/tolerance_latency.json``.
@@ -24,11 +28,12 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 from _common import write
 
 CHILD = r"""
-import json, time
+import json, os, time
 T0 = time.perf_counter()
 marks = {}
 def mark(name, t=[T0]):
@@ -58,6 +63,12 @@ response_jacobian(work); mark("linear_response_s")
 th = jnp.zeros((8, study.space.size))
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_first_s")
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_again_s")
+if os.environ.get("VMAP_BATCH") == "1":  # the same batch as one vmap (compiled by the first child's run)
+    import equinox as eqx
+    from jaxbelt.design.metrics import limit_values
+    vmapped = eqx.filter_jit(lambda st, t: jax.vmap(lambda x: limit_values(st, x))(t))
+    np.asarray(vmapped(work, th)); mark("verification_batch_vmap_first_s")
+    np.asarray(vmapped(work, th)); mark("verification_batch_vmap_again_s")
 res = tol.tolerance_box(study, 20.0, limits=limits); mark("tolerance_box_s")
 _, _, fine, fine_opts = rebuild(refine(scene, n_xi=2.0, n_eta=2.0, dt=2.0))
 jax.block_until_ready(fine.chi_static); mark("finer_model_build_s")
@@ -68,9 +79,17 @@ print(json.dumps(dict(scene=DESIGN_SCENE, n_unknowns=int(model.n_unknowns), stea
 """
 
 
-def _command(argv, env):
+DIST = Path(__file__).parent / "data" / "three-roller-steered-dist.toml"
+OTHER_COMMANDS = (  # the other design commands on the default scene, as a user runs them
+    ("steering", ["steering"]),
+    ("sweep_1000", ["sweep", "--dist", str(DIST), "--samples", "1000"]),
+    ("sweep_1000_no_error_bars", ["sweep", "--dist", str(DIST), "--samples", "1000", "--no-error-bars"]),
+)
+
+
+def _command(argv, env, command="tolerance"):
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "jaxbelt.cli", "tolerance", "--json", *argv], env=env, check=True,
+    subprocess.run([sys.executable, "-m", "jaxbelt.cli", command, "--json", *argv], env=env, check=True,
                    capture_output=True)
     return time.perf_counter() - t0
 
@@ -87,7 +106,9 @@ def main():
     with tempfile.TemporaryDirectory() as cache:
         env = {**base, "JAXBELT_CACHE_DIR": cache}
         for label in () if args.command_only else ("empty_cache", "warm_cache"):
-            r = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, check=True)
+            vmap = {"VMAP_BATCH": "1" if label == "warm_cache" else "0"}
+            r = subprocess.run([sys.executable, "-c", CHILD], env={**env, **vmap}, capture_output=True, text=True,
+                               check=True)
             out[label] = json.loads(r.stdout.strip().splitlines()[-1])
             print(label, json.dumps(out[label]["stages"]), flush=True)
     out["command"] = {}
@@ -100,6 +121,14 @@ def main():
             env = {**base, "JAXBELT_CACHE_DIR": cache, **({"XLA_FLAGS": xla} if xla else {})}
             out["command"][name] = {"empty_cache_s": _command(argv, env), "warm_cache_s": _command(argv, env)}
         print(name, out["command"][name], flush=True)
+    out["other_commands"] = {}
+    for name, (command, *argv) in OTHER_COMMANDS:
+        with tempfile.TemporaryDirectory() as cache:
+            env = {**base, "JAXBELT_CACHE_DIR": cache}
+            out["other_commands"][name] = {"argv": [command, *argv[:1]] + (["FILE.toml"] if argv else []) + argv[2:],
+                                           "empty_cache_s": _command(argv, env, command),
+                                           "warm_cache_s": _command(argv, env, command)}
+        print(name, out["other_commands"][name], flush=True)
     write("tolerance_latency", out)
 
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .registry import (DEFAULT_INTEGRATOR, DEFAULT_LINEAR_SOLVER, DEFAULT_TRANSPORT, INTEGRATORS, LINEAR_SOLVERS,
-                       TRANSPORT_RULES)
+                       START_RULES, TRANSPORT_RULES)
 from .scene_spec import BeltSpec, ControlSpec, MeshSpec, OutputSpec, RollerSpec, Scene, SolverSpec, TimeSpec
 
 
@@ -39,7 +39,7 @@ _TABLES = {
         "translation_mm", "rotation_mrad", "force_n", "torque_nm",
     },
     "mesh": {"n_eta", "n_xi", "element_length_mm", "roller_elements", "free_elements", "element"},
-    "time": {"dt_s", "t_end_s"},
+    "time": {"dt_s", "t_end_s", "start"},
     "output": {"tracers_per_segment", "fields", "every", "tracers_mm"},
     "solver": {"integrator", "linear_solver", "transport", "lateral_transport", "tension_stiffening", "accuracy_um"},
     "control": {"actuator", "axis", "sensor_mm", "kp_mrad_per_mm", "ki_mrad_per_mm_s", "kd_mrad_s_per_mm",
@@ -222,7 +222,10 @@ def scene_from_dict(data: dict, name: str = "scene") -> Scene:
     t_end = _number(time, "t_end_s", "time", positive=True)
     if t_end < dt:
         raise _err("time.t_end_s", t_end, f"shorter than one step (dt_s = {dt})")
-    time_spec = TimeSpec(float(dt), float(t_end))
+    start = time.get("start", "rest")
+    if start not in START_RULES:
+        raise _err("time.start", start, f"one of {', '.join(START_RULES)}")
+    time_spec = TimeSpec(float(dt), float(t_end), start)
 
     out = data.get("output", {})
     _check_keys(out, _TABLES["output"], "output")

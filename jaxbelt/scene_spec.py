@@ -59,6 +59,7 @@ class MeshSpec:
 class TimeSpec:
     dt: float  # s
     t_end: float  # s
+    start: str = "rest"  # rest | running (jaxbelt.registry.START_RULES; jaxbelt.initial_state)
 
     @property
     def n_steps(self) -> int:

@@ -311,9 +311,15 @@ BENCHMARKS = {
                    "seconds spent tracing, lowering and compiling with XLA against the tests' whole time, the "
                    "programs whose compile took over half a second, and the best wall time two workers could "
                    "reach by splitting the one process's work perfectly."),
+    "small_time_steps": ("Small time steps and the start-up", "`two-roller-1d` with the idle roller aligned and "
+                         "1 mm out, 0.2 s from rest and from a running start at the scene's Δt and Δt/10, /100, "
+                         "/1000: the idle roller's speed, the largest tracer displacement and the gap between "
+                         "successive levels; and the idle roller's swing after a start from rest against its "
+                         "torsional frequency ([small time steps](speed.md#small-time-steps-and-the-start-up))."),
     "tolerance_latency": ("Where the main job's time goes", "`jaxbelt tolerance` on the default design scene, "
                           "stage by stage, in a process with an empty compilation cache and in a second one that "
-                          "reads it, then the whole command, empty cache and warm. The stage names say which "
+                          "reads it (there also the verification batch as one `vmap`), then the whole command, "
+                          "empty cache and warm, and `jaxbelt steering` and a 1000-sample `jaxbelt sweep` alike. The stage names say which "
                           "question was timed: `aligned_run_and_jacobian_s` the time-stepped 16–20 s window "
                           "(what `--window 4` asks), `aligned_steady_jacobian_and_jitter_s` steady operation; "
                           "the steady path's figures are in [steady operation](#steady_state) and "

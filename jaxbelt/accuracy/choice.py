@@ -7,7 +7,20 @@ along the belt forcing ``f_Δt ≥ f_ξ × CFL``). The cheapest refinement whose
 the accuracy is built, and its own estimate is computed — the choice is verified, not assumed;
 where it misses, the choice is made again from the chosen grid's own estimate (three rounds at
 most). A direction is coarsened no further than its ladder went: the error model is not
-extrapolated to grids coarser than it saw.
+extrapolated to grids coarser than it saw. Before a grid runs, its cost is predicted — its cost
+multiple times the run time of the grid estimated last, times the runs its own estimate needs
+(:func:`verification_cost_s`) — and a grid that would take the choice over its budget
+(``max_cost_s``, default :data:`DEFAULT_MAX_COST_S`, the time already spent included) is refused
+with that prediction, before it runs. Where a refinement makes the estimate larger, the coarser
+estimate was not in the asymptotic range, and a refusal says so. Where no grid
+within memory is predicted to meet the accuracy, the best one is verified all the same and the
+error model fitted again on it: a refusal quotes what was verified, not only a prediction.
+
+**The start-up.** The error is taken over the output times from ``t_from`` on. A run from rest
+(:func:`jaxbelt.initial_state`) starts with a transient that converges slowest of all — an idle
+roller's undamped swing, damped only by Backward Euler (``docs/speed.md``) — so an accuracy asked
+over the whole run is an accuracy on the start-up; ``t_from`` (``jaxbelt simulate --from``)
+excludes it, and the design commands take their own windows.
 
 **The model** (``allow_1d``): a 2D scene with nothing to push the belt sideways — no roller tilt,
 no translation or force off the loop's plane, no steering loop, no lateral transport — has no
@@ -39,6 +52,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import jax
 import numpy as np
@@ -51,6 +65,7 @@ from .estimate import (DIRECTIONS, DiscretisationError, TracerRun, admissible, a
 REFINEMENTS = tuple(2.0**k for k in range(-2, 9))  # candidate refinement factors per direction: 1/4 … 256
 QUANTITIES = ("longitudinal", "lateral")
 PRECISIONS = ("float64", "float32")
+DEFAULT_MAX_COST_S = 300.0  # s: the budget of a choice, its runs and verifications together
 
 
 class AccuracyError(ValueError):
@@ -233,39 +248,79 @@ class _Verified:
     rounds: int
 
 
-def _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs) -> _Verified:
-    """The grid loop of :func:`choose_grid` (module docstring) for one model."""
+def _factors_text(f: dict) -> str:
+    return ", ".join(f"{d} {'×' if d != 'dt' else '/'}{v:g}" for d, v in f.items() if v != 1.0) or "the scene's own"
+
+
+def verification_cost_s(est: DiscretisationError, cost_multiple: float) -> float:
+    """The predicted wall time of running and verifying a grid ``cost_multiple`` times as costly
+    as ``est``'s: its run and its estimate's ladder, which costs ``est.cost_runs`` runs of the grid
+    it was taken on (compilation apart)."""
+    return cost_multiple * est.run_s * (1.0 + est.cost_runs)
+
+
+def _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs,
+                   max_cost_s: float = math.inf, started: float | None = None) -> _Verified:
+    """The grid loop of :func:`choose_grid` (module docstring) for one model; ``max_cost_s`` the
+    budget counted from ``started`` (``time.perf_counter()``; default now)."""
+    started = time.perf_counter() if started is None else started
     base, factors_total = scene, {d: 1.0 for d in DIRECTIONS}
     base_est = estimate_error(scene, solver, t_from=t_from, progress=progress, runs=runs)
-    best_reachable = None
+    verified = []  # (value µm, grid's factors) of every grid verified
+    grew = ""  # said in a refusal: the estimate grew on refinement
     for r in range(1, rounds + 1):
-        pick = None
+        pick, best = None, None  # the cheapest candidate predicted to meet it; the best reachable one
         for cost, err, f, sc_mesh, fits in _candidates(base, base_est, quantities, base_est.run_bytes):
-            if not fits or (err > accuracy_um and best_reachable is not None and err >= best_reachable[0]):
+            if not fits or (err > accuracy_um and best is not None and err >= best[1]):
                 continue
             cand = refine(sc_mesh, dt=f["dt"])
             if not admissible(cand):
                 continue
-            if best_reachable is None or err < best_reachable[0]:
-                best_reachable = (err, cost * base_est.run_s)
+            if best is None or err < best[1]:
+                best = (cost, err, f, cand)
             if err <= accuracy_um:
                 pick = (cost, err, f, cand)
                 break
         if pick is None:
-            err, cost_s = best_reachable
+            if best is None:
+                raise AccuracyError(f"accuracy_um = {accuracy_um:g}: no admissible grid within half the machine's "
+                                    "memory")
+            # verified anyway where a fit on a grid nearer the target may bridge the gap (the prediction
+            # within twice the accuracy, and better than the grid it comes from); else refused
+            if r == rounds or best[1] > 2.0 * accuracy_um or best[1] >= 0.9 * asked_value(base_est, quantities):
+                raise AccuracyError(
+                    f"accuracy_um = {accuracy_um:g}: no grid within half the machine's memory reaches it: the error "
+                    f"model of the last grid estimated (its own {asked_value(base_est, quantities):.3g} µm) predicts "
+                    f"{best[1]:.3g} µm at best (refined {_factors_text(best[2])})"
+                    + ("" if not verified else f"; the best grid verified reads {min(verified)[0]:.3g} µm") + grew)
+            pick = best  # verified anyway, and the model fitted again on it (a prediction is not a verdict)
+        cost, predicted, f, cand = pick
+        predicted_s = verification_cost_s(base_est, cost)
+        spent = time.perf_counter() - started
+        if spent + predicted_s > max_cost_s:
             raise AccuracyError(
-                f"accuracy_um = {accuracy_um:g}: no grid within half the machine's memory reaches it; the best "
-                f"reachable is about {err:.3g} µm at about {cost_s:.3g} s a run")
-        _, predicted, f, cand = pick
+                f"accuracy_um = {accuracy_um:g}: the cheapest grid predicted to reach {predicted:.3g} µm (refined "
+                f"{_factors_text(f)} against the grid estimated last) would take about {predicted_s:.3g} s to run "
+                f"and verify, {spent:.3g} s spent already, over the budget of {max_cost_s:g} s (max_cost_s)" + grew)
         est = estimate_error(cand, solver, t_from=t_from, progress=progress, runs=runs)
         factors_total = {d: factors_total[d] * f[d] for d in DIRECTIONS}
         value = asked_value(est, quantities)
+        verified.append((value, factors_total))
         if value <= accuracy_um:
             return _Verified(cand, est, value, predicted, factors_total, r)
+        before = asked_value(base_est, quantities)
+        if value >= before:  # the coarser grid's estimate was not in the asymptotic range
+            grew = (f" (the estimate grew on refinement, {before:.3g} → {value:.3g} µm: the coarser grids' runs "
+                    "agreed on a transient they all damp away; in a run from rest, the idle rollers' start-up "
+                    "swing, which Backward Euler damps less at a smaller time step (docs/speed.md); judge the "
+                    "error after the start-up, t_from (--from), or start running)")
+        if progress:
+            progress(f"the grid predicted at {predicted:.3g} µm reads {value:.3g} µm: the error model is fitted "
+                     "again on it")
         if r == rounds:
             raise AccuracyError(
                 f"accuracy_um = {accuracy_um:g}: the chosen grid's estimate is still {value:.3g} µm after "
-                f"{rounds} rounds; the best reachable is about {best_reachable[0]:.3g} µm")
+                f"{rounds} rounds (each fitting the error model again on the grid before)" + grew)
         base, base_est = cand, est
     raise AssertionError("unreachable")  # pragma: no cover
 
@@ -282,7 +337,8 @@ def _judge(name, cheaper: TracerRun, reference: TracerRun, diff, value_um, accur
     return ModelCheck(name, diff, cheaper.run_s, reference.run_s, True, taken)
 
 
-def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs_2d, runs_1d):
+def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs_2d, runs_1d, max_cost_s=math.inf,
+            started=None):
     """``(verified 1D grid or None, ModelCheck)``: the 1D counterpart where it is admissible,
     faster and within the accuracy with the measured model difference added (``runs_1d`` keeps
     its runs)."""
@@ -304,10 +360,12 @@ def _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, ru
     if not check.used:
         return None, check
     try:
-        v = _verified_grid(s1, accuracy_um - diff, quantities, solver, t_from, rounds, progress, runs_1d)
+        v = _verified_grid(s1, accuracy_um - diff, quantities, solver, t_from, rounds, progress, runs_1d, max_cost_s,
+                           started)
     except AccuracyError:
         return None, dataclasses.replace(
-            check, used=False, why=f"no 1D grid meets the accuracy less the model difference ({diff:.3g} µm)")
+            check, used=False, why=f"no 1D grid meets the accuracy less the model difference ({diff:.3g} µm) "
+                                   "within the budget")
     return v, check
 
 
@@ -342,7 +400,7 @@ def _try_float32(scene, value_um, accuracy_um, quantities, solver, t_from, refer
 
 def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, *, t_from: float = 0.0,
                 rounds: int = 3, progress=None, allow_1d: bool = False, allow_float32: bool = False,
-                allow_reuse: bool = True) -> GridChoice:
+                allow_reuse: bool = True, max_cost_s: float = DEFAULT_MAX_COST_S) -> GridChoice:
     """The cheapest run of ``scene`` whose estimated error is at most ``accuracy_um`` for the
     ``quantities`` (``longitudinal``/``lateral``; default both the scene has), verified by its
     own estimate (module docstring). ``AccuracyError`` (naming the best reachable error and its
@@ -352,18 +410,22 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     allows; ``allow_float32``: run in float32 where its measured rounding allows (the caller
     builds and runs the chosen scene inside :func:`precision_scope`); ``allow_reuse``: try the
     reuse solver where the caller leaves the solver to the scene (``False`` for answers made of
-    batched runs)."""
+    batched runs); ``max_cost_s``: the wall-time budget of the whole choice; each grid's run and
+    verification is checked against it, with its predicted cost and the time spent, before it runs (``AccuracyError`` naming the predicted cost where
+    the cheapest choice is over it)."""
     if not (isinstance(accuracy_um, (int, float)) and math.isfinite(accuracy_um) and accuracy_um > 0):
         raise ValueError(f"accuracy_um = {accuracy_um}: must be a positive number of µm")
     quantities = tuple(quantities or (QUANTITIES if scene.kind == "2d" else ("longitudinal",)))
     unknown = [q for q in quantities if q not in QUANTITIES]
     if unknown:
         raise ValueError(f"quantities {unknown}: unknown (one of {', '.join(QUANTITIES)})")
+    started = time.perf_counter()
     automatic = [f"solver {scene.solver.integrator}/{scene.solver.linear_solver} (the scene's)"]
     checks, runs, runs_1d = [], {}, {}
     v, model_diff = None, 0.0
     if allow_1d and scene.kind == "2d":
-        v1, check = _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs, runs_1d)
+        v1, check = _try_1d(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs, runs_1d,
+                            max_cost_s, started)
         checks.append(check)
         if v1 is not None:
             v, model_diff = v1, check.difference_um
@@ -373,7 +435,7 @@ def choose_grid(scene: Scene, accuracy_um: float, quantities=None, solver=None, 
     if scene.kind == "1d":
         quantities = tuple(q for q in quantities if q == "longitudinal") or ("longitudinal",)
     if v is None:
-        v = _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs)
+        v = _verified_grid(scene, accuracy_um, quantities, solver, t_from, rounds, progress, runs, max_cost_s, started)
     value = v.value_um + model_diff
     chosen_scene, precision, cost_s = v.scene, "float64", v.estimate.run_s
     reference = None

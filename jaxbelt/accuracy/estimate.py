@@ -43,7 +43,8 @@ import numpy as np
 
 from ..build import build_model
 from ..mesh import build_mesh
-from ..scene import Scene, SceneError, TimeSpec
+from ..scene import Scene, SceneError
+from ..state import initial_state
 from ..timeloop import RunOptions, SaveAt, check_finite, simulate
 
 DIRECTIONS = ("n_xi", "n_eta", "dt")
@@ -85,7 +86,7 @@ def refine(scene: Scene, *, n_xi: float = 1.0, n_eta: float = 1.0, dt: float = 1
             m = dataclasses.replace(m, n_xi=max(1, round(total * n_xi)))
     if n_eta != 1.0 and scene.kind == "2d":
         m = dataclasses.replace(m, n_eta=max(1, round((m.n_eta - 1) * n_eta)) + 1)
-    time_spec = scene.time if dt == 1.0 else TimeSpec(dt=scene.time.dt / dt, t_end=scene.time.t_end)
+    time_spec = scene.time if dt == 1.0 else dataclasses.replace(scene.time, dt=scene.time.dt / dt)
     return scene.replace(mesh=m, time=time_spec)
 
 
@@ -186,14 +187,16 @@ def tracer_run(scene: Scene, solver=None) -> TracerRun:
     model = build_model(scene)
     opts = RunOptions.from_scene(scene)
     solver = opts.solver if solver is None else solver
-    go = jax.jit(lambda m, dt: simulate(m, solver, n_steps=opts.n_steps, dt=dt, saveat=SaveAt(), check=False)[1])
+    y0 = initial_state(model, start=scene.time.start)
+    go = jax.jit(lambda m, dt, y0: simulate(m, solver, n_steps=opts.n_steps, dt=dt, y0=y0, saveat=SaveAt(),
+                                            check=False)[1])
     dt = jax.numpy.asarray(opts.dt, model.ell.dtype)
-    compiled = go.lower(model, dt).compile()
+    compiled = go.lower(model, dt, y0).compile()
     mem = compiled.memory_analysis()
     run_bytes = (8.0 * model.n_unknowns * 64 * opts.n_steps if mem is None else
                  float(mem.argument_size_in_bytes + mem.output_size_in_bytes + mem.temp_size_in_bytes))
     t0 = time.perf_counter()
-    traj = jax.block_until_ready(compiled(model, dt))
+    traj = jax.block_until_ready(compiled(model, dt, y0))
     run_s = time.perf_counter() - t0
     check_finite(traj, opts.dt)
     return TracerRun(np.asarray(traj.t), np.asarray(traj.tracer_u),

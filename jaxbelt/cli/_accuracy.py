@@ -7,6 +7,7 @@ import math
 import sys
 
 from ..accuracy import AccuracyError, choose_grid, estimate_error
+from ..accuracy.choice import DEFAULT_MAX_COST_S
 from ._common import UsageError
 
 
@@ -15,6 +16,9 @@ def add_accuracy_arguments(p, estimate: bool = True):
                    help="run on the cheapest grid (n_xi, n_eta, dt) whose estimated discretisation error is at most "
                         "X µm, verified by its own estimate (default: the scene's [solver] accuracy_um, else the "
                         "scene's grid)")
+    p.add_argument("--max-cost-s", type=float, default=DEFAULT_MAX_COST_S, metavar="S",
+                   help="with --accuracy-um: refuse, before it runs, a grid whose run and verification are "
+                        f"predicted to take longer than S s (default {DEFAULT_MAX_COST_S:g}; the time spent choosing counts)")
     if estimate:
         p.add_argument("--error-estimate", action="store_true",
                        help="also estimate the run's discretisation error (Richardson in n_xi, n_eta and dt; "
@@ -44,15 +48,18 @@ def choose_accuracy(args, scene, quantities=None, t_from: float = 0.0, **allow):
     x = accuracy_asked(args, scene)
     if x is None:
         return None
+    budget = getattr(args, "max_cost_s", DEFAULT_MAX_COST_S)
+    if not (math.isfinite(budget) and budget > 0):
+        raise UsageError(f"--max-cost-s = {budget}: must be a positive number of seconds")
     try:
-        return choose_grid(scene, x, quantities, t_from=t_from, progress=_progress(args), **allow)
+        return choose_grid(scene, x, quantities, t_from=t_from, progress=_progress(args), max_cost_s=budget, **allow)
     except AccuracyError as e:
         raise UsageError(str(e)) from None
 
 
 def error_estimate(args, scene) -> dict:
     """``discretisation_error_um`` of the scene's run."""
-    return estimate_error(scene, progress=_progress(args)).as_dict()
+    return estimate_error(scene, progress=_progress(args), t_from=getattr(args, "accuracy_from", 0.0)).as_dict()
 
 
 def print_accuracy(s: dict):
@@ -74,12 +81,16 @@ def print_accuracy(s: dict):
             print(f"  warning: {line}")
 
 
+ROUNDOFF_UM = 1e-6  # an error estimate below this is round-off of a machine at rest in its frame
+
+
 def estimate_caveats(s: dict) -> list[str]:
     """What makes a summary's error estimate doubtful, in words: an observed order held at a bound
     of its admissible range (the differences do not show the asymptotic rate), and an estimate
-    larger than the signal it is the error of (the grid resolves too little of it)."""
+    larger than the signal it is the error of (the grid resolves too little of it). Both are left
+    unsaid where the estimate is at round-off (below :data:`ROUNDOFF_UM`): there is nothing to resolve."""
     e = s.get("discretisation_error_um")
-    if e is None:
+    if e is None or max(e.get("longitudinal") or 0.0, e.get("lateral") or 0.0) < ROUNDOFF_UM:
         return []
     out = []
     for d, x in e.get("directions", {}).items():

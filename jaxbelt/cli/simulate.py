@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -23,9 +25,13 @@ def add_parser(subparsers):
     s = subparsers.add_parser("simulate", help="run a scene")
     s.add_argument("scene", help=SCENE_HELP)
     s.add_argument("--t-end", type=float, default=None, help="end time, s")
-    s.add_argument("--start", choices=tuple(START_RULES), default="rest",
+    s.add_argument("--from", dest="accuracy_from", type=float, default=0.0, metavar="S",
+                   help="with --accuracy-um or --error-estimate: the error over the output times from S s on, "
+                        "leaving out the start-up transient, which converges slowest (default 0: the whole run)")
+    s.add_argument("--start", choices=tuple(START_RULES), default=None,
                    help="rest: belt and idle rollers at rest, the drive at speed (an impulsive start, model "
-                        "specification); running: everything at the drive speed already (no start-up swing)")
+                        "specification); running: everything at the drive speed already (no start-up swing); "
+                        "default: the scene's [time] start, else rest")
     s.add_argument("--dt", type=float, default=None, help="time step, s (checked against CFL)")
     s.add_argument("--integrator", choices=tuple(INTEGRATORS), default=None,
                    help="time integrator (default: the scene's, direct unless it names one)")
@@ -248,7 +254,12 @@ def run(args, demo=False):
                                            getattr(args, "transport", None), getattr(args, "solver", None))
     # the 1D counterpart where the answer allows, unless fields of the 2D belt are asked for
     fields_asked = bool(getattr(args, "plot_fields", None) or getattr(args, "plot_3d", None))
-    chosen = choose_accuracy(args, scene, allow_1d=not fields_asked, allow_float32=True)
+    if getattr(args, "start", None) is not None:  # the start is the scene's: every run of it, the chooser's too
+        scene = scene.replace(time=dataclasses.replace(scene.time, start=args.start))
+    t_from = getattr(args, "accuracy_from", 0.0)
+    if not (math.isfinite(t_from) and 0.0 <= t_from < scene.time.t_end):
+        raise UsageError(f"--from = {t_from}: must lie in [0, {scene.time.t_end:g}) s, the run's time")
+    chosen = choose_accuracy(args, scene, allow_1d=not fields_asked, allow_float32=True, t_from=t_from)
     with precision_scope("float64" if chosen is None else chosen.precision):
         if chosen is not None:
             scene, mesh, model, options = rebuild(chosen.scene)
@@ -265,7 +276,7 @@ def _run(args, demo, scene, mesh, model, options, chosen):
     if overstrained:
         print(f"jaxbelt: warning: {overstrain_message(overstrained)}", file=sys.stderr)
     progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
-    y0 = None if args.start == "rest" else initial_state(model, start=args.start)
+    y0 = None if scene.time.start == "rest" else initial_state(model, start=scene.time.start)
     chunked = simulate_in_chunks(model, **options, y0=y0, field_rows=None if request is None else request["rows"],
                                  progress=progress)
     traj, fields = chunked.trajectory, chunked.fields
