@@ -398,9 +398,9 @@ def map_configurations(fn, xs):
     A batched Newton–GMRES runs its members' loops in lockstep: every GMRES iteration and Newton
     step is taken by the whole batch until its slowest member is done, and the Krylov basis's
     update at a batched iteration index is a scatter into the whole basis instead of an in-place
-    column write. Measured on the design scene (``benchmarks/steady_state.py``, the batch of
-    a tolerance box's verification), a ``vmap`` of eight solves took 15 times longer than the
-    same eight in sequence; on a CPU the cores a batch could fill are already busy with each
+    column write. Measured on the design scene (``benchmarks/tolerance_latency.py``, a tolerance
+    box's verification batch of eight solves at the aligned configuration, warm): 172 s as one
+    ``vmap``, 1.5 s in sequence; on a CPU the cores a batch could fill are already busy with each
     solve's own linear algebra."""
     if jax.default_backend() == "cpu":
         return lax.map(fn, xs)
@@ -422,6 +422,50 @@ def forward_jacobian(fn, theta, has_aux: bool = False):
 
 def _walks(model: BeltModel) -> bool:
     return bool(model.lateral_transport)
+
+
+def _interp_columns(f, x_from, x_to, period):
+    """Rows of ``f`` (n_from, ...) at positions ``x_to`` along a closed loop (linear, periodic)."""
+    flat = f.reshape(f.shape[0], -1)
+    out = np.stack([np.interp(x_to, x_from, flat[:, k], period=period) for k in range(flat.shape[1])], axis=1)
+    return out.reshape((len(x_to),) + f.shape[1:])
+
+
+def _interp_rows(f, z_from, z_to):
+    """Lateral rows ``f`` (n, n_from, c) at positions ``z_to`` (linear across the width)."""
+    return np.stack([np.stack([np.interp(z_to, z_from, f[i, :, c]) for c in range(f.shape[2])], axis=1)
+                     for i in range(f.shape[0])])
+
+
+def prolongate(state: BeltState, coarse: BeltModel, fine: BeltModel) -> BeltState:
+    """``state`` of ``coarse`` carried onto ``fine``'s grid — the same machine meshed otherwise —
+    as the start of a steady solve there: belt displacements and velocities interpolated linearly
+    along the loop (periodic, at the node positions ``x``) and across the width (``z0``), element
+    masses as their relative deviation from the rest mass at the element centres, the roller and
+    controller states copied. Not a solution on the finer grid: Newton then removes the grid's
+    difference, a small residual next to a start from the static equilibrium (host-side, numpy)."""
+    L = float(np.sum(np.asarray(coarse.ell)))
+    xc, xf = np.asarray(coarse.x), np.asarray(fine.x)
+
+    def nodal(a):
+        a = np.asarray(a)
+        if coarse.kind == "1d":
+            return _interp_columns(a, xc, xf, L)
+        a = _interp_columns(a.reshape(a.shape[0], coarse.n_eta, 2), xc, xf, L)
+        return _interp_rows(a, np.asarray(coarse.z0), np.asarray(fine.z0)).reshape(len(xf), -1)
+
+    rel = np.asarray(state.m_e) / np.asarray(coarse.m_e0) - 1.0
+    mid_c = (xc + 0.5 * np.asarray(coarse.ell)) % L
+    mid_f = (xf + 0.5 * np.asarray(fine.ell)) % L
+    order = np.argsort(mid_c)
+    rel = _interp_columns(rel[order], mid_c[order], mid_f, L)
+    if coarse.kind == "2d":
+        zc, zf = np.asarray(coarse.z0), np.asarray(fine.z0)
+        rel = _interp_rows(rel[..., None], 0.5 * (zc[:-1] + zc[1:]), 0.5 * (zf[:-1] + zf[1:]))[..., 0]
+    dtype = fine.ell.dtype
+    return dataclasses.replace(
+        state, u=jnp.asarray(nodal(state.u), dtype), u_dot=jnp.asarray(nodal(state.u_dot), dtype),
+        m_e=jnp.asarray((1.0 + rel) * np.asarray(fine.m_e0), dtype), step=jnp.zeros((), jnp.int32))
 
 
 def state_fields(state: BeltState):

@@ -52,6 +52,42 @@ def add_design_arguments(p, metric_default: str, limit: bool = False):
     p.add_argument("--progress", action="store_true", help="progress bars and stage messages on stderr")
 
 
+def add_steering_limit_argument(p):
+    p.add_argument("--steering-limit-mrad", type=float, default=None,
+                   help="steered machine: limit on the steering actuator's angle, mrad (default: its range, so no "
+                        "answer counts on a saturated actuator)")
+
+
+def check_steering_limit(args, model=None):
+    """``--steering-limit-mrad`` a positive number, and (with ``model``) on a machine with a loop."""
+    x = args.steering_limit_mrad
+    if x is not None and not (math.isfinite(x) and x > 0):
+        raise UsageError(f"--steering-limit-mrad = {x}: must be a positive number")
+    if x is not None and model is not None and model.control is None:
+        raise UsageError(f"--steering-limit-mrad = {x}: the scene has no steering loop")
+
+
+OTHER_DIRECTION = {"lateral_max": "longitudinal_max", "lateral_peak": "longitudinal_max",
+                   "longitudinal_max": "lateral_max"}
+
+
+def limits_of(args, study):
+    """``(limit, limits)``: the study metric's limit and the further limits held at the same time.
+    On a steered machine a lateral (longitudinal) max-type metric is joined by the other direction
+    at ``--limit-um`` and by ``steering_max`` at ``--steering-limit-mrad`` (default: the range);
+    ``--metric steering_max`` takes ``--steering-limit-mrad`` as its limit. Otherwise one limit."""
+    if not study.steered:
+        if args.steering_limit_mrad is not None:
+            raise UsageError(f"--steering-limit-mrad = {args.steering_limit_mrad}: the scene has no steering loop")
+        return args.limit_um, {}
+    steer = study.range_mrad if args.steering_limit_mrad is None else args.steering_limit_mrad
+    if args.metric == "steering_max":
+        return steer, {}
+    if args.metric not in OTHER_DIRECTION:
+        return args.limit_um, {}
+    return args.limit_um, {OTHER_DIRECTION[args.metric]: args.limit_um, "steering_max": steer}
+
+
 def one_d_metric(metric: str) -> str:
     """The longitudinal counterpart of a lateral metric: the default on a 1D scene."""
     return metric.replace("lateral", "longitudinal", 1) if metric.startswith("lateral") else metric

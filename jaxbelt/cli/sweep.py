@@ -5,18 +5,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..design import distribution_from_dict, run_sweep
+from ..design import distribution_from_dict, run_sweep, with_limits
+from ..design.metrics import metric_unit
 from ..design.store import open_sweep
 from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finer_model, finish, judges_steady_operation,
-                      load_design_model, make_design_study, read_toml, stage)
+from ._design import (add_design_arguments, add_steering_limit_argument, check_limit, check_plot, check_steering_limit,
+                      finer_model, finish, judges_steady_operation, limits_of, load_design_model, make_design_study,
+                      read_toml, stage)
 
 
 def add_parser(subparsers):
     p = subparsers.add_parser("sweep", help="Monte-Carlo yield (+ FORM, importance sampling) for misalignment "
                                             "distributions")
     add_design_arguments(p, "lateral_max", limit=True)
+    add_steering_limit_argument(p)
     p.add_argument("--dist", required=True, metavar="FILE.toml",
                    help='[roller."NAME"] rotation_mrad = {dist = "normal", sigma = [x, y, z]}, '
                         'translation_mm = {dist = "uniform", half_width = [x, y, z]}')
@@ -34,6 +37,7 @@ def add_parser(subparsers):
 
 def run(args):
     check_limit(args.limit_um)
+    check_steering_limit(args)
     check_plot(args.plot)
     if args.samples < 1:
         raise UsageError(f"--samples = {args.samples}: must be at least 1")
@@ -43,6 +47,7 @@ def run(args):
         raise UsageError(f"--rom = {args.rom!r}: one of off, auto")
     data = read_toml(args.dist, "--dist")
     model, options = load_design_model(args)
+    check_steering_limit(args, model)
     try:
         dist = distribution_from_dict(data, model)
     except ValueError as e:
@@ -53,12 +58,16 @@ def run(args):
     # FORM and the RSS stack-up read the linear response at θ = 0: taken with the reference run
     stage(args, f"aligned reference run{'' if args.no_form else ' and its Jacobian'} ({model.n_unknowns} unknowns)")
     study = make_design_study(args, model, options, list(dist.labels), jacobian=not args.no_form)
+    # the limits tolerance holds on the same machine (on a steered one: both directions and the actuator)
+    limit, limits = limits_of(args, study)
+    if limits:
+        study = with_limits(study, ((args.metric, limit),) + tuple(limits.items()))
     if args.out is not None:
         try:  # a store of another study is refused before anything runs
-            open_sweep(args.out, sweep_identity(study, dist, args.samples, args.limit_um, args.seed, args.scene))
+            open_sweep(args.out, sweep_identity(study, dist, args.samples, limit, args.seed, args.scene))
         except ValueError as e:
             raise UsageError(str(e)) from None
-    res = run_sweep(study, dist, args.samples, args.limit_um, seed=args.seed, chunk=args.chunk, out=args.out,
+    res = run_sweep(study, dist, args.samples, limit, seed=args.seed, chunk=args.chunk, out=args.out,
                     rom=rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
     out = res.to_dict()
     if not args.no_error_bars:
@@ -67,15 +76,19 @@ def run(args):
         out["discretisation"] = yield_discretisation(res, study, fine, dist, dt=fine_options.dt,
                                                      integrator=fine_options.solver, grid=grid,
                                                      grid_fine=grid_fine).to_dict()
-    return finish(args, out, _print, "plot_yield", res.metric_values, args.limit_um, res)
+    return finish(args, out, _print, "plot_yield", res.metric_values, limit, res)
 
 
 def _print(r):
     lo, hi = r["ci95"]
     steered = r.get("saturated") is not None
+    if r.get("limits"):
+        held = ", ".join(f"{x['metric']} ≤ {x['limit']:g} {x['unit']}" for x in r["limits"])
+        what = f"every limit held ({held})"
+    else:
+        what = f"{r['metric']} ≤ {r['limit_um']:g} {metric_unit(r['metric'])}"
     print(f"yield {r['yield']:.4f} (95 % Wilson interval {lo:.4f}–{hi:.4f}): {r['passed']} of {r['samples']} "
-          f"configurations with {r['metric']} ≤ {r['limit_um']:g} µm" + (" and the steering within its range"
-                                                                          if steered else ""))
+          f"configurations with {what}" + (" and the steering within its range" if steered else ""))
     d = r.get("discretisation")
     if d is not None:
         print(f"discretisation bias of the yield {d['bias']:+.4f} (one level finer: {d['flipped']} of the {d['samples']} "

@@ -3,23 +3,19 @@ verified by full runs."""
 
 from __future__ import annotations
 
-import math
-
 from ..design import parameter_space, tolerance_box
 from ..design.metrics import metric_unit
 from ..design.tolerance import box_discretisation, weights_from_dict
 from ._common import UsageError
-from ._design import (add_design_arguments, check_limit, check_plot, finer_model, finish, load_design_model,
-                      make_design_study, read_toml, stage)
+from ._design import (add_design_arguments, add_steering_limit_argument, check_limit, check_plot, check_steering_limit,
+                      finer_model, finish, limits_of, load_design_model, make_design_study, read_toml, stage)
 
 
 def add_parser(subparsers):
     p = subparsers.add_parser("tolerance", help="largest tolerance box keeping the metric within --limit-um, "
                                                 "verified by full runs")
     add_design_arguments(p, "lateral_max", limit=True)
-    p.add_argument("--steering-limit-mrad", type=float, default=None,
-                   help="steered machine: limit on the steering actuator's angle, mrad (default: its range, so the "
-                        "box never saturates it)")
+    add_steering_limit_argument(p)
     p.add_argument("--components", default=None,
                    help='which components get a tolerance, e.g. "roller 2:rotation,roller 3:dz,roller 1" '
                         "(default: every one that can vary)")
@@ -29,37 +25,13 @@ def add_parser(subparsers):
     return p
 
 
-OTHER_DIRECTION = {"lateral_max": "longitudinal_max", "lateral_peak": "longitudinal_max",
-                   "longitudinal_max": "lateral_max"}
-
-
-def limits_of(args, study):
-    """``(limit, limits)``: the study metric's limit and the further limits held at the same time.
-    On a steered machine a lateral (longitudinal) max-type metric is joined by the other direction
-    at ``--limit-um`` and by ``steering_max`` at ``--steering-limit-mrad`` (default: the range);
-    ``--metric steering_max`` takes ``--steering-limit-mrad`` as its limit. Otherwise one limit."""
-    if not study.steered:
-        if args.steering_limit_mrad is not None:
-            raise UsageError(f"--steering-limit-mrad = {args.steering_limit_mrad}: the scene has no steering loop")
-        return args.limit_um, {}
-    steer = study.range_mrad if args.steering_limit_mrad is None else args.steering_limit_mrad
-    if args.metric == "steering_max":
-        return steer, {}
-    if args.metric not in OTHER_DIRECTION:
-        return args.limit_um, {}
-    return args.limit_um, {OTHER_DIRECTION[args.metric]: args.limit_um, "steering_max": steer}
-
-
 def run(args):
     check_limit(args.limit_um)
-    if args.steering_limit_mrad is not None and not (math.isfinite(args.steering_limit_mrad)
-                                                     and args.steering_limit_mrad > 0):
-        raise UsageError(f"--steering-limit-mrad = {args.steering_limit_mrad}: must be a positive number")
+    check_steering_limit(args)
     check_plot(args.plot)
     weights_data = read_toml(args.weights, "--weights") if args.weights else None
     model, options = load_design_model(args)
-    if args.steering_limit_mrad is not None and model.control is None:  # before any computation
-        raise UsageError(f"--steering-limit-mrad = {args.steering_limit_mrad}: the scene has no steering loop")
+    check_steering_limit(args, model)  # before any computation
     try:
         space = parameter_space(model, args.components)
         weights = None if weights_data is None else weights_from_dict(weights_data, space)

@@ -48,8 +48,10 @@ range.
 
 A study can carry *several limits* at once (``limits``: ``((metric, limit), ...)``, max-type
 metrics only; :func:`with_limits`): its response is then every metric's response divided by its
-limit, stacked, and its metric the largest ratio (dimensionless; ≤ 1 passes), so the tolerance
-box and the sweep see one constraint that holds all of them.
+limit, stacked, and carried on the scale of the first limit (the study's own metric's): its
+metric is the largest ratio times that limit, and passes where it is within it — so the tolerance
+box and the sweep see one constraint that holds all of them and read it in the study metric's
+unit.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..state import BeltState
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
-                      map_configurations, period_steps, state_fields, steady_state)
+                      map_configurations, period_steps, prolongate, state_fields, steady_state)
 from ..timeloop import check_finite, simulate
 
 M_TO_UM = 1e6
@@ -275,16 +277,18 @@ def _steady_reference_and_tangents(model, space, integrator, dt, n_p):
 
 
 @eqx.filter_jit
-def _steady_batch(model, space, integrator, dt, n_p, chis, y0):
+def _steady_batch(model, space, integrator, dt, n_p, chis, y0s):
     """Steady states of ``model`` at each row of ``chis`` (m, q), as one batch
-    (:func:`jaxbelt.steady.map_configurations`): ``((tracer rows and angles, converged (m,)), the
-    SteadyStates)``."""
+    (:func:`jaxbelt.steady.map_configurations`), each solve started at its row of ``y0s`` (a
+    :class:`~jaxbelt.BeltState` with a leading axis m; ``None``: the static equilibrium):
+    ``((tracer rows and angles, converged (m,)), the SteadyStates)``."""
 
-    def one(chi):
+    def one(args):
+        chi, y0 = args
         s = steady_state(model.replace(chi_static=chi), integrator, dt=dt, period_steps=n_p, y0=y0)
         return (_steady_rows(s), s.converged), s
 
-    return map_configurations(one, chis)
+    return map_configurations(one, (chis, y0s))
 
 
 def _steady_frame(model, metric, dt, components, integrator) -> dict:
@@ -382,7 +386,8 @@ def _aligned_and_configured(model, space, integrator, dt, n_steps, thetas):
 
 def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = None, *, dt,
                   n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
-                  window_fraction: float | None = None, limits=(), steady: bool = False, jitter_mrad=None):
+                  window_fraction: float | None = None, limits=(), steady: bool = False, jitter_mrad=None,
+                  starts=None):
     """:func:`make_study` and the study's values at ``thetas`` (m, P) from one ``vmap`` batch of
     m + 1 runs, the aligned reference among them. On a CPU a batch of m + 1 costs far less than
     a reference run and then a batch of m: one run's sequential sweeps leave the cores idle.
@@ -391,16 +396,17 @@ def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = 
     :func:`with_limits` (then the study is the one with the limits). **Returns:** ``(study,
     values)``: ``values`` (m,) the metric, or with ``limits`` (m, n_limits) each limit's value in
     its own unit (:func:`limit_values`). With ``steady``, the study of steady operation, its m + 1
-    steady solves one batch from the static equilibrium (measured on the finer grid of the error
-    bars: starting the configurations from the aligned steady state saves one Newton step of five
-    but costs a separate aligned solve); ``jitter_mrad`` its actuator jitter (default: measured here)."""
+    steady solves one batch (:func:`jaxbelt.steady.map_configurations`), each from its row of
+    ``starts`` (the aligned machine first; a :class:`~jaxbelt.BeltState` with a leading axis m + 1,
+    e.g. another grid's steady states carried over by :func:`study_on`; default the static
+    equilibrium); ``jitter_mrad`` its actuator jitter (default: measured here)."""
     if steady:
         frame = _steady_frame(model, metric, dt, components, integrator)
         thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
         chis = jnp.concatenate([jnp.zeros_like(model.chi_static)[None],
                                 jax.vmap(lambda t: apply(model, frame["space"], t).chi_static)(thetas)])
         ((u, v, angle), converged), first = _steady_batch(model, frame["space"], frame["integrator"], frame["dt"],
-                                                          frame["period_steps"], chis, None)
+                                                          frame["period_steps"], chis, starts)
         if not np.all(np.asarray(converged)):
             raise NoSteadyStateError(f"no steady operation at {int(np.sum(~np.asarray(converged)))} of "
                                      f"{len(chis)} configurations: the fixed-point iteration did not converge")
@@ -435,15 +441,31 @@ def study_on(model: BeltModel, study: Study, thetas, *, dt, integrator: Abstract
     ``(study, values)`` at ``thetas`` (m, P), the aligned reference in the same batch."""
     if study.steady:
         return make_study_at(model, study.metric, thetas, dt=dt, components=list(study.space.labels()),
-                             integrator=integrator, limits=limits, steady=True, jitter_mrad=study.jitter_mrad)
+                             integrator=integrator, limits=limits, steady=True, jitter_mrad=study.jitter_mrad,
+                             starts=_carried_starts(study, model, thetas))
     return make_study_at(model, study.metric, thetas, t_eval=study.t_eval, dt=dt, components=list(study.space.labels()),
                          integrator=integrator, window_fraction=study.window / study.n_steps, limits=limits)
+
+
+def _carried_starts(study: Study, model: BeltModel, thetas):
+    """Starts on ``model``'s grid for :func:`study_on`'s steady solves: the study's aligned steady
+    state and, per configuration, its linear prediction there (:func:`jaxbelt.steady.linear_start`),
+    carried over (:func:`jaxbelt.steady.prolongate`); ``None`` without a steady state to carry."""
+    if study.steady_start is None or model.kind != study.model.kind:
+        return None
+    thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
+    rows = [study.steady_start] + [study.steady_start if study.steady_tangents is None else
+                                   linear_start(study.steady_start, study.steady_tangents,
+                                                jnp.asarray(t, study.base.dtype)) for t in thetas]
+    carried = [prolongate(s, study.model, model) for s in rows]
+    return jax.tree.map(lambda *a: jnp.stack(a), *carried)
 
 
 def with_limits(study: Study, limits) -> Study:
     """The study with several limits at once: ``limits`` ``{metric: limit}`` (or pairs), max-type
     metrics only, limits in each metric's unit (:func:`metric_unit`). Its response is every
-    metric's response over its limit, stacked; its metric the largest ratio (module docstring).
+    metric's response over its limit, stacked, times the first limit; its metric the largest ratio
+    times the first limit (module docstring).
     An empty ``limits`` gives back the single-metric study (``limit_names = ()``)."""
     pairs = tuple((str(k), float(v)) for k, v in (limits.items() if isinstance(limits, dict) else limits))
     for name, limit in pairs:
@@ -529,10 +551,11 @@ def _single_response(study: Study, name: str, du, dv, angle):
 
 def response_from_deviation(study: Study, du, dv, angle=None):
     """The metric's response vector ``r`` (see the module table) from the deviations and (for
-    ``steering_max``) the actuator angles, mrad; with several limits the stacked ratios."""
+    ``steering_max``) the actuator angles, mrad; with several limits the stacked ratios times the
+    first limit (the study metric's: module docstring)."""
     if study.limit_names:
         return jnp.concatenate([_single_response(study, n, du, dv, angle) / study.limit_values[i]
-                                for i, n in enumerate(study.limit_names)])
+                                for i, n in enumerate(study.limit_names)]) * study.limit_values[0]
     return _single_response(study, study.metric, du, dv, angle)
 
 
@@ -553,7 +576,7 @@ def response(study: Study, theta):
 
 def metric_value(study: Study, theta, smooth: bool = False):
     """The study's metric at ``theta`` (P,) in its unit (µm; µm/s for ``walk_rate``, mrad for
-    ``steering_max``, the largest ratio with several limits)."""
+    ``steering_max``, the largest ratio times the first limit with several limits)."""
     return aggregate(study.aggregate, response(study, theta), smooth and study.metric == "lateral_peak"
                      and not study.limit_names)
 

@@ -16,6 +16,12 @@ Per chunk of configurations (fixed by the seed, :func:`~jaxbelt.design.sampling.
 
 Each finished chunk is appended to the Zarr store (``out``), so a rerun resumes.
 
+**Several limits** (a study from :func:`~jaxbelt.design.metrics.with_limits`; ``jaxbelt sweep`` on a
+steered machine, as ``jaxbelt tolerance``: lateral and longitudinal deviation and the actuator
+angle): the metric is the largest value over its limit, on the scale of the first limit, so a
+configuration passes where every limit holds, and everything below (the surrogate's bound, FORM,
+importance sampling) reads that one number.
+
 On a steered machine (``[[control]]``) a configuration *fails* when its metric exceeds the limit
 **or** its steering actuator saturates in the evaluation window (an angle within 0.1 % of its
 range: :func:`jaxbelt.design.metrics.saturation`): a loop at its range no longer holds the belt,
@@ -31,13 +37,14 @@ runs every configuration in full.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import SATURATION_FRACTION, Study, study_on
+from .metrics import SATURATION_FRACTION, Study, metric_unit, study_on
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
@@ -56,7 +63,10 @@ class SweepResult:
 
     **Fields:**
 
-    - ``metric``, ``limit_um``, ``samples``, ``seed``: the question.
+    - ``metric``, ``limit_um``, ``samples``, ``seed``: the question; ``limits`` with several limits
+      (:func:`~jaxbelt.design.metrics.with_limits`) each one, ``{"metric", "limit", "unit"}``: the
+      metric is then the largest value over its limit times ``limit_um`` (the first limit), and a
+      configuration passes where every limit holds; ``None`` with one limit.
     - ``yield_``: the fraction of the ``samples`` configurations whose metric is ≤ the limit
       (and, on a steered machine, whose actuator does not saturate); ``ci95`` its Wilson 95 %
       interval; ``passed`` their number.
@@ -108,6 +118,7 @@ class SweepResult:
     is_yield: float | None = None
     is_ci95: list | None = None
     is_samples: int | None = None
+    limits: list | None = None
 
     def to_dict(self, values: bool = False) -> dict:
         """The result as JSON-able data (``jaxbelt sweep --json``): ``yield_`` as ``"yield"``, the
@@ -124,6 +135,7 @@ class SweepResult:
 
 def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "") -> dict:
     return {"scene": scene, "metric": study.metric, "t_eval_s": study.t_eval, "limit_um": float(limit_um),
+            "limits": [[n, float(v)] for n, v in study.limits],
             "seed": int(seed), "distribution": dist.to_dict(),
             "tracers": int(study.ref_u.shape[1])}
 
@@ -260,7 +272,10 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distr
     thetas = sweep_samples(study, dist, n, res.seed)
     values = np.asarray(res.metric_values)
     pick = np.argsort(np.abs(values - res.limit_um))[: min(k, n)]
-    _, fine = study_on(fine_model, study, thetas[pick], dt=dt, integrator=integrator)
+    _, fine = study_on(fine_model, study, thetas[pick], dt=dt, integrator=integrator, limits=study.limits)
+    if study.limits:  # each limit's value: on the scale of the first, as the sweep's metric
+        lims = np.array([v for _, v in study.limits])
+        fine = np.max(np.asarray(fine) / lims, axis=1) * lims[0]
     before, after = values[pick] <= res.limit_um, fine <= res.limit_um
     rel = np.abs(fine - values[pick]) / np.maximum(np.abs(values[pick]), 1e-12)
     return YieldDiscretisation(
@@ -283,6 +298,9 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
 
     **Returns:** a :class:`SweepResult`."""
     _check(n, limit_um, rom, rom_method)
+    if study.limits and not math.isclose(float(limit_um), study.limits[0][1]):
+        raise ValueError(f"limit_um = {limit_um}: a study with several limits is judged on the scale of its first "
+                         f"limit ({study.limits[0][0]} ≤ {study.limits[0][1]:g}); pass that")
     check_distribution(dist, study)
     t0 = time.perf_counter()
     thetas = sweep_samples(study, dist, n, seed)
@@ -313,4 +331,5 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
         # the surrogate's training and validation runs are full runs too, used or not
         full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_info.get("validation_runs", 0),
         reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_info, metric_values=metric,
-        wall_s=wall, configs_per_s=(n - done) / wall, **extra)
+        wall_s=wall, configs_per_s=(n - done) / wall,
+        limits=[{"metric": k, "limit": v, "unit": metric_unit(k)} for k, v in study.limits] or None, **extra)

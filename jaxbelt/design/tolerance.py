@@ -207,8 +207,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
 
     sp = study.space
     r0, J = response_jacobian(work)
-    if names:  # the stacked ratios on the scale of limit_um
-        r0, J = r0 * limit_um, J * limit_um
+    # with several limits the response is already on the scale of limit_um (the first limit)
     lin = LinearResponse(r0, J, work.aggregate)
     h_lin = optimise_box(lin, limit_um, weights, h_max)
     # not felt: no response at all, or a half-width the optimiser left at the cap (within 0.1 %): such a

@@ -198,7 +198,7 @@ def test_the_start_up_swing_is_named_where_it_sets_the_accuracy():
     same accuracy on the scene's own grid."""
     scene = scene_with(lambda d: d.update(time={"dt_s": 0.005, "t_end_s": 0.3}))
     with pytest.raises(AccuracyError, match="grew on refinement.*start-up swing"):
-        choose_grid(scene, 100.0, max_cost_s=20.0)
+        choose_grid(scene, 100.0, max_cost_s=8.0)
     running = scene_with(lambda d: d.update(time={"dt_s": 0.005, "t_end_s": 0.3, "start": "running"}))
     assert running.time.start == "running"
     assert choose_grid(running, 100.0, max_cost_s=120.0).estimate_um <= 100.0

@@ -91,7 +91,8 @@ def test_box_with_several_limits_verified_by_closed_loop_runs(study):
     same = box_discretisation(tight, study, study.model, dt=study.dt, integrator=study.integrator)
     assert same.floor_um > 0 and same.floor_fine_um == pytest.approx(same.floor_um, rel=1e-9)
     assert same.worst_case_fine_um == pytest.approx(same.worst_case_um, rel=1e-9)
-    assert abs(same.half_width_relative_change) < 1e-8 and same.runs == len(tight.corners) + 1
+    # the worst corners (those within NEAR_WORST of the worst) and the aligned reference
+    assert abs(same.half_width_relative_change) < 1e-8 and 2 <= same.runs <= len(tight.corners) + 1
 
 
 def test_sweep_counts_saturation_as_failure(study):

@@ -99,3 +99,26 @@ def test_a_walking_machine_has_no_stationary_steady_state(machine):
     model, opts = machine
     with pytest.raises(ValueError, match="walks"):
         steady_state(model.replace(control=None), opts.solver, dt=opts.dt)
+
+
+def test_prolongate_carries_a_state_onto_another_grid(machine, steady):
+    """:func:`jaxbelt.steady.prolongate`: onto the same grid it is the identity; onto the grid with
+    twice the columns and rows, the shared nodes keep their values, the new ones are the means of
+    their neighbours, and the element masses keep their relative deviation."""
+    from jaxbelt.accuracy import refine
+    from jaxbelt.steady import prolongate
+
+    model, _ = machine
+    same = prolongate(steady.state, model, model)
+    for a, b in ((same.u, steady.state.u), (same.u_dot, steady.state.u_dot), (same.m_e, steady.state.m_e)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-12, atol=1e-18)
+    fine = jb.build_model(refine(jb.load_scene(SCENE), n_xi=2.0, n_eta=2.0))
+    assert fine.x.shape[0] == 2 * model.x.shape[0] and fine.n_eta == 2 * model.n_eta - 1
+    f = prolongate(steady.state, model, fine)
+    u, uf = np.asarray(steady.state.u).reshape(len(model.x), model.n_eta, 2), \
+        np.asarray(f.u).reshape(len(fine.x), fine.n_eta, 2)
+    np.testing.assert_allclose(uf[::2, ::2], u, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(uf[1::2, ::2], 0.5 * (u + np.roll(u, -1, axis=0)), rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(uf[::2, 1::2], 0.5 * (u[:, :-1] + u[:, 1:]), rtol=1e-9, atol=1e-15)
+    rel, rel_f = np.asarray(steady.state.m_e) / np.asarray(model.m_e0), np.asarray(f.m_e) / np.asarray(fine.m_e0)
+    assert abs(np.mean(rel_f) - np.mean(rel)) < 1e-12 + 1e-3 * np.ptp(rel)

@@ -45,6 +45,7 @@ def test_steady_sweep_linear_response_agrees_with_steady_solves(steady_study):
     assert np.max(np.abs(full - res.metric_values[pick])) <= res.rom["max_bound_um"]
 
 
+@pytest.mark.slow
 def test_sequential_batch_and_jacobian_equal_the_batched_ones(steady_study):
     """:func:`jaxbelt.steady.map_configurations` and :func:`jaxbelt.steady.forward_jacobian` give
     what ``vmap`` and ``jacfwd`` give (they only order the solves differently)."""
@@ -61,3 +62,27 @@ def test_sequential_batch_and_jacobian_equal_the_batched_ones(steady_study):
     # to the tangents' own accuracy (their GMRES stops at 1e-8 of the residual; the slow loop modes
     # amplify that to about 1e-5 of a column)
     np.testing.assert_allclose(J, np.asarray(jax.jit(jax.jacfwd(one))(thetas[0])), rtol=1e-4, atol=1e-6)
+
+
+def test_a_steered_sweep_holds_the_limits_tolerance_holds(steady_study):
+    """On a steered machine the sweep judges what ``tolerance`` holds — lateral and longitudinal
+    deviation and the actuator angle — as one metric on the scale of the first limit: a sample
+    passes exactly where each limit's own value is within it."""
+    from jaxbelt.design import with_limits
+    from jaxbelt.design.sweep import sweep_samples
+    from jaxbelt.design.tolerance import _limit_values_batch
+
+    study, dist = steady_study
+    names = (("lateral_max", 35.3), ("longitudinal_max", 35.3), ("steering_max", float(study.range_mrad)))
+    limited = with_limits(study, names)
+    res = run_sweep(limited, dist, 24, limit_um=35.3, seed=3, chunk=8, rom="auto", with_form=False)
+    assert [x["metric"] for x in res.limits] == ["lateral_max", "longitudinal_max", "steering_max"]
+    thetas = sweep_samples(limited, dist, 24, 3)
+    pick = np.arange(0, 24, 4)
+    each = np.asarray(_limit_values_batch(for_runs(limited), thetas[pick]))  # (m, 3), each in its own unit
+    lims = np.array([v for _, v in names])
+    np.testing.assert_array_equal(np.all(each <= lims, axis=1), res.metric_values[pick] <= 35.3)
+    np.testing.assert_allclose(res.metric_values[pick], 35.3 * np.max(each / lims, axis=1),
+                               atol=res.rom["max_bound_um"] + 1e-9)
+    with pytest.raises(ValueError, match="first limit"):
+        run_sweep(limited, dist, 4, limit_um=20.0, rom="off", with_form=False)
