@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .assembly import dae_matrices, static_rhs
 from .control import ControllerState, initial_controller_state
@@ -35,11 +38,11 @@ def initial_state(model: BeltModel, start: str = "rest") -> BeltState:
     - ``"rest"`` (model specification §2): zero velocity except the drive rollers (``α̇_z = ω``)
       and the belt on them (``u̇ = R_r χ̇ = V``). The belt on the free spans and the idle rollers
       start from rest: an impulsive start, which sets every idle roller swinging in its
-      torsional mode on the belt's spans (on ``two-roller-1d`` about 100 Hz, the roller's speed
+      torsional mode on the belt's spans (on ``two-roller-1d`` about 96 Hz, the roller's speed
       between 0 and twice its mean). The model has no material damping, so that swing is
-      undamped physics; Backward Euler damps a mode of frequency ``ω`` by about ``ω²Δt/2`` per
-      unit time, so how long the swing lasts depends on ``Δt`` — gone within 0.1 s at the
-      scenes' ``Δt``, alive for seconds at ``Δt/100`` (``docs/speed.md``).
+      undamped physics; Backward Euler multiplies a mode of angular frequency ``ω`` by
+      ``1/√(1 + ω²Δt²)`` per step, so how long the swing lasts depends on ``Δt`` — gone within a
+      few steps at the scenes' ``Δt``, alive for seconds at ``Δt/1000`` (``docs/speed.md``).
     - ``"running"``: the machine already running at the drive speed — every belt node moving
       along the path at ``V`` (``u̇_x = V``) and every idle roller turning with it
       (``α̇_z`` such that its nodes' ``R_r χ̇ = V``, least squares over its wrap) — consistent with
@@ -68,3 +71,43 @@ def _initial_state(model: BeltModel, running: bool) -> BeltState:
     control = None if model.control is None else initial_controller_state(model.control, u)
     return BeltState(u=u, u_dot=u_dot, chi=chi, chi_dot=chi_dot, m_e=model.m_e0,
                      step=jnp.zeros((), jnp.int32), control=control)
+
+
+def _interpolation_matrix(x_from, x_to, period=None):
+    """``W`` (n_to, n_from): linear interpolation from the points ``x_from`` to ``x_to`` (periodic
+    with ``period``), ``f(x_to) = W f(x_from)``."""
+    order = np.argsort(x_from)
+    W = np.stack([np.interp(x_to, x_from[order], e, period=period) for e in np.eye(len(x_from))], axis=1)
+    return W[:, np.argsort(order)]
+
+
+def prolongate(state: BeltState, coarse: BeltModel, fine: BeltModel) -> BeltState:
+    """``state`` of ``coarse`` carried onto ``fine``'s grid — the same machine meshed otherwise —
+    as the start of a steady solve there: belt displacements and velocities interpolated linearly
+    along the loop (periodic, at the node positions ``x``) and across the width (``z0``), element
+    masses as their relative deviation from the rest mass at the element centres, the roller and
+    controller states copied. Not a solution on the finer grid: Newton then removes the grid's
+    difference, a small residual next to a start from the static equilibrium (host-side, numpy)."""
+    L = float(np.sum(np.asarray(coarse.ell)))
+    xc, xf = np.asarray(coarse.x), np.asarray(fine.x)
+    along = _interpolation_matrix(xc, xf, L)
+    mid_c, mid_f = (xc + 0.5 * np.asarray(coarse.ell)) % L, (xf + 0.5 * np.asarray(fine.ell)) % L
+    along_e = _interpolation_matrix(mid_c, mid_f, L)
+    if coarse.kind == "2d":
+        zc, zf = np.asarray(coarse.z0), np.asarray(fine.z0)
+        across = _interpolation_matrix(zc, zf)
+        across_e = _interpolation_matrix(0.5 * (zc[:-1] + zc[1:]), 0.5 * (zf[:-1] + zf[1:]))
+
+    def nodal(a):
+        a = np.asarray(a)
+        if coarse.kind == "1d":
+            return along @ a
+        a = a.reshape(a.shape[0], coarse.n_eta, 2)
+        return np.einsum("Ii,Jj,ijc->IJc", along, across, a).reshape(len(xf), -1)
+
+    rel = np.asarray(state.m_e) / np.asarray(coarse.m_e0) - 1.0
+    rel = along_e @ rel if coarse.kind == "1d" else along_e @ rel @ across_e.T
+    dtype = fine.ell.dtype
+    return dataclasses.replace(
+        state, u=jnp.asarray(nodal(state.u), dtype), u_dot=jnp.asarray(nodal(state.u_dot), dtype),
+        m_e=jnp.asarray((1.0 + rel) * np.asarray(fine.m_e0), dtype), step=jnp.zeros((), jnp.int32))

@@ -424,50 +424,6 @@ def _walks(model: BeltModel) -> bool:
     return bool(model.lateral_transport)
 
 
-def _interp_columns(f, x_from, x_to, period):
-    """Rows of ``f`` (n_from, ...) at positions ``x_to`` along a closed loop (linear, periodic)."""
-    flat = f.reshape(f.shape[0], -1)
-    out = np.stack([np.interp(x_to, x_from, flat[:, k], period=period) for k in range(flat.shape[1])], axis=1)
-    return out.reshape((len(x_to),) + f.shape[1:])
-
-
-def _interp_rows(f, z_from, z_to):
-    """Lateral rows ``f`` (n, n_from, c) at positions ``z_to`` (linear across the width)."""
-    return np.stack([np.stack([np.interp(z_to, z_from, f[i, :, c]) for c in range(f.shape[2])], axis=1)
-                     for i in range(f.shape[0])])
-
-
-def prolongate(state: BeltState, coarse: BeltModel, fine: BeltModel) -> BeltState:
-    """``state`` of ``coarse`` carried onto ``fine``'s grid — the same machine meshed otherwise —
-    as the start of a steady solve there: belt displacements and velocities interpolated linearly
-    along the loop (periodic, at the node positions ``x``) and across the width (``z0``), element
-    masses as their relative deviation from the rest mass at the element centres, the roller and
-    controller states copied. Not a solution on the finer grid: Newton then removes the grid's
-    difference, a small residual next to a start from the static equilibrium (host-side, numpy)."""
-    L = float(np.sum(np.asarray(coarse.ell)))
-    xc, xf = np.asarray(coarse.x), np.asarray(fine.x)
-
-    def nodal(a):
-        a = np.asarray(a)
-        if coarse.kind == "1d":
-            return _interp_columns(a, xc, xf, L)
-        a = _interp_columns(a.reshape(a.shape[0], coarse.n_eta, 2), xc, xf, L)
-        return _interp_rows(a, np.asarray(coarse.z0), np.asarray(fine.z0)).reshape(len(xf), -1)
-
-    rel = np.asarray(state.m_e) / np.asarray(coarse.m_e0) - 1.0
-    mid_c = (xc + 0.5 * np.asarray(coarse.ell)) % L
-    mid_f = (xf + 0.5 * np.asarray(fine.ell)) % L
-    order = np.argsort(mid_c)
-    rel = _interp_columns(rel[order], mid_c[order], mid_f, L)
-    if coarse.kind == "2d":
-        zc, zf = np.asarray(coarse.z0), np.asarray(fine.z0)
-        rel = _interp_rows(rel[..., None], 0.5 * (zc[:-1] + zc[1:]), 0.5 * (zf[:-1] + zf[1:]))[..., 0]
-    dtype = fine.ell.dtype
-    return dataclasses.replace(
-        state, u=jnp.asarray(nodal(state.u), dtype), u_dot=jnp.asarray(nodal(state.u_dot), dtype),
-        m_e=jnp.asarray((1.0 + rel) * np.asarray(fine.m_e0), dtype), step=jnp.zeros((), jnp.int32))
-
-
 def state_fields(state: BeltState):
     """The fields of a state that steady operation solves for (module docstring, *The unknowns*), as
     a tuple: what :func:`linear_start` takes derivatives of."""

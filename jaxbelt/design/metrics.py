@@ -67,9 +67,9 @@ from ..control import SATURATION_FRACTION
 from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
-from ..state import BeltState
+from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
-                      map_configurations, period_steps, prolongate, state_fields, steady_state)
+                      map_configurations, period_steps, state_fields, steady_state)
 from ..timeloop import check_finite, simulate
 
 M_TO_UM = 1e6
@@ -450,7 +450,7 @@ def study_on(model: BeltModel, study: Study, thetas, *, dt, integrator: Abstract
 def _carried_starts(study: Study, model: BeltModel, thetas):
     """Starts on ``model``'s grid for :func:`study_on`'s steady solves: the study's aligned steady
     state and, per configuration, its linear prediction there (:func:`jaxbelt.steady.linear_start`),
-    carried over (:func:`jaxbelt.steady.prolongate`); ``None`` without a steady state to carry."""
+    carried over (:func:`jaxbelt.state.prolongate`); ``None`` without a steady state to carry."""
     if study.steady_start is None or model.kind != study.model.kind:
         return None
     thetas = np.asarray(thetas, float).reshape(-1, study.space.size)

@@ -227,7 +227,7 @@ def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_sampl
                design_point=study.space.per_roller(f.theta_star))
     if n - passed <= max(5, int(0.001 * n)) and f.beta > 0:  # yield near 1: MC sees few failures
         metric_of = None if surrogate is None else \
-            (lambda th: _chunk_outputs(study, surrogate, th, limit_um, chunk)[0]["metric"])  # noqa: E731
+            (lambda th: _chunk_outputs(study, surrogate, th, limit_um, chunk)[0]["metric"])
         i = importance_sampling(study, dist, limit_um, f.u_star, n=importance_samples, seed=seed + 1, chunk=chunk,
                                 metric_of=metric_of)
         out.update(is_yield=i.yield_, is_ci95=list(i.ci95), is_samples=i.samples)

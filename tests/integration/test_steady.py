@@ -102,11 +102,11 @@ def test_a_walking_machine_has_no_stationary_steady_state(machine):
 
 
 def test_prolongate_carries_a_state_onto_another_grid(machine, steady):
-    """:func:`jaxbelt.steady.prolongate`: onto the same grid it is the identity; onto the grid with
+    """:func:`jaxbelt.state.prolongate`: onto the same grid it is the identity; onto the grid with
     twice the columns and rows, the shared nodes keep their values, the new ones are the means of
     their neighbours, and the element masses keep their relative deviation."""
     from jaxbelt.accuracy import refine
-    from jaxbelt.steady import prolongate
+    from jaxbelt.state import prolongate
 
     model, _ = machine
     same = prolongate(steady.state, model, model)
