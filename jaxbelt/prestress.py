@@ -26,12 +26,12 @@ are unchanged by it. Set it ``false`` to reproduce a model without it.
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .elements import GAUSS_POINTS, column_pair_to_blocks, plane_stress_D, quad_B, quad_dofs
+from .programs import stored_jit
 from .state import initial_state
 
 
@@ -59,7 +59,7 @@ def quad_gauss_stress(ell, w, u_e, E, nu, sig_pre):
     return jnp.stack([D @ (quad_B(gx, gz, ell, w) @ u_e) + sig_pre for gx in GAUSS_POINTS for gz in GAUSS_POINTS])
 
 
-@eqx.filter_jit
+@stored_jit
 def membrane_stress(model, u, elem_free, E, nu, eps0):
     """Gauss-point stresses (n, n_eta-1, 4, 3) of the belt displacement ``u`` (n, b) plus the
     pre-tension ``σ_xx = E ε₀``; zero on roller elements (``elem_free`` (n,) 0/1)."""
@@ -73,7 +73,7 @@ def membrane_stress(model, u, elem_free, E, nu, eps0):
     return sig * jnp.asarray(elem_free, sig.dtype)[:, None, None, None]
 
 
-@eqx.filter_jit
+@stored_jit
 def geometric_stiffness_blocks(model, sig, t):
     """``K_σ`` scattered into the cyclic block-tridiagonal format: ``(diag, lower, upper)`` (n, b, b)."""
     n, n_eta = model.n_xi, model.n_eta

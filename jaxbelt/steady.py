@@ -73,6 +73,7 @@ from jax import lax
 from .control import ControllerState, samples_per_update, sensor_displacement
 from .integrators import AbstractIntegrator, make_solver
 from .model import BeltModel
+from .programs import stored_jit
 from .state import BeltState, initial_state
 from .timeloop import SaveAt, belt_speed, check_time_step, edge_margin, make_step, simulate, tracer_values
 
@@ -333,7 +334,7 @@ def _setup(model, solver, dt, y0, n=None):
     return solver, n, dt, template, sc
 
 
-@eqx.filter_jit
+@stored_jit
 def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol):
     q = quiet(model)
     fn = _residual(solver, dt, n, sc, template, walking=False)
@@ -342,7 +343,7 @@ def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_s
     return _result(q, dt, n, sol.value, sc, template, jnp.zeros((), dt.dtype), sol, tol)
 
 
-@eqx.filter_jit
+@stored_jit
 def _walk(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol):
     q = quiet(model)
     fn = _residual(solver, dt, n, sc, template, walking=True)

@@ -34,6 +34,7 @@ from .linalg import join
 from .loop_plan import checkpointed, loop_plan, scan_or_inline
 from .mesh import cfl_advice
 from .model import BeltModel
+from .programs import stored_jit
 from .scene import Scene
 from .state import BeltState, initial_state
 from .transport import transport_step_with_weights
@@ -303,13 +304,13 @@ def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, dt, 
     return state, Trajectory(u=rec.pop("u", None), **rec)
 
 
-@eqx.filter_jit
+@stored_jit
 def _simulate(model, solver, y0, dt, n_steps, saveat, adjoint, run_data):
     state = initial_state(model) if y0 is None else y0
     return run(model, solver, state, dt, n_steps, saveat, adjoint.steps, run_data)
 
 
-@eqx.filter_jit
+@stored_jit
 def _init_run(model, solver, y0, dt):
     state = initial_state(model) if y0 is None else y0
     return state, solver.init(model, state, dt)

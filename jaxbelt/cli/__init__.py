@@ -22,6 +22,7 @@ from pathlib import Path
 import jax
 
 from .. import enable_x64
+from ..programs import use_program_store
 from ..scene import MisalignmentWarning, SceneError
 from . import bench, demo, info, plot_scene, reduce, scenes, sensitivity, simulate, steering, sweep, tolerance, tune
 from ._common import SimulationError, UsageError
@@ -55,7 +56,9 @@ def enable_compilation_cache():
     (``JAXBELT_COMPILATION_CACHE=0`` switches it off): a second call of the same command on the
     same scene shapes skips XLA compilation. Directory ``$JAXBELT_CACHE_DIR`` or
     ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``). **Returns:** the directory, or
-    ``None`` where it is off. Every program is kept, however quickly it compiled: a command runs
+    ``None`` where it is off. The large programs are also kept whole, traced and compiled, in its
+    folder ``programs`` (:mod:`jaxbelt.programs`): a later process loads them instead of tracing
+    them again, which the compilation cache alone does not skip. Every program is kept, however quickly it compiled: a command runs
     about a hundred small programs (model build, static solve, bookkeeping) that take ~30 ms each
     to compile and ~5 ms to load, which a time threshold would recompile on every call."""
     if os.environ.get("JAXBELT_COMPILATION_CACHE", "1") == "0":
@@ -65,6 +68,7 @@ def enable_compilation_cache():
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    use_program_store(Path(path) / "programs")
     return path
 
 

@@ -15,7 +15,7 @@ from ..accuracy import precision_scope
 from ..control import loop_summary
 from ..prestress import overstrain_message, overstrained_spans, slack_message, slack_spans, span_forces
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, START_RULES, TRANSPORT_RULES
-from ..state import initial_state
+from ..state import SWING_WARN_FRACTION, initial_state, start_swing
 from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
 from ._accuracy import add_accuracy_arguments, choose_accuracy, error_estimate, print_accuracy
 from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, output_file, rebuild
@@ -61,6 +61,22 @@ def add_parser(subparsers):
     s.add_argument("--progress", action="store_true", help="progress bar even when not on a terminal")
     s.set_defaults(func=run)
     return s
+
+
+def _start_swing(scene, mesh, options):
+    """From rest, the idle rollers' start-up swing (:func:`jaxbelt.state.start_swing`); warned about
+    before the run where the run's time steps leave more than :data:`SWING_WARN_FRACTION` of it."""
+    if scene.time.start != "rest":
+        return None
+    swing = start_swing(scene, mesh, options.dt, options.n_steps)
+    kept = [(n, f, left) for n, f, left in swing if left > SWING_WARN_FRACTION]
+    if kept:
+        name, f, left = max(kept, key=lambda r: r[2])
+        print(f"jaxbelt: warning: from rest, {name}'s start-up swing (~{f:.0f} Hz) keeps {left:.1%} of its amplitude "
+              f"at the end: the model has no damping and Backward Euler damps it little at dt = {options.dt:g} s, so "
+              "the answer shows the start and differs from a run at a larger dt; --start running starts the "
+              "machine running (docs/speed.md)", file=sys.stderr)
+    return swing
 
 
 def _summary(scene, options, model, traj, timing):
@@ -275,6 +291,7 @@ def _run(args, demo, scene, mesh, model, options, chosen):
               "tension, so the results are not a real belt's", file=sys.stderr)
     if overstrained:
         print(f"jaxbelt: warning: {overstrain_message(overstrained)}", file=sys.stderr)
+    swing = _start_swing(scene, mesh, options)
     progress = getattr(args, "progress", False) or (not args.json and sys.stderr.isatty())
     y0 = None if scene.time.start == "rest" else initial_state(model, start=scene.time.start)
     chunked = simulate_in_chunks(model, **options, y0=y0, field_rows=None if request is None else request["rows"],
@@ -282,6 +299,7 @@ def _run(args, demo, scene, mesh, model, options, chosen):
     traj, fields = chunked.trajectory, chunked.fields
     s = _summary(scene, options, model, traj, {"compile_s": chunked.compile_s, "run_s": chunked.run_s})
     s["slack"], s["overstrained"] = slack, overstrained
+    s["start_swing_left"] = None if swing is None else {name: left for name, _, left in swing}
     try:
         check_finite(traj, options.dt)
     except NonFiniteStateError as e:

@@ -67,6 +67,7 @@ from ..control import SATURATION_FRACTION
 from ..integrators import AbstractIntegrator, make_solver
 from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
+from ..programs import stored_jit
 from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
                       map_configurations, period_steps, state_fields, steady_state)
@@ -261,7 +262,7 @@ DESIGN_TANGENT_RTOL = 1e-6  # GMRES's relative residual of a steady study's tang
 # that nonlinear solves verify: its columns are then right to 1e-4 of their size, against 1e-8's)
 
 
-@eqx.filter_jit
+@stored_jit
 def _steady_reference_and_tangents(model, space, integrator, dt, n_p):
     """The steady state of ``model`` and the derivatives of its tracers and actuator angles, and of
     the state itself (:func:`jaxbelt.steady.state_fields`), with respect to ``θ`` at ``θ = 0``
@@ -276,7 +277,7 @@ def _steady_reference_and_tangents(model, space, integrator, dt, n_p):
     return ref, J[:3], J[3]
 
 
-@eqx.filter_jit
+@stored_jit
 def _steady_batch(model, space, integrator, dt, n_p, chis, y0s):
     """Steady states of ``model`` at each row of ``chis`` (m, q), as one batch
     (:func:`jaxbelt.steady.map_configurations`), each solve started at its row of ``y0s`` (a
@@ -328,7 +329,7 @@ def _make_steady_study(model, metric, dt, components, integrator, jacobian) -> S
     return study
 
 
-@eqx.filter_jit
+@stored_jit
 def _reference_and_tangents(model, space, integrator, dt, n_steps):
     """The run of ``model`` (aligned; its :class:`~jaxbelt.timeloop.Trajectory`) and the
     derivatives of its tracer histories and actuator angles with respect to ``θ`` at ``θ = 0``,
@@ -342,7 +343,7 @@ def _reference_and_tangents(model, space, integrator, dt, n_steps):
     return ref, J
 
 
-@eqx.filter_jit
+@stored_jit
 def _deviation_tangents(study: Study):
     """:func:`run_deviation` at ``θ = 0`` and its derivatives (``Study.linearisation``)."""
     fn, theta = (lambda t: (run_deviation(study, t),) * 2), jnp.zeros(study.space.size, study.base.dtype)
@@ -370,7 +371,7 @@ def _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, win
                 metric=metric, n_steps=n_steps, window=max(1, int(round(window_fraction * n_steps))))
 
 
-@eqx.filter_jit
+@stored_jit
 def _aligned_and_configured(model, space, integrator, dt, n_steps, thetas):
     """The tracer histories (m + 1, n_steps, n_tr) and actuator angles of the aligned machine and
     of ``model`` at each row of ``thetas`` (m, P), as one ``vmap`` batch."""

@@ -26,13 +26,13 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.scipy.stats import norm
 
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
+from ..programs import stored_jit
 from ..steady import map_configurations
 from .metrics import Study, evaluate, for_runs, metric_value
 from .sensitivity import response_jacobian
@@ -221,7 +221,7 @@ def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed:
                             theta=thetas, metric=metric, outputs=out)
 
 
-@eqx.filter_jit
+@stored_jit
 def _g_and_grad(study, dist_scale, uniform, u, limit):
     def g(u):
         theta = jnp.where(uniform, dist_scale * (2.0 * norm.cdf(u) - 1.0), dist_scale * u)

@@ -15,12 +15,12 @@ from __future__ import annotations
 import dataclasses
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .metrics import Study, for_runs, metric_value, response, response_from_deviation
+from ..programs import stored_jit
 
 
 KINK_UM = 1e-6  # a metric at or below this is at its kink r = 0
@@ -30,17 +30,17 @@ def _zeros(study: Study):
     return jnp.zeros(study.space.size, study.base.dtype)
 
 
-@eqx.filter_jit
+@stored_jit
 def _value(study, theta):
     return metric_value(study, theta)
 
 
-@eqx.filter_jit
+@stored_jit
 def _value_and_grad(study, theta):
     return jax.value_and_grad(lambda t: metric_value(study, t, smooth=True))(theta)
 
 
-@eqx.filter_jit
+@stored_jit
 def _response_and_jacobian(study, theta, forward: bool):
     """``(r, J)`` from one differentiated run: the response rides along as the Jacobian's auxiliary
     output, the primal the tangents (or the cotangents) are taken at — not a second run."""
@@ -49,7 +49,7 @@ def _response_and_jacobian(study, theta, forward: bool):
     return r, J
 
 
-@eqx.filter_jit
+@stored_jit
 def _response_and_jacobian_from_linearisation(study):
     """``(r, J)`` at ``θ = 0`` from ``study.linearisation`` (the chain rule through the response
     alone, no run)."""

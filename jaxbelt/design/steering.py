@@ -41,6 +41,7 @@ from jax import lax
 import numpy as np
 
 from ..misalignment import parameter_space
+from ..programs import stored_jit
 from ..steady import forward_jacobian, steady_walk
 from ..timeloop import RunOptions, belt_speed, simulate
 from ..control import samples_per_update
@@ -79,7 +80,7 @@ def _stepped(model, amplitude, loop=0):
     return model.replace(control=c)
 
 
-@eqx.filter_jit
+@stored_jit
 def _batch_sensor(models, solver, n_steps, dt, loop):
     """Sensor displacement and actuator angle of loop ``loop`` for a stacked batch of models."""
     def one(m):
@@ -283,13 +284,13 @@ def _period_of(w):
     return float(2 * np.pi / w) if np.isfinite(w) else float("nan")
 
 
-@eqx.filter_jit
+@stored_jit
 def _steady_walk_rate(model, solver, dt):
     """The open-loop steady walk rate (m/s) of ``model``."""
     return steady_walk(model, solver, dt=dt).walk_rate
 
 
-@eqx.filter_jit
+@stored_jit
 def _steady_walk_and_jacobian(model, solver, dt, idx):
     def rate(theta):
         r = steady_walk(model.replace(chi_static=model.chi_static.at[idx].add(theta)), solver, dt=dt).walk_rate

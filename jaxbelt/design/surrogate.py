@@ -97,6 +97,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..programs import stored_jit
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
 from ..rom.reduced import reduced_operators
 from ..state import initial_state
@@ -159,7 +160,7 @@ def steps_needed(study: Study) -> int:
     return 1
 
 
-@eqx.filter_jit
+@stored_jit
 def _configured(study: Study, theta):
     return study.configured(theta)
 
@@ -181,7 +182,7 @@ def _metric(study: Study, du, dv, angle=None):
     return aggregate(study.aggregate, response_from_deviation(study, du, dv, angle))
 
 
-@eqx.filter_jit
+@stored_jit
 def _metric_jit(study: Study, du, dv, angle):
     out = {"metric": _metric(study, du, dv, angle)}
     if angle is not None:
@@ -216,12 +217,12 @@ def _predict_one(study: Study, rom, anchor, theta):
     return out
 
 
-@eqx.filter_jit
+@stored_jit
 def _predict_batch(study: Study, rom, anchor, thetas):
     return jax.vmap(lambda th: _predict_one(study, rom, anchor, th))(thetas)
 
 
-@eqx.filter_jit
+@stored_jit
 def _anchor(study: Study, rom: ReducedStep, full_u, full_v):
     tu, tv = _reduced_tracers(study, rom, jnp.zeros(study.space.size))
     return full_u - tu, None if tv is None else full_v - tv

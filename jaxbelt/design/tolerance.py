@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import dataclasses
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
+from ..programs import stored_jit
 from ..steady import map_configurations
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
 from .metrics import (METRICS, Study, aggregate, aligned_values, for_runs, limit_values, metric_unit, response_sizes,
@@ -153,7 +153,7 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
     return h, worst, table, len(history), signs * h
 
 
-@eqx.filter_jit
+@stored_jit
 def _limit_values_batch(study: Study, thetas):
     one = lambda t: limit_values(study, t)  # noqa: E731
     return map_configurations(one, thetas) if study.steady else jax.vmap(one)(thetas)

@@ -64,6 +64,7 @@ import numpy as np
 import optax
 
 from ..model import BeltModel
+from ..programs import stored_jit
 from ..timeloop import RunOptions, belt_speed, simulate
 from .loop_response import MeasuredResponse, fit_plant, frequency_grid, grid_margins, pid_response
 from .plant import SteeringPlant
@@ -91,7 +92,7 @@ def _with_gains(model: BeltModel, gains) -> BeltModel:
     return model.replace(control=model.control.with_gains(g[0], g[1], kd))
 
 
-@eqx.filter_jit
+@stored_jit
 def _errors(model, gains, solver, dt, n_steps):
     """The sensor error ``e`` (n_steps,), m, of the closed loop with ``gains``."""
     m = _with_gains(model, gains)
@@ -140,7 +141,7 @@ def objective_and_grad(model: BeltModel, gains, *, dt, n_steps: int, solver=None
     return float(v), np.asarray(gx) / g
 
 
-@eqx.filter_jit
+@stored_jit
 def _log_value_and_grad(log_gains, kd, model, solver, dt, n_steps, kind, skip):
     def f(x):
         e = _errors(model, jnp.concatenate([jnp.exp(x), kd]), solver, dt, n_steps)

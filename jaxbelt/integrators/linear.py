@@ -42,6 +42,7 @@ from ..linalg.border_first import (BorderFirstFactors, border_first, border_firs
 from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
                                refactorise_border, scaled_schur, solve_with_adjoint, with_chained_interior)
 from ..model import BeltModel
+from ..programs import stored_jit
 
 
 class StepOperator(eqx.Module):
@@ -296,7 +297,7 @@ def contact_blocks(model: BeltModel) -> tuple:
     return tuple(int(c) - 1 for c in model.contact_columns if int(c) != 0)
 
 
-@eqx.filter_jit
+@stored_jit
 def _kept_interior(model, dt, method=None, green: bool = False) -> _Kept:
     """Factors of ``M + Δt² K`` at the model's masses and reference lever arms, the interior along
     its chains of dependent blocks (one compiled program); with ``green`` (static) and where
@@ -373,7 +374,7 @@ class Reuse(AbstractLinearSolver):
         return _Refined(state.F, state.operator, state.refine, not state.transposed)
 
 
-@eqx.filter_jit
+@stored_jit
 def _first_step_factors(model, state, dt) -> BorderedFactorisation:
     """The structured factors of ``M + Δt² K`` at ``state``, the interior along its chains
     (:func:`~jaxbelt.linalg.bordered.with_chained_interior`), as one compiled program."""

@@ -15,6 +15,9 @@ import pytest
 
 import jaxbelt as jb
 from helpers import load, solve_step
+from jaxbelt.cli import main
+from jaxbelt.mesh import build_mesh
+from jaxbelt.state import start_swing
 
 
 def base_1d():
@@ -392,3 +395,21 @@ def test_a_start_from_rest_swings_the_idle_roller_at_its_torsional_frequency():
     assert w.max() > 18.0 and w.min() < 2.0  # swinging between rest and twice the drive speed
     whole = slice(up[0], up[-1])
     assert abs(np.mean(w[whole]) / 10.0 - 1) < 0.01
+    # start_swing predicts the frequency and what Backward Euler leaves of the swing's amplitude
+    (name, f, left), = start_swing(sc, build_mesh(sc), dt, n)
+    assert name == "idle" and abs(2 * math.pi * f / omega_t - 1) < 1e-12
+    last = w[up[-2]:up[-1]]
+    amplitude = 0.5 * (last.max() - last.min())
+    assert abs(amplitude / (10.0 * left) - 1) < 0.05, (amplitude, left)
+
+
+def test_a_run_that_keeps_the_start_up_swing_is_warned_about(capsys):
+    """``jaxbelt simulate`` from rest names the swing a small Δt keeps (and says how to start
+    running); at the scene's own Δt, where Backward Euler removes it within a few steps, it is silent."""
+    assert main(["simulate", "two-roller-1d", "--t-end", "0.05", "--dt", "5e-5", "--json"]) == 0
+    err = capsys.readouterr().err
+    assert "start-up swing (~96 Hz)" in err and "--start running" in err
+    assert main(["simulate", "two-roller-1d", "--t-end", "0.05", "--json"]) == 0
+    assert "swing" not in capsys.readouterr().err
+    assert main(["simulate", "two-roller-1d", "--t-end", "0.05", "--dt", "5e-5", "--start", "running", "--json"]) == 0
+    assert "swing" not in capsys.readouterr().err
