@@ -107,7 +107,7 @@ def main():
         floor = 1e3 * P.nbytes / b / (read_gb_s * 1e9)
         sweep_rows.append(dict(batch=b, sweep_ms=ms, sweep_floor_ms=floor, over_floor=ms / floor))
         print(sweep_rows[-1], flush=True)
-    study = design.make_study(model, "lateral_max", dt=opts.dt, n_steps=STEPS, integrator=solver)
+    study = design.make_study(model, "lateral_max", opts.replace(solver=solver, n_steps=STEPS))
     rng = np.random.default_rng(0)
     rows = []
     for b in BATCHES:

@@ -57,7 +57,7 @@ def main():
         print(f"settling {lab}: {v[199]:.3f} µm at 4 s, {v[-1]:.3f} µm at 10 s")
 
     t0 = time.perf_counter()
-    study = design.make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)
+    study = design.make_study(model, "lateral_max", opts)
     res["study_s"] = time.perf_counter() - t0
     rep = design.sensitivity_report(study)
     res["sensitivity"] = rep.to_dict()

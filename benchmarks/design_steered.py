@@ -86,7 +86,7 @@ def main():
         if model.control is not None:
             rec["gains"] = gain_scan(model, opts)
         t0 = time.perf_counter()
-        study = design.make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)
+        study = design.make_study(model, "lateral_max", opts)
         rec["study_s"] = time.perf_counter() - t0
         limits = {} if model.control is None else {"longitudinal_max": 20.0, "steering_max": study.range_mrad}
         print(f"{name}: tolerance box, lateral_max ≤ 20 µm" + (" + " + ", ".join(limits) if limits else ""))

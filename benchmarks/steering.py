@@ -15,7 +15,8 @@ import numpy as np
 import jaxbelt as jb
 from _common import write
 from jaxbelt import lateral_theory as th
-from jaxbelt.design.steering import response_transfer, stability_boundary, steering_report, walk_slope
+from jaxbelt.steering import margins, stability_boundary, steering_report, walk_rate
+from jaxbelt.steering.response import response_transfer
 from jaxbelt.timeloop import belt_speed
 
 BASE = "two-roller-steered"
@@ -43,8 +44,8 @@ def convergence():
         t0 = time.perf_counter()
         _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc))
         t = np.asarray(tr.t)
-        c = float(walk_slope(t, np.asarray(tr.tracer_v).mean(axis=1)))
-        cs = float(walk_slope(t, np.asarray(tr.sensor_v[:, 0])))
+        c = float(walk_rate(t, np.asarray(tr.tracer_v).mean(axis=1), (t[-1] / 2, t[-1])))
+        cs = float(walk_rate(t, np.asarray(tr.sensor_v[:, 0]), (t[-1] / 2, t[-1])))
         ref = th.scene_walk_rate(sc0, _skew())
         rows.append(dict(roller_elements=ne, free_elements=nf, dt_s=dt, t_end_s=n * dt, walk_mm_s=c * 1e3,
                          sensor_walk_mm_s=cs * 1e3, theory_mm_s=ref * 1e3, deviation=c / ref - 1,
@@ -61,7 +62,7 @@ def plant_and_loops():
         r = steering_report(m, o.replace(n_steps=n), sensitivity=False)
         d = r.to_dict()
         d.pop("step_response")
-        d["plant_gain_margin_without_hold"] = r.identified.margins(1.0)[0]
+        d["plant_gain_margin_without_hold"] = margins(r.identified, 1.0)[0]
         out[f"report_{n}_steps"] = d
         print(f"report {n}: k {r.coefficient_mm_s_per_mrad:.5g}, hold {r.hold_angle_mrad:.5g}, GM response "
               f"{r.response_gain_margin:.4g}, plant {r.plant_gain_margin:.4g} (no hold {d['plant_gain_margin_without_hold']:.4g})")
@@ -124,7 +125,8 @@ def three_roller():
     ref = th.scene_walk_rate(sc, _skew(3)) * 1e3
     mm = jb.with_misalignment(m.replace(control=m.control.with_gains(0.0, 0.0, 0.0)), rotation=jnp.asarray(_skew(3)))
     _, tr = jb.simulate(mm, **o)
-    c = float(walk_slope(np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1))) * 1e3
+    t = np.asarray(tr.t)
+    c = float(walk_rate(t, np.asarray(tr.tracer_v).mean(axis=1), (t[-1] / 2, t[-1]))) * 1e3
     out = dict(coefficient_mm_s_per_mrad=r.coefficient_mm_s_per_mrad, tracer_walk_mm_s_per_mrad=c,
                theory_mm_s_per_mrad=ref, deviation=r.coefficient_mm_s_per_mrad / ref - 1, tracer_deviation=c / ref - 1,
                hold_angle_mrad=r.hold_angle_mrad, loop_time_s=r.loop_time_s, belt_speed_m_s=belt_speed(m),

@@ -33,7 +33,7 @@ def main():
     model, opts = load(scene)
     rows = {}
     for solver, integ in SOLVERS.items():
-        study = design.make_study(model, "lateral_max", dt=opts.dt, n_steps=steps, integrator=integ)
+        study = design.make_study(model, "lateral_max", opts.replace(solver=integ, n_steps=steps))
         rng = np.random.default_rng(0)
         for b in batches:
             thetas = 0.01 * rng.standard_normal((b, study.space.size))

@@ -44,7 +44,7 @@ from jaxbelt.cli import configure_process, enable_compilation_cache
 from jaxbelt.cli._common import load_run
 from jaxbelt.design import make_study
 from jaxbelt.design import tolerance as tol
-from jaxbelt.design.metrics import with_limits
+from jaxbelt.design.study import with_limits
 from jaxbelt.design.sensitivity import response_jacobian
 from jaxbelt.cli._design import DESIGN_SCENE
 from jaxbelt.accuracy import refine
@@ -53,9 +53,9 @@ configure_process(); enable_compilation_cache()  # the command line's process se
 mark("imports_s")
 scene, mesh, model, opts = load_run(DESIGN_SCENE)
 jax.block_until_ready(model.chi_static); mark("model_build_s")
-study = make_study(model, "lateral_max", dt=opts.dt, integrator=opts.solver, jacobian=True, steady=True)
+study = make_study(model, "lateral_max", opts, jacobian=True, steady=True)
 jax.block_until_ready(study.linearisation); mark("aligned_steady_jacobian_and_jitter_s")
-study = make_study(model, "lateral_max", dt=opts.dt, integrator=opts.solver, jacobian=True, steady=True)
+study = make_study(model, "lateral_max", opts, jacobian=True, steady=True)
 jax.block_until_ready(study.linearisation); mark("aligned_steady_jacobian_and_jitter_again_s")
 limits = {"longitudinal_max": 20.0, "steering_max": 3.0}
 work = with_limits(study, (("lateral_max", 20.0),) + tuple(limits.items()))
@@ -65,14 +65,14 @@ np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_first_s"
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_again_s")
 if os.environ.get("VMAP_BATCH") == "1":  # the same batch as one vmap (compiled by the first child's run)
     import equinox as eqx
-    from jaxbelt.design.metrics import limit_values
+    from jaxbelt.design.study import limit_values
     vmapped = eqx.filter_jit(lambda st, t: jax.vmap(lambda x: limit_values(st, x))(t))
     np.asarray(vmapped(work, th)); mark("verification_batch_vmap_first_s")
     np.asarray(vmapped(work, th)); mark("verification_batch_vmap_again_s")
 res = tol.tolerance_box(study, 20.0, limits=limits); mark("tolerance_box_s")
 _, _, fine, fine_opts = rebuild(refine(scene, n_xi=2.0, n_eta=2.0, dt=2.0))
 jax.block_until_ready(fine.chi_static); mark("finer_model_build_s")
-bars = tol.box_discretisation(res, study, fine, dt=fine_opts.dt, integrator=fine_opts.solver); mark("error_bars_s")
+bars = tol.box_discretisation(res, study, fine, fine_opts); mark("error_bars_s")
 marks["total_s"] = time.perf_counter() - T0
 print(json.dumps(dict(scene=DESIGN_SCENE, n_unknowns=int(model.n_unknowns), steady=True,
                       parameters=int(study.space.size), iterations=int(res.iterations), stages=marks)))

@@ -1,4 +1,4 @@
-"""Steering-loop tuning against the classical rules: ``jaxbelt.design.tuning.tune`` (Adam through
+"""Steering-loop tuning against the classical rules: ``jaxbelt.steering.tuning.tune`` (Adam through
 the whole closed-loop run, GM ≥ 6 dB and PM ≥ 45°) for both objectives on one scene, with SIMC and
 Ziegler–Nichols run through the same full model, and the gradient against central differences at
 the scene's own gains.
@@ -12,7 +12,7 @@ import argparse
 import numpy as np
 
 from _common import load, write
-from jaxbelt.design import tuning
+from jaxbelt.steering import tuning
 
 
 def main():
@@ -22,14 +22,13 @@ def main():
     args = ap.parse_args()
     model, opts = load(args.scene)
     response = tuning.open_loop_response(model, opts, t_end=max(opts.t_end, 30.0))
-    kw = dict(dt=opts.dt, n_steps=opts.n_steps, solver=opts.solver)
     g = np.array([float(model.control.kp[0]), float(model.control.ki[0])])
-    _, grad = tuning.objective_and_grad(model, g, **kw)
+    _, grad = tuning.objective_and_grad(model, g, opts)
     fd = []
     for i in range(2):
         h = np.zeros(2)
         h[i] = 1e-4 * g[i]
-        fd.append((float(tuning.objective(model, g + h, **kw)) - float(tuning.objective(model, g - h, **kw))) / (2 * h[i]))
+        fd.append((float(tuning.objective(model, g + h, opts)) - float(tuning.objective(model, g - h, opts))) / (2 * h[i]))
     out = {"scene": args.scene, "t_end_s": opts.t_end, "dt_s": opts.dt,
            "gradient_check": {"gains": g.tolist(), "reverse_mode": grad.tolist(), "central_difference": fd,
                               "relative_difference": (np.abs(grad - fd) / np.abs(fd)).tolist()}}

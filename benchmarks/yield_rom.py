@@ -58,8 +58,8 @@ def setup():
 
     model, opts = load(SCENE)
     t0 = time.perf_counter()
-    study = design.make_study(model, METRIC, t_eval=T_EVAL, dt=opts.dt, components=COMPONENTS,
-                              integrator=jb.DirectBackwardEuler(jb.Reuse()))
+    study = design.make_study(model, METRIC, opts.replace(solver=jb.DirectBackwardEuler(jb.Reuse())), t_eval=T_EVAL,
+                              components=COMPONENTS)
     t_study = time.perf_counter() - t0
     labels = study.space.labels()
     dist = design.Distribution(tuple(labels), ("normal",) * len(labels), tuple(SIGMA[lab] for lab in labels))

@@ -168,6 +168,19 @@ def controller_update(loops: SteeringLoops, state: ControllerState, reading, ste
     return new, angle
 
 
+def walk_rate(t, v, window):
+    """The walk rate of a lateral signal: the least-squares slope of ``v`` (…, n) over the times
+    ``t`` (n,) on the samples with ``window[0] ≤ t ≤ window[1]`` (s), in the units of ``v`` per s.
+    ``jnp`` (traceable, the window too); the one definition every walk rate read off a run uses."""
+    t = jnp.asarray(t)
+    v = jnp.asarray(v)
+    w = ((t >= window[0]) & (t <= window[1])).astype(t.dtype)
+    t_mean = jnp.sum(w * t) / jnp.sum(w)
+    tc = (t - t_mean) * w
+    v_mean = jnp.sum(v * w, axis=-1, keepdims=True) / jnp.sum(w)
+    return jnp.sum((v - v_mean) * tc, axis=-1) / jnp.sum(tc * tc)
+
+
 SATURATION_FRACTION = 0.999  # an actuator at this fraction of its range counts as saturated
 
 
@@ -190,7 +203,7 @@ def loop_summary(loops: SteeringLoops, control_u, sensor_v, t=None) -> list[dict
                    limit_mrad=float(limit[i] * 1e3), saturated=bool(at_limit.any()),
                    saturated_fraction=float(at_limit.mean()))
         if t is not None and len(t) >= 8:
-            tt = np.asarray(t)[-(len(t) // 4):]
-            row["sensor_walk_um_s"] = float(np.polyfit(tt, y[-len(tt):, i], 1)[0] * 1e6)
+            tt = np.asarray(t)
+            row["sensor_walk_um_s"] = float(walk_rate(tt, y[:, i], (tt[-(len(tt) // 4)], tt[-1])) * 1e6)
         out.append(row)
     return out

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .elements import GAUSS_POINTS, column_pair_to_blocks, plane_stress_D, quad_B, quad_dofs
-from .programs import stored_jit
+from .infra.programs import stored_jit
 from .state import initial_state
 
 

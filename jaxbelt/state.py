@@ -14,7 +14,7 @@ from .control import ControllerState, initial_controller_state
 from .linalg import bordered_solve
 from .mesh import Mesh
 from .model import BeltModel
-from .programs import stored_jit
+from .infra.programs import stored_jit
 from .registry import START_RULES
 from .scene import Scene
 

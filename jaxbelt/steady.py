@@ -73,7 +73,7 @@ from jax import lax
 from .control import ControllerState, samples_per_update, sensor_displacement
 from .integrators import AbstractIntegrator, make_solver
 from .model import BeltModel
-from .programs import stored_jit
+from .infra.programs import stored_jit
 from .state import BeltState, initial_state
 from .timeloop import SaveAt, belt_speed, check_time_step, edge_margin, make_step, simulate, tracer_values
 

@@ -34,7 +34,7 @@ from .linalg import join
 from .loop_plan import checkpointed, loop_plan, scan_or_inline
 from .mesh import cfl_advice
 from .model import BeltModel
-from .programs import stored_jit
+from .infra.programs import stored_jit
 from .scene import Scene
 from .state import BeltState, initial_state
 from .transport import transport_step_with_weights

@@ -152,7 +152,7 @@ show(fig)
 
 # %%
 aligned = misalignment.aligned(model)  # the same machine, every misalignment zero (= three-roller)
-study = design.make_study(aligned, "lateral_max", t_eval=STEPS * DT, dt=DT, integrator=reuse)
+study = design.make_study(aligned, "lateral_max", jb.RunOptions(reuse, STEPS, DT), t_eval=STEPS * DT)
 labels_p = study.space.labels()
 size = np.array([5.0 if lab.split(":")[1][0] == "d" else 0.5 for lab in labels_p])  # mm / mrad
 thetas = np.diag(size)

@@ -141,8 +141,8 @@ dscene = jb.load_scene("three-roller-tolerance")
 dscene = dscene.replace(mesh=dscene.mesh.__class__(n_eta=DESIGN_ETA, n_xi=104))
 dmodel = jb.build_model(dscene)
 t0 = time.perf_counter()
-study = design.make_study(dmodel, "lateral_max", t_eval=T_EVAL, dt=dscene.time.dt,
-                          integrator=jb.make_solver("direct", "reuse"))
+study = design.make_study(dmodel, "lateral_max",
+                          jb.RunOptions.from_scene(dscene).replace(solver=jb.make_solver("direct", "reuse")), t_eval=T_EVAL)
 report = design.sensitivity_report(study, repeat=1)
 print(f"N = {dmodel.n_unknowns}, {study.n_steps} steps; study + sensitivities in {time.perf_counter() - t0:.1f} s "
       f"(forward {report.forward_s:.2f} s, gradient {report.gradient_s:.2f} s, at the kink: {report.at_kink})")

@@ -38,8 +38,8 @@ import numpy as np
 
 import jaxbelt as jb
 from jaxbelt import design, plot
-from jaxbelt.design.steering import steering_report
-from jaxbelt.design.tuning import tune
+from jaxbelt.steering.report import steering_report
+from jaxbelt.steering.tuning import tune
 
 jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
@@ -164,7 +164,7 @@ for name in ("three-roller-steered", "three-roller-tolerance"):
     sc = jb.load_scene(name)
     sc = coarse(sc) if COARSE else sc
     m, o = jb.build_model(sc), jb.RunOptions.from_scene(sc)
-    study = design.make_study(m, "lateral_max", dt=o.dt, n_steps=o.n_steps, integrator=o.solver)
+    study = design.make_study(m, "lateral_max", o)
     limits = {"longitudinal_max": LIMIT_UM, "steering_max": study.range_mrad} if study.steered else None
     answers[name] = design.tolerance_box(study, LIMIT_UM, limits=limits)
 labels = answers["three-roller-steered"].labels

@@ -192,7 +192,7 @@ def vmap_batches(batches, steps: int, repeat: int) -> dict:
     model, dt = build_model(scene), RunOptions.from_scene(scene).dt
     rows = {}
     for solver, integ in (("exact", DirectBackwardEuler(KeptInterior())), ("reuse", DirectBackwardEuler(Reuse()))):
-        study = design.make_study(model, "lateral_max", dt=dt, n_steps=steps, integrator=integ)
+        study = design.make_study(model, "lateral_max", RunOptions(integ, steps, dt))
         rng = np.random.default_rng(0)
         for b in batches:
             thetas = 0.01 * rng.standard_normal((b, study.space.size))

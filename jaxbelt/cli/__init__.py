@@ -22,7 +22,7 @@ from pathlib import Path
 import jax
 
 from .. import enable_x64
-from ..programs import use_program_store
+from ..infra.programs import use_program_store
 from ..scene import MisalignmentWarning, SceneError
 from . import bench, demo, info, plot_scene, reduce, scenes, sensitivity, simulate, steering, sweep, tolerance, tune
 from ._common import SimulationError, UsageError
@@ -57,7 +57,7 @@ def enable_compilation_cache():
     same scene shapes skips XLA compilation. Directory ``$JAXBELT_CACHE_DIR`` or
     ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``). **Returns:** the directory, or
     ``None`` where it is off. The large programs are also kept whole, traced and compiled, in its
-    folder ``programs`` (:mod:`jaxbelt.programs`): a later process loads them instead of tracing
+    folder ``programs`` (:mod:`jaxbelt.infra.programs`): a later process loads them instead of tracing
     them again, which the compilation cache alone does not skip. Every program is kept, however quickly it compiled: a command runs
     about a hundred small programs (model build, static solve, bookkeeping) that take ~30 ms each
     to compile and ~5 ms to load, which a time threshold would recompile on every call."""

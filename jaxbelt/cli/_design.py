@@ -177,10 +177,8 @@ def make_design_study(args, model, options, components=None, jacobian: bool = Fa
     fraction = None if args.window is None else args.window / t_eval
     try:
         if steady:
-            return make_study(model, args.metric, dt=options.dt, components=components, integrator=options.solver,
-                              jacobian=jacobian, steady=True)
-        return make_study(model, args.metric, t_eval=args.at, dt=options.dt, n_steps=options.n_steps,
-                          components=components, integrator=options.solver, jacobian=jacobian,
+            return make_study(model, args.metric, options, components=components, jacobian=jacobian, steady=True)
+        return make_study(model, args.metric, options, t_eval=args.at, components=components, jacobian=jacobian,
                           window_fraction=fraction)
     except ValueError as e:  # NoSteadyStateError included: what was found, in one line
         raise UsageError(str(e)) from None

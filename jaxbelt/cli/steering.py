@@ -7,7 +7,7 @@ import warnings
 
 import numpy as np
 
-from ..design.steering import SteeringWarning, steering_report
+from ..steering.report import SteeringWarning, steering_report
 from ._common import UsageError, load_run
 
 DEFAULT_SCENE = "two-roller-steered"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..design import distribution_from_dict, run_sweep, with_limits
 from ..design.metrics import metric_unit
-from ..design.store import open_sweep
+from ..infra.store import open_sweep
 from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
 from ._design import (add_design_arguments, add_steering_limit_argument, check_limit, check_plot, check_steering_limit,
@@ -73,8 +73,7 @@ def run(args):
     if not args.no_error_bars:
         stage(args, "error bar: the samples nearest the limit on the grid one level finer")
         fine, fine_options, grid, grid_fine = finer_model(args)
-        out["discretisation"] = yield_discretisation(res, study, fine, dist, dt=fine_options.dt,
-                                                     integrator=fine_options.solver, grid=grid,
+        out["discretisation"] = yield_discretisation(res, study, fine, dist, fine_options, grid=grid,
                                                      grid_fine=grid_fine).to_dict()
     return finish(args, out, _print, "plot_yield", res.metric_values, limit, res)
 

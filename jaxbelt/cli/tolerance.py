@@ -54,7 +54,7 @@ def run(args):
     if not args.no_error_bars:
         stage(args, "error bars: the verified corners on the grid one level finer")
         fine, fine_options, grid, grid_fine = finer_model(args)
-        bars = box_discretisation(res, study, fine, dt=fine_options.dt, integrator=fine_options.solver, grid=grid,
+        bars = box_discretisation(res, study, fine, fine_options, grid=grid,
                                   grid_fine=grid_fine).to_dict()
         out["discretisation"] = bars
         for row, u in zip(out["half_widths"], bars["half_width_uncertainty"]):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..design.tuning import OBJECTIVES, tune
+from ..steering.tuning import OBJECTIVES, tune
 from ._common import SCENE_HELP, UsageError, check_at_least, emit, fmt, load_run
 
 

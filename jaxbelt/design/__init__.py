@@ -9,7 +9,7 @@ from jaxbelt import design
 jb.enable_x64()
 scene = jb.load_scene("three-roller-t72")
 opts = jb.RunOptions.from_scene(scene)
-study = design.make_study(jb.build_model(scene), "lateral_max", t_eval=2.0, dt=opts.dt, integrator=opts.solver)
+study = design.make_study(jb.build_model(scene), "lateral_max", opts, t_eval=2.0)
 design.sensitivity_report(study)                      # value + gradient per roller component
 box = design.tolerance_box(study, limit_um=20.0)      # largest verified tolerance box
 dist = design.Distribution(tuple(study.space.labels()), ("normal",) * study.space.size,
@@ -32,15 +32,18 @@ from .linear_box import optimise_box as optimise_box
 from .linear_box import rss_stackup as rss_stackup
 from .linear_box import worst_case as worst_case
 from .metrics import METRICS as METRICS
-from .metrics import Study as Study
-from .metrics import evaluate as evaluate
-from .metrics import make_study as make_study
+from .metrics import Metric as Metric
 from .metrics import metric_unit as metric_unit
-from .metrics import metric_value as metric_value
-from .metrics import response as response
-from .metrics import run_deviation as run_deviation
-from .metrics import tracer_deviation as tracer_deviation
-from .metrics import with_limits as with_limits
+from .study import Study as Study
+from .study import evaluate as evaluate
+from .study import make_study as make_study
+from .study import make_study_at as make_study_at
+from .study import metric_value as metric_value
+from .study import response as response
+from .study import run_deviation as run_deviation
+from .study import study_on as study_on
+from .study import tracer_deviation as tracer_deviation
+from .study import with_limits as with_limits
 from .sampling import Distribution as Distribution
 from .sampling import FormResult as FormResult
 from .sampling import ImportanceSamplingResult as ImportanceSamplingResult
@@ -56,9 +59,9 @@ from .sensitivity import SensitivityReport as SensitivityReport
 from .sensitivity import response_jacobian as response_jacobian
 from .sensitivity import sensitivity_report as sensitivity_report
 from .sensitivity import value_and_gradient as value_and_gradient
-from .sharding import batched_map as batched_map
-from .sharding import config_mesh as config_mesh
-from .sharding import distributed_map as distributed_map
+from ..infra.sharding import batched_map as batched_map
+from ..infra.sharding import config_mesh as config_mesh
+from ..infra.sharding import distributed_map as distributed_map
 from .sweep import SweepResult as SweepResult
 from .sweep import run_sweep as run_sweep
 from .tolerance import ToleranceBox as ToleranceBox

@@ -58,499 +58,126 @@ from __future__ import annotations
 
 import dataclasses
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from ..control import SATURATION_FRACTION
-from ..integrators import AbstractIntegrator, make_solver
-from ..misalignment import ParameterSpace, aligned, apply, parameter_space
-from ..model import BeltModel
-from ..programs import stored_jit
-from ..state import BeltState, prolongate
-from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
-                      map_configurations, period_steps, state_fields, steady_state)
-from ..timeloop import check_finite, simulate
+from ..control import SATURATION_FRACTION, walk_rate
 
 M_TO_UM = 1e6
 RAD_TO_MRAD = 1e3
-# name: (aggregate, needs a 2D scene, needs a steering loop, description)
-METRICS = {
-    "lateral_rms": ("rms", True, False, "RMS over the tracers of the lateral deviation at t_eval "
-                                        "(steered: over tracers and the window), µm"),
-    "lateral_max": ("max", True, False, "largest |lateral deviation| over the tracers at t_eval "
-                                        "(steered: over tracers and the window), µm"),
-    "longitudinal_rms": ("rms", False, False, "RMS over the tracers of the longitudinal deviation at t_eval "
-                                              "(steered: over tracers and the window), µm"),
-    "longitudinal_max": ("max", False, False, "largest |longitudinal deviation| over the tracers at t_eval "
-                                              "(steered: over tracers and the window): registration, µm"),
-    "lateral_peak": ("max", True, False, "largest |lateral deviation| over tracers and the window, µm"),
-    "walk_rate": ("max", True, False, "|slope| of the mean lateral deviation over the second half of the run, µm/s"),
-    "steering_max": ("max", True, True, "largest |actuator angle| of the steering loops over the window, mrad"),
-}
 SMOOTH_TAU_UM = 0.05
 OPEN_LOOP_WINDOW = 0.1  # fraction of [0, t_eval]: lateral_peak's window
 CLOSED_LOOP_WINDOW = 0.2  # fraction of [0, t_eval]: the window of steady operation of a steered machine
 
 
-def metric_unit(name: str) -> str:
-    """The unit of a metric's value: ``"mrad"``, ``"µm/s"`` or ``"µm"``."""
-    return {"steering_max": "mrad", "walk_rate": "µm/s"}.get(name, "µm")
-
-
-class Study(eqx.Module):
-    """One tolerance question on one model: the metric, its evaluation time, the varied
-    components and the aligned reference run. Build with :func:`make_study`.
-
-    **Fields:** ``model``; ``integrator`` the solver of every run; ``dt`` the time step, s (an
-    array: traced, so studies at other time steps share compiled programs); ``ref_u``, ``ref_v``
-    (n_steps, n_tr) tracer displacements of the aligned run, m, every step recorded (``ref_v``
-    ``None`` in 1D); ``base`` (q,) the scene's own misalignment around which ``theta`` is
-    measured; ``space`` the varied components; ``metric``; ``n_steps`` the run length (the
-    evaluation step); ``window`` the steps of the evaluation window (``lateral_peak``, and every
-    windowed metric of a steered machine); ``limit_names`` the metrics of a study with several
-    limits at once (module docstring), else ``()``, and ``limit_values`` (n_limits,) their limits
-    (an array: studies that differ in the limits only share compiled programs); ``ref_angle``
-    (n_steps, n_c) the aligned run's steering actuator angles, mrad (``None`` without a loop);
-    ``linearisation`` ``None``, or (from :func:`make_study` with ``jacobian=True``) the
-    deviations of :func:`run_deviation` at ``θ = 0`` and their derivatives with respect to every
-    component of ``θ``: ``((d_u, d_v, angle), (∂d_u, ∂d_v, ∂angle))``, each derivative with a
-    trailing axis of length P — what :func:`jaxbelt.design.response_jacobian` reads at ``θ = 0``
-    instead of running again; ``steady`` whether the study judges steady operation (module
-    docstring, *Steady operation*): then ``n_steps = window = 1`` and every history above has one
-    row, the steady state's; ``period_steps`` the steady map's period in steps; ``jitter_mrad``
-    (n_c,) the aligned machine's actuator jitter around its steady angle from sensor noise and
-    edge profile, mrad (steady studies of a steered machine, else ``None``); ``steady_start``
-    the aligned machine's steady state; ``steady_tangents`` its derivatives with respect to ``θ``
-    (:func:`jaxbelt.steady.state_fields`, trailing axis P; a steady study with a Jacobian): every
-    steady solve of the study starts at the linear prediction
-    :func:`jaxbelt.steady.linear_start`, or without them at the aligned steady state.
-    """
-
-    model: BeltModel
-    integrator: AbstractIntegrator
-    dt: jax.Array
-    ref_u: jax.Array
-    ref_v: jax.Array | None
-    base: jax.Array
-    space: ParameterSpace = eqx.field(static=True)
-    metric: str = eqx.field(static=True)
-    n_steps: int = eqx.field(static=True)
-    window: int = eqx.field(static=True)
-    limit_names: tuple = eqx.field(static=True, default=())
-    limit_values: jax.Array | None = None
-    ref_angle: jax.Array | None = None
-    linearisation: tuple | None = None
-    steady: bool = eqx.field(static=True, default=False)
-    period_steps: int = eqx.field(static=True, default=1)
-    jitter_mrad: jax.Array | None = None
-    steady_start: BeltState | None = None
-    steady_tangents: tuple | None = None
-
-    @property
-    def limits(self) -> tuple:
-        """``((metric, limit), ...)`` of a study with several limits, else ``()``."""
-        if not self.limit_names:
-            return ()
-        return tuple(zip(self.limit_names, (float(v) for v in np.asarray(self.limit_values))))
-
-    @property
-    def aggregate(self) -> str:
-        return "max" if self.limit_names else METRICS[self.metric][0]
-
-    @property
-    def steered(self) -> bool:
-        """Whether the machine has steering loops (its metrics read the window in closed loop)."""
-        return self.model.control is not None
-
-    @property
-    def t_eval(self) -> float | None:
-        """The evaluation time ``n_steps × dt``, s (concrete studies only); ``None`` for steady
-        operation."""
-        return None if self.steady else self.n_steps * float(self.dt)
-
-    @property
-    def t_window(self) -> tuple[float, float] | None:
-        """The evaluation window ``(start, end)``, s: the last ``window`` steps of the run;
-        ``None`` for steady operation."""
-        return None if self.steady else ((self.n_steps - self.window) * float(self.dt), self.t_eval)
-
-    @property
-    def range_mrad(self) -> float | None:
-        """The steering actuators' range limit, mrad (the smallest over the loops); ``None``
-        without a loop."""
-        return None if self.model.control is None else float(jnp.min(self.model.control.limit)) * RAD_TO_MRAD
-
-    def configured(self, theta) -> BeltModel:
-        """The model at design vector ``theta`` (P,), mm / mrad around the scene's misalignment."""
-        return apply(self.model, self.space, theta, self.base)
-
-
-def _mrad(angle):
-    """Actuator angles in rad (``None`` without a loop) in mrad."""
-    return None if angle is None else angle * RAD_TO_MRAD
-
-
-def for_runs(study: Study) -> Study:
-    """The study without its linearisation, which no run reads: the programs that run
-    configurations then take the same arguments with and without one, and are compiled once for
-    both (in a process and in the persistent compilation cache)."""
-    return study if study.linearisation is None else dataclasses.replace(study, linearisation=None)
-
-
-def _check_metric(model: BeltModel, metric: str):
-    if metric not in METRICS:
-        raise ValueError(f"metric = {metric!r}: unknown (one of {', '.join(METRICS)})")
-    if METRICS[metric][1] and model.kind != "2d":
-        raise ValueError(f"metric = {metric!r}: a lateral metric needs a 2D scene (this one is {model.kind})")
-    if METRICS[metric][2] and model.control is None:
-        raise ValueError(f"metric = {metric!r}: needs a steering loop ([[control]]); this machine has none")
-
-
-def make_study(model: BeltModel, metric: str = "lateral_rms", t_eval: float | None = None, *, dt,
-               n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
-               window_fraction: float | None = None, jacobian: bool = False, steady: bool = False) -> Study:
-    """Set up a study: validate the metric and time, select the components, run the aligned
-    reference once.
-
-    With ``jacobian``, also the run's derivatives with respect to every component at the scene's
-    own misalignment (``Study.linearisation``), for the linear response at ``θ = 0``. On an
-    aligned scene that run is the reference itself: one forward-mode program gives both (the
-    reference is the primal the tangents ride on), where a study and then its Jacobian would run
-    the reference twice and compile two programs.
-
-    **Arguments:** ``metric`` (one of :data:`METRICS`); ``t_eval`` evaluation time in s, rounded
-    to whole steps of ``dt``; ``dt`` the time step, s; ``n_steps`` the evaluation step when
-    ``t_eval`` is not given (a scene's ``RunOptions.n_steps``: its ``t_end``); ``components`` as
-    in :func:`jaxbelt.misalignment.parameter_space`; ``integrator`` the solver (default
-    :func:`jaxbelt.make_solver`'s; a scene's is ``RunOptions.solver``); ``window_fraction`` of
-    ``[0, t_eval]``, the evaluation window (default 0.1, ``lateral_peak``'s; 0.2 on a steered
-    machine, where every windowed metric reads it); ``steady`` judge steady operation instead of a
-    time-stepped window (module docstring; ``t_eval``, ``n_steps`` and ``window_fraction`` are then
-    not read).
-
-    ``jaxbelt.RunOptions`` holds a scene's ``dt``, ``n_steps`` and solver:
-    ``make_study(model, metric, dt=opts.dt, n_steps=opts.n_steps, integrator=opts.solver)``.
-    """
-    if steady:
-        return _make_steady_study(model, metric, dt, components, integrator, jacobian)
-    frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
-    if jacobian and not np.any(np.asarray(frame["base"])):
-        ref, (du, dv, dangle) = _reference_and_tangents(model, frame["space"], frame["integrator"], frame["dt"],
-                                                        frame["n_steps"])
-        check_finite(ref, frame["dt"])  # a diverging reference is named, as simulate names it
-        u, v, angle = ref.tracer_u, ref.tracer_v, ref.control_u
-        zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-        lin = ((zero(u), zero(v), _mrad(angle)), (du * M_TO_UM, None if dv is None else dv * M_TO_UM, _mrad(dangle)))
-        return Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), linearisation=lin)
-    _, ref = simulate(aligned(model), frame["integrator"], n_steps=frame["n_steps"], dt=frame["dt"])
-    study = Study(**frame, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
-                  ref_angle=_mrad(ref.control_u))
-    if jacobian:
-        study = dataclasses.replace(study, linearisation=_deviation_tangents(study))
-    return study
-
-
-def _steady_rows(s):
-    """A steady state's tracers and angles as one-row histories ``(u, v, angle)`` (m, m, rad)."""
-    row = lambda a: None if a is None else a[None]  # noqa: E731
-    return row(s.tracer_u), row(s.tracer_v), row(s.angle)
-
-
-DESIGN_TANGENT_RTOL = 1e-6  # GMRES's relative residual of a steady study's tangents (a linear model
-# that nonlinear solves verify: its columns are then right to 1e-4 of their size, against 1e-8's)
-
-
-@stored_jit
-def _steady_reference_and_tangents(model, space, integrator, dt, n_p):
-    """The steady state of ``model`` and the derivatives of its tracers and actuator angles, and of
-    the state itself (:func:`jaxbelt.steady.state_fields`), with respect to ``θ`` at ``θ = 0``
-    (implicit function theorem, one tangent solve per component)."""
-
-    def solve(theta):
-        s = steady_state(apply(model, space, theta), integrator, dt=dt, period_steps=n_p,
-                         tangent_rtol=DESIGN_TANGENT_RTOL)
-        return (s.tracer_u, s.tracer_v, s.angle, state_fields(s.state)), s
-
-    J, ref = forward_jacobian(solve, jnp.zeros(space.size, model.chi_static.dtype), has_aux=True)
-    return ref, J[:3], J[3]
-
-
-@stored_jit
-def _steady_batch(model, space, integrator, dt, n_p, chis, y0s):
-    """Steady states of ``model`` at each row of ``chis`` (m, q), as one batch
-    (:func:`jaxbelt.steady.map_configurations`), each solve started at its row of ``y0s`` (a
-    :class:`~jaxbelt.BeltState` with a leading axis m; ``None``: the static equilibrium):
-    ``((tracer rows and angles, converged (m,)), the SteadyStates)``."""
-
-    def one(args):
-        chi, y0 = args
-        s = steady_state(model.replace(chi_static=chi), integrator, dt=dt, period_steps=n_p, y0=y0)
-        return (_steady_rows(s), s.converged), s
-
-    return map_configurations(one, (chis, y0s))
-
-
-def _steady_frame(model, metric, dt, components, integrator) -> dict:
-    _check_metric(model, metric)
-    dt = jnp.asarray(dt, model.ell.dtype)
-    return dict(model=model, integrator=make_solver() if integrator is None else integrator, dt=dt,
-                base=model.chi_static, space=parameter_space(model, components), metric=metric, n_steps=1, window=1,
-                steady=True, period_steps=period_steps(model, dt))
-
-
-def _make_steady_study(model, metric, dt, components, integrator, jacobian) -> Study:
-    """:func:`make_study` of steady operation (module docstring)."""
-    frame = _steady_frame(model, metric, dt, components, integrator)
-    if model.kind == "2d" and model.control is None and model.lateral_transport:
-        raise ValueError("steady operation: this machine walks (lateral transport without a steering loop); "
-                         "judge a time-stepped window instead (t_eval)")
-    args = (frame["space"], frame["integrator"], frame["dt"], frame["period_steps"])
-    base_is_zero = not np.any(np.asarray(frame["base"]))
-    if jacobian and base_is_zero:
-        s, (du, dv, dangle), tangents = _steady_reference_and_tangents(model, *args)
-    else:
-        tangents = None
-        s = steady_state(aligned(model), frame["integrator"], dt=frame["dt"], period_steps=frame["period_steps"])
-    check_steady(s, model)
-    jitter = None if model.control is None else actuator_jitter(aligned(model), frame["integrator"], frame["dt"], s)
-    u, v, angle = _steady_rows(s)
-    study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,
-                  steady_start=s.state, steady_tangents=tangents)
-    if jacobian:
-        if base_is_zero:
-            row = lambda a, k: None if a is None else a[None] * k  # noqa: E731
-            zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-            lin = ((zero(u), zero(v), _mrad(angle)), (row(du, M_TO_UM), row(dv, M_TO_UM), row(dangle, RAD_TO_MRAD)))
-        else:
-            lin = _deviation_tangents(study)
-        study = dataclasses.replace(study, linearisation=lin)
-    return study
-
-
-@stored_jit
-def _reference_and_tangents(model, space, integrator, dt, n_steps):
-    """The run of ``model`` (aligned; its :class:`~jaxbelt.timeloop.Trajectory`) and the
-    derivatives of its tracer histories and actuator angles with respect to ``θ`` at ``θ = 0``,
-    each with a trailing axis P: one forward-mode pass, the run itself its primal."""
-
-    def run(theta):
-        _, tr = simulate(apply(model, space, theta), integrator, n_steps=n_steps, dt=dt)
-        return (tr.tracer_u, tr.tracer_v, tr.control_u), tr
-
-    J, ref = jax.jacfwd(run, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
-    return ref, J
-
-
-@stored_jit
-def _deviation_tangents(study: Study):
-    """:func:`run_deviation` at ``θ = 0`` and its derivatives (``Study.linearisation``)."""
-    fn, theta = (lambda t: (run_deviation(study, t),) * 2), jnp.zeros(study.space.size, study.base.dtype)
-    J, primal = forward_jacobian(fn, theta, has_aux=True) if study.steady else jax.jacfwd(fn, has_aux=True)(theta)
-    return primal, J
-
-
-def with_linearisation(study: Study) -> Study:
-    """``study`` with its :attr:`Study.linearisation`, computed here where it has none."""
-    if study.linearisation is not None:
-        return study
-    return dataclasses.replace(study, linearisation=_deviation_tangents(study))
-
-
-def _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction) -> dict:
-    """A study's fields but the aligned reference, validated (:func:`make_study`)."""
-    _check_metric(model, metric)
-    n_steps = _evaluation_step(t_eval, dt, n_steps)
-    if window_fraction is None:
-        window_fraction = OPEN_LOOP_WINDOW if model.control is None else CLOSED_LOOP_WINDOW
-    if not 0.0 < window_fraction <= 1.0:
-        raise ValueError(f"window_fraction = {window_fraction}: must lie in (0, 1]")
-    return dict(model=model, integrator=make_solver() if integrator is None else integrator,
-                dt=jnp.asarray(dt, model.ell.dtype), base=model.chi_static, space=parameter_space(model, components),
-                metric=metric, n_steps=n_steps, window=max(1, int(round(window_fraction * n_steps))))
-
-
-@stored_jit
-def _aligned_and_configured(model, space, integrator, dt, n_steps, thetas):
-    """The tracer histories (m + 1, n_steps, n_tr) and actuator angles of the aligned machine and
-    of ``model`` at each row of ``thetas`` (m, P), as one ``vmap`` batch."""
-    chis = jnp.concatenate([jnp.zeros_like(model.chi_static)[None],
-                            jax.vmap(lambda t: apply(model, space, t).chi_static)(thetas)])
-
-    def one(chi):
-        _, tr = simulate(model.replace(chi_static=chi), integrator, n_steps=n_steps, dt=dt)
-        return tr.tracer_u, tr.tracer_v, tr.control_u
-
-    return jax.vmap(one)(chis)
-
-
-def make_study_at(model: BeltModel, metric: str, thetas, t_eval: float | None = None, *, dt,
-                  n_steps: int | None = None, components=None, integrator: AbstractIntegrator | None = None,
-                  window_fraction: float | None = None, limits=(), steady: bool = False, jitter_mrad=None,
-                  starts=None):
-    """:func:`make_study` and the study's values at ``thetas`` (m, P) from one ``vmap`` batch of
-    m + 1 runs, the aligned reference among them. On a CPU a batch of m + 1 costs far less than
-    a reference run and then a batch of m: one run's sequential sweeps leave the cores idle.
-
-    **Arguments:** as :func:`make_study`; ``limits`` ``((metric, limit), ...)`` as
-    :func:`with_limits` (then the study is the one with the limits). **Returns:** ``(study,
-    values)``: ``values`` (m,) the metric, or with ``limits`` (m, n_limits) each limit's value in
-    its own unit (:func:`limit_values`). With ``steady``, the study of steady operation, its m + 1
-    steady solves one batch (:func:`jaxbelt.steady.map_configurations`), each from its row of
-    ``starts`` (the aligned machine first; a :class:`~jaxbelt.BeltState` with a leading axis m + 1,
-    e.g. another grid's steady states carried over by :func:`study_on`; default the static
-    equilibrium); ``jitter_mrad`` its actuator jitter (default: measured here)."""
-    if steady:
-        frame = _steady_frame(model, metric, dt, components, integrator)
-        thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
-        chis = jnp.concatenate([jnp.zeros_like(model.chi_static)[None],
-                                jax.vmap(lambda t: apply(model, frame["space"], t).chi_static)(thetas)])
-        ((u, v, angle), converged), first = _steady_batch(model, frame["space"], frame["integrator"], frame["dt"],
-                                                          frame["period_steps"], chis, starts)
-        if not np.all(np.asarray(converged)):
-            raise NoSteadyStateError(f"no steady operation at {int(np.sum(~np.asarray(converged)))} of "
-                                     f"{len(chis)} configurations: the fixed-point iteration did not converge")
-        aligned_steady = jax.tree.map(lambda a: a[0], first)
-        if model.control is not None and jitter_mrad is None:
-            jitter_mrad = actuator_jitter(aligned(model), frame["integrator"], frame["dt"], aligned_steady)
-        frame.update(jitter_mrad=jitter_mrad, steady_start=aligned_steady.state)
-    else:
-        frame = _study_frame(model, metric, t_eval, dt, n_steps, components, integrator, window_fraction)
-        thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
-        u, v, angle = _aligned_and_configured(model, frame["space"], frame["integrator"], frame["dt"],
-                                              frame["n_steps"], thetas)
-    angle = _mrad(angle)
-    study = Study(**frame, ref_u=u[0], ref_v=None if v is None else v[0], ref_angle=None if angle is None else angle[0])
-    if limits:
-        study = with_limits(study, limits)
-
-    def values(uk, vk, ak):
-        du = (uk - study.ref_u) * M_TO_UM
-        dv = None if vk is None else (vk - study.ref_v) * M_TO_UM
-        if study.limit_names:
-            return _limit_values_from_deviation(study, du, dv, ak)
-        return aggregate(study.aggregate, response_from_deviation(study, du, dv, ak))
-
-    rest = lambda a: None if a is None else a[1:]  # noqa: E731
-    return study, np.asarray(jax.vmap(values)(u[1:], rest(v), rest(angle)), dtype=float)
-
-
-def study_on(model: BeltModel, study: Study, thetas, *, dt, integrator: AbstractIntegrator | None = None, limits=()):
-    """:func:`make_study_at` of ``study``'s question — its metric, components, evaluation time and
-    window — on ``model`` (the same scene on another grid, run at ``dt`` with ``integrator``):
-    ``(study, values)`` at ``thetas`` (m, P), the aligned reference in the same batch."""
-    if study.steady:
-        return make_study_at(model, study.metric, thetas, dt=dt, components=list(study.space.labels()),
-                             integrator=integrator, limits=limits, steady=True, jitter_mrad=study.jitter_mrad,
-                             starts=_carried_starts(study, model, thetas))
-    return make_study_at(model, study.metric, thetas, t_eval=study.t_eval, dt=dt, components=list(study.space.labels()),
-                         integrator=integrator, window_fraction=study.window / study.n_steps, limits=limits)
-
-
-def _carried_starts(study: Study, model: BeltModel, thetas):
-    """Starts on ``model``'s grid for :func:`study_on`'s steady solves: the study's aligned steady
-    state and, per configuration, its linear prediction there (:func:`jaxbelt.steady.linear_start`),
-    carried over (:func:`jaxbelt.state.prolongate`); ``None`` without a steady state to carry."""
-    if study.steady_start is None or model.kind != study.model.kind:
-        return None
-    thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
-    rows = [study.steady_start] + [study.steady_start if study.steady_tangents is None else
-                                   linear_start(study.steady_start, study.steady_tangents,
-                                                jnp.asarray(t, study.base.dtype)) for t in thetas]
-    carried = [prolongate(s, study.model, model) for s in rows]
-    return jax.tree.map(lambda *a: jnp.stack(a), *carried)
-
-
-def with_limits(study: Study, limits) -> Study:
-    """The study with several limits at once: ``limits`` ``{metric: limit}`` (or pairs), max-type
-    metrics only, limits in each metric's unit (:func:`metric_unit`). Its response is every
-    metric's response over its limit, stacked, times the first limit; its metric the largest ratio
-    times the first limit (module docstring).
-    An empty ``limits`` gives back the single-metric study (``limit_names = ()``)."""
-    pairs = tuple((str(k), float(v)) for k, v in (limits.items() if isinstance(limits, dict) else limits))
-    for name, limit in pairs:
-        _check_metric(study.model, name)
-        if METRICS[name][0] != "max":
-            raise ValueError(f"limits: {name!r} is an RMS metric; several limits at once take max-type metrics "
-                             f"({', '.join(k for k, v in METRICS.items() if v[0] == 'max')})")
-        if not (np.isfinite(limit) and limit > 0):
-            raise ValueError(f"limits: {name} = {limit}: must be a positive number")
-    if len({n for n, _ in pairs}) != len(pairs):
-        raise ValueError(f"limits: {[n for n, _ in pairs]} names a metric twice")
-    return Study(model=study.model, integrator=study.integrator, dt=study.dt, ref_u=study.ref_u, ref_v=study.ref_v,
-                 base=study.base, space=study.space, metric=study.metric, n_steps=study.n_steps, window=study.window,
-                 limit_names=tuple(n for n, _ in pairs),
-                 limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None,
-                 ref_angle=study.ref_angle, linearisation=study.linearisation, steady=study.steady,
-                 period_steps=study.period_steps, jitter_mrad=study.jitter_mrad, steady_start=study.steady_start,
-                 steady_tangents=study.steady_tangents)
-
-
-def _evaluation_step(t_eval, dt, n_steps) -> int:
-    """The run length of a study: ``t_eval / dt`` rounded, else ``n_steps``; at least two steps."""
-    dt = float(dt)
-    if t_eval is None:
-        if n_steps is None:
-            raise ValueError("t_eval or n_steps: give the evaluation time (or step)")
-        if int(n_steps) < 2:
-            raise ValueError(f"n_steps = {n_steps}: must be at least two steps")
-        return int(n_steps)
-    steps = int(round(float(t_eval) / dt)) if np.isfinite(t_eval) else 0
-    if steps < 2:
-        raise ValueError(f"t_eval = {t_eval}: must be at least two steps (dt = {dt} s)")
-    return steps
-
-
-def run_deviation(study: Study, theta):
-    """``(d_u, d_v, angle)``: the tracer displacements at ``theta`` minus the aligned run's,
-    (n_steps, n_tr) µm (``d_v`` ``None`` in 1D), and the steering actuators' angles (n_steps,
-    n_c), mrad (``None`` without a loop)."""
-    if study.steady:
-        y0 = study.steady_start if study.steady_tangents is None else \
-            linear_start(study.steady_start, study.steady_tangents, theta)
-        s = steady_state(study.configured(theta), study.integrator, dt=study.dt, period_steps=study.period_steps,
-                         y0=y0)
-        u, v, angle = _steady_rows(s)
-        bad = jnp.where(s.converged, 0.0, jnp.nan)  # an unconverged solve is NaN, never a number
-        u = u + bad
-    else:
-        _, tr = simulate(study.configured(theta), study.integrator, n_steps=study.n_steps, dt=study.dt)
-        u, v, angle = tr.tracer_u, tr.tracer_v, tr.control_u
-    du = (u - study.ref_u) * M_TO_UM
-    dv = None if v is None else (v - study.ref_v) * M_TO_UM
-    return du, dv, _mrad(angle)
-
-
-def tracer_deviation(study: Study, theta):
-    """``(d_u, d_v)`` (n_steps, n_tr) in µm: tracer displacements at ``theta`` minus the aligned
-    run's (``d_v`` is ``None`` in 1D)."""
-    return run_deviation(study, theta)[:2]
-
-
-def _single_response(study: Study, name: str, du, dv, angle):
-    k, w = study.n_steps - 1, study.window
-    window = slice(k + 1 - w, k + 1)
-    if name == "steering_max":
+@dataclasses.dataclass(frozen=True)
+class Metric:
+    """One metric of the module table: its ``name``, how its response is aggregated
+    (``aggregate``: ``"max"`` max-abs, ``"rms"``), the ``unit`` of its value, whether it needs a
+    2D scene (``needs_2d``) and a steering loop (``needs_loop``), a one-line ``description``;
+    :meth:`response` reads it from a run's deviations and :meth:`steps_read` says how many of a
+    run's last steps that reads. A new metric is one subclass and one entry in :data:`METRICS`."""
+
+    name: str
+    aggregate: str
+    unit: str
+    needs_2d: bool
+    needs_loop: bool
+    description: str
+
+    def response(self, study, du, dv, angle):
+        """The response vector ``r`` from the tracer deviations ``du``, ``dv`` (steps, n_tr) µm and
+        the actuator angles ``angle`` (steps, n_c) mrad."""
+        raise NotImplementedError
+
+    def steps_read(self, study) -> int:
+        """How many of the last steps of a run :meth:`response` reads."""
+        return study.window
+
+
+def _window(study) -> slice:
+    k = study.n_steps - 1
+    return slice(k + 1 - study.window, k + 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class TracerDeviation(Metric):
+    """``lateral_*`` / ``longitudinal_*``: the tracers' deviation in one direction at ``t_eval``;
+    on a steered machine over the window."""
+
+    direction: str = "lateral"
+
+    def response(self, study, du, dv, angle):
+        d = dv if self.direction == "lateral" else du
+        return d[_window(study)].reshape(-1) if study.steered else d[study.n_steps - 1]
+
+    def steps_read(self, study):
+        return study.window if study.steered else 1
+
+
+@dataclasses.dataclass(frozen=True)
+class LateralPeak(Metric):
+    """``lateral_peak``: the lateral deviation over the window, every step of it."""
+
+    def response(self, study, du, dv, angle):
+        return dv[_window(study)].reshape(-1)
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkRate(Metric):
+    """``walk_rate``: the least-squares slope of the mean lateral deviation over the second half
+    of the run (:func:`jaxbelt.control.walk_rate`), µm/s."""
+
+    def response(self, study, du, dv, angle):
+        t = (jnp.arange(study.n_steps) + 1.0) * study.dt
+        return walk_rate(t, jnp.mean(dv, axis=1), (t[study.n_steps // 2], t[-1]))[None]
+
+    def steps_read(self, study):
+        return study.n_steps - study.n_steps // 2
+
+
+@dataclasses.dataclass(frozen=True)
+class SteeringMax(Metric):
+    """``steering_max``: the steering actuators' angles over the window (in steady operation the
+    steady angle widened by the aligned machine's jitter, module docstring), mrad."""
+
+    def response(self, study, du, dv, angle):
         if angle is None:
             raise ValueError("steering_max: the run has no actuator angles (no steering loop)")
-        if study.steady and study.jitter_mrad is not None:  # the steady angle widened by the jitter
+        if study.steady and study.jitter_mrad is not None:
             return jnp.concatenate([angle[0] + study.jitter_mrad, angle[0] - study.jitter_mrad])
-        return angle[window].reshape(-1)
-    if name in ("longitudinal_rms", "longitudinal_max"):
-        return du[window].reshape(-1) if study.steered else du[k]
-    if name in ("lateral_rms", "lateral_max"):
-        return dv[window].reshape(-1) if study.steered else dv[k]
-    if name == "lateral_peak":
-        return dv[window].reshape(-1)
-    t = (jnp.arange(study.n_steps) + 1.0) * study.dt  # walk_rate
-    half = study.n_steps // 2
-    t, y = t[half:], jnp.mean(dv[half:], axis=1)
-    tc = t - jnp.mean(t)
-    return (jnp.sum(tc * (y - jnp.mean(y))) / jnp.sum(tc**2))[None]
+        return angle[_window(study)].reshape(-1)
 
 
-def response_from_deviation(study: Study, du, dv, angle=None):
+_STEERED = "(steered: over tracers and the window)"
+METRICS = {m.name: m for m in (
+    TracerDeviation("lateral_rms", "rms", "µm", True, False,
+                    f"RMS over the tracers of the lateral deviation at t_eval {_STEERED}, µm", "lateral"),
+    TracerDeviation("lateral_max", "max", "µm", True, False,
+                    f"largest |lateral deviation| over the tracers at t_eval {_STEERED}, µm", "lateral"),
+    TracerDeviation("longitudinal_rms", "rms", "µm", False, False,
+                    f"RMS over the tracers of the longitudinal deviation at t_eval {_STEERED}, µm", "longitudinal"),
+    TracerDeviation("longitudinal_max", "max", "µm", False, False,
+                    f"largest |longitudinal deviation| over the tracers at t_eval {_STEERED}: registration, µm",
+                    "longitudinal"),
+    LateralPeak("lateral_peak", "max", "µm", True, False, "largest |lateral deviation| over tracers and the window, µm"),
+    WalkRate("walk_rate", "max", "µm/s", True, False,
+             "|slope| of the mean lateral deviation over the second half of the run, µm/s"),
+    SteeringMax("steering_max", "max", "mrad", True, True,
+                "largest |actuator angle| of the steering loops over the window, mrad"),
+)}
+
+
+def metric_unit(name: str) -> str:
+    """The unit of a metric's value: ``"mrad"``, ``"µm/s"`` or ``"µm"``."""
+    return METRICS[name].unit
+
+
+def _single_response(study, name: str, du, dv, angle):
+    return METRICS[name].response(study, du, dv, angle)
+
+
+def response_from_deviation(study, du, dv, angle=None):
     """The metric's response vector ``r`` (see the module table) from the deviations and (for
     ``steering_max``) the actuator angles, mrad; with several limits the stacked ratios times the
     first limit (the study metric's: module docstring)."""
@@ -570,30 +197,12 @@ def aggregate(kind: str, r, smooth: bool = False, tau: float = SMOOTH_TAU_UM):
     return jnp.max(jnp.abs(r), axis=-1)
 
 
-def response(study: Study, theta):
-    """``r(θ)`` of the study's metric (see the module table)."""
-    return response_from_deviation(study, *run_deviation(study, theta))
-
-
-def metric_value(study: Study, theta, smooth: bool = False):
-    """The study's metric at ``theta`` (P,) in its unit (µm; µm/s for ``walk_rate``, mrad for
-    ``steering_max``, the largest ratio times the first limit with several limits)."""
-    return aggregate(study.aggregate, response(study, theta), smooth and study.metric == "lateral_peak"
-                     and not study.limit_names)
-
-
-def limit_values(study: Study, theta):
-    """Every limited metric of a study with several limits (:func:`with_limits`) at ``theta``:
-    (n_limits,), each in its own unit, in the order of ``study.limits``."""
-    return _limit_values_from_deviation(study, *run_deviation(study, theta))
-
-
-def _limit_values_from_deviation(study: Study, du, dv, angle):
+def limit_values_from_deviation(study, du, dv, angle):
     """Each limited metric's value (n_limits,) from the deviations and the actuator angles."""
-    return jnp.stack([aggregate(METRICS[n][0], _single_response(study, n, du, dv, angle)) for n in study.limit_names])
+    return jnp.stack([aggregate(METRICS[n].aggregate, _single_response(study, n, du, dv, angle)) for n in study.limit_names])
 
 
-def aligned_values(study: Study):
+def aligned_values(study):
     """What :func:`metric_value` and (with several limits) :func:`limit_values` read on the aligned
     run, from the reference the study keeps (no run): ``(metric, limits (n_limits,) or None)``.
     The tracer deviations there are zero; a steering loop's angle is the reference's own."""
@@ -601,10 +210,10 @@ def aligned_values(study: Study):
     dv = None if study.ref_v is None else jnp.zeros(study.ref_v.shape)
     angle = study.ref_angle
     metric = aggregate(study.aggregate, response_from_deviation(study, du, dv, angle))
-    return metric, _limit_values_from_deviation(study, du, dv, angle) if study.limit_names else None
+    return metric, limit_values_from_deviation(study, du, dv, angle) if study.limit_names else None
 
 
-def response_sizes(study: Study) -> list[int]:
+def response_sizes(study) -> list[int]:
     """The length of each limited metric's response block, in the order of ``study.limits``."""
     du = jnp.zeros(study.ref_u.shape)
     dv = None if study.ref_v is None else jnp.zeros(study.ref_v.shape)
@@ -612,7 +221,7 @@ def response_sizes(study: Study) -> list[int]:
     return [int(_single_response(study, n, du, dv, angle).shape[0]) for n in study.limit_names]
 
 
-def saturation(study: Study, angle):
+def saturation(study, angle):
     """``(steering_mrad, saturated)`` from the actuator angles (n_steps, n_c) mrad: the largest
     |angle| in the window, and whether it reached ``SATURATION_FRACTION`` of its loop's range."""
     w = angle[study.n_steps - study.window:]
@@ -620,18 +229,3 @@ def saturation(study: Study, angle):
         w = jnp.abs(w) + study.jitter_mrad
     limit = study.model.control.limit * RAD_TO_MRAD
     return jnp.max(jnp.abs(w)), jnp.any(jnp.abs(w) >= SATURATION_FRACTION * limit)
-
-
-def evaluate(study: Study, theta):
-    """Everything a sweep stores for one configuration: ``metric`` () and the tracer deviations
-    at ``t_eval``, ``longitudinal_um`` and (2D) ``lateral_um`` (n_tr,); on a steered machine also
-    ``steering_mrad`` () the largest actuator angle in the window and ``saturated`` () whether
-    the actuator reached its range limit there (:func:`saturation`)."""
-    du, dv, angle = run_deviation(study, theta)
-    out = {"metric": aggregate(study.aggregate, response_from_deviation(study, du, dv, angle)),
-           "longitudinal_um": du[-1]}
-    if dv is not None:
-        out["lateral_um"] = dv[-1]
-    if angle is not None:
-        out["steering_mrad"], out["saturated"] = saturation(study, angle)
-    return out

@@ -10,7 +10,7 @@ $$ g(u) = \\text{limit} - \\text{metric}(θ(u)), \\qquad \\text{pass} \\iff g \\
 and the *yield* is ``P(g ≥ 0)``.
 
 - **Monte Carlo** (:func:`monte_carlo`): ``n`` samples, evaluated in ``vmap`` batches (sharded
-  over the local devices, :mod:`jaxbelt.design.sharding`), chunk by chunk; the yield with a
+  over the local devices, :mod:`jaxbelt.infra.sharding`), chunk by chunk; the yield with a
   Wilson score 95 % interval.
 - **FORM** (:func:`form`): the design point ``u*`` (the most probable failing configuration)
   by Hasofer–Lind–Rackwitz–Fiessler iterations with the gradient of the metric through the
@@ -32,11 +32,11 @@ import numpy as np
 from jax.scipy.stats import norm
 
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
-from ..programs import stored_jit
+from ..infra.programs import stored_jit
 from ..steady import map_configurations
-from .metrics import Study, evaluate, for_runs, metric_value
+from .study import Study, evaluate, for_runs, metric_value
 from .sensitivity import response_jacobian
-from .sharding import batched_map
+from ..infra.sharding import batched_map
 
 DISTRIBUTIONS = ("normal", "uniform")
 STEADY_CHUNK = 4  # steady solves per compiled block (they run in sequence: a block only bounds the padding)
@@ -132,7 +132,7 @@ def check_distribution(dist: Distribution, study: Study):
 # ----------------------------------------------------------------------------- evaluation
 
 def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=None):
-    """Full-model :func:`jaxbelt.design.metrics.evaluate` for every row of ``thetas`` (n, P),
+    """Full-model :func:`jaxbelt.design.study.evaluate` for every row of ``thetas`` (n, P),
     batched with ``vmap`` and sharded over the local devices, ``chunk`` configurations at a
     time; ``progress(done, chunk_result)`` is called after each chunk.
 
@@ -141,7 +141,7 @@ def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=No
 
 
 def _map(study, thetas, chunk, progress=None):
-    """:func:`~jaxbelt.design.sharding.batched_map` with the rows padded to a whole number of
+    """:func:`~jaxbelt.infra.sharding.batched_map` with the rows padded to a whole number of
     chunks, so that every call with the same ``chunk`` reuses one compilation. Steady solves run
     one after another (:func:`jaxbelt.steady.map_configurations`), where a padded row costs a whole
     solve: their chunk is at most :data:`STEADY_CHUNK`."""
@@ -195,7 +195,7 @@ class MonteCarloResult:
     """A Monte-Carlo yield (:func:`monte_carlo`). **Fields:** ``yield_`` the fraction of samples
     that pass (:func:`passes`: on a steered machine a saturated actuator fails); ``ci95`` its
     Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the configurations, mm / mrad;
-    ``metric`` (n,) their metric; ``outputs`` everything :func:`~jaxbelt.design.metrics.evaluate`
+    ``metric`` (n,) their metric; ``outputs`` everything :func:`~jaxbelt.design.study.evaluate`
     returned, per sample."""
 
     yield_: float

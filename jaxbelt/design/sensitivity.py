@@ -19,8 +19,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import Study, for_runs, metric_value, response, response_from_deviation
-from ..programs import stored_jit
+from .metrics import response_from_deviation
+from .study import Study, for_runs, metric_value, response
+from ..infra.programs import stored_jit
 
 
 KINK_UM = 1e-6  # a metric at or below this is at its kink r = 0

@@ -97,13 +97,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..programs import stored_jit
+from ..infra.programs import stored_jit
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
 from ..rom.reduced import reduced_operators
 from ..state import initial_state
 from ..timeloop import simulate
-from .metrics import (M_TO_UM, RAD_TO_MRAD, Study, aggregate, response_from_deviation, saturation,
-                      with_linearisation)
+from .metrics import METRICS, M_TO_UM, RAD_TO_MRAD, aggregate, response_from_deviation, saturation
+from .study import Study, with_linearisation
 from .sampling import STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, standard_normal_samples
 
 ROUNDOFF_UM = 1e-9
@@ -150,14 +150,10 @@ class ResponseSurface(eqx.Module):
 
 
 def steps_needed(study: Study) -> int:
-    """How many of the last steps of a run the study's metric and the stored outputs read: the
-    last one (``*_rms``, ``lateral_max``), the window (``lateral_peak``, and every metric of a
-    steered machine), the second half (``walk_rate``)."""
-    if study.metric == "walk_rate" or "walk_rate" in study.limit_names:
-        return study.n_steps - study.n_steps // 2
-    if study.metric == "lateral_peak" or study.steered:
-        return study.window
-    return 1
+    """How many of the last steps of a run the study's metric and its further limits read
+    (:meth:`~jaxbelt.design.metrics.Metric.steps_read`), at least the last one the stored outputs
+    read."""
+    return max([1] + [METRICS[n].steps_read(study) for n in (study.metric, *study.limit_names)])
 
 
 @stored_jit
@@ -172,7 +168,7 @@ def full_deviations(study: Study, theta):
     the study compiled for its aligned reference run (the same shapes), so no new compilation; a
     non-finite run comes back non-finite."""
     model = _configured(study, jnp.asarray(theta, study.base.dtype))
-    _, tr = simulate(model, study.integrator, n_steps=study.n_steps, dt=study.dt, check=False)
+    _, tr = simulate(model, study.solver, n_steps=study.n_steps, dt=study.dt, check=False)
     du = (np.asarray(tr.tracer_u) - np.asarray(study.ref_u)) * M_TO_UM
     dv = None if tr.tracer_v is None else (np.asarray(tr.tracer_v) - np.asarray(study.ref_v)) * M_TO_UM
     return du, dv, None if tr.control_u is None else np.asarray(tr.control_u) * RAD_TO_MRAD
@@ -276,7 +272,7 @@ class Surrogate:
 
     def evaluate(self, thetas) -> dict:
         """Surrogate outputs for ``thetas`` (n, P): ``metric`` (n,), ``bound`` (n,) µm, and
-        ``longitudinal_um`` / ``lateral_um`` (n, n_tr) as :func:`jaxbelt.design.metrics.evaluate`.
+        ``longitudinal_um`` / ``lateral_um`` (n, n_tr) as :func:`jaxbelt.design.study.evaluate`.
         A non-finite prediction comes back with ``metric = limit_um`` and ``bound = inf``."""
         out = self.predict(thetas)
         bound = self.bound(thetas)
@@ -344,7 +340,7 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     snaps = []
     for theta in train:
         _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)), study.n_steps, study.dt,
-                                               study.integrator)
+                                               study.solver)
         snaps += [z_pre, z_post]
     Z = jnp.concatenate(snaps, axis=1)
     x_nominal = snaps[1][:study.model.n_unknowns, 1:]  # the nominal run after each transport
@@ -357,7 +353,7 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     s = np.asarray(s)
     r = max(1, min(int(np.sum(s > sv_tol * s[0])), V.shape[1]))
     nominal = study.configured(jnp.zeros(study.space.size))
-    rom = reduced_operators(nominal, V[:, :r], study.dt, study.integrator, singular_values=jnp.asarray(s))
+    rom = reduced_operators(nominal, V[:, :r], study.dt, study.solver, singular_values=jnp.asarray(s))
     info = {"snapshots": int(len(train) * (2 * study.n_steps + 1)), "n_modes": int(r), "sv_tol": float(sv_tol),
             "singular_value_ratio": float(s[r - 1] / s[0])}
     return rom, _anchor(study, rom, full_u, full_v), info, t_train

@@ -16,7 +16,7 @@ Per chunk of configurations (fixed by the seed, :func:`~jaxbelt.design.sampling.
 
 Each finished chunk is appended to the Zarr store (``out``), so a rerun resumes.
 
-**Several limits** (a study from :func:`~jaxbelt.design.metrics.with_limits`; ``jaxbelt sweep`` on a
+**Several limits** (a study from :func:`~jaxbelt.design.study.with_limits`; ``jaxbelt sweep`` on a
 steered machine, as ``jaxbelt tolerance``: lateral and longitudinal deviation and the actuator
 angle): the metric is the largest value over its limit, on the scale of the first limit, so a
 configuration passes where every limit holds, and everything below (the surrogate's bound, FORM,
@@ -44,13 +44,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import SATURATION_FRACTION, Study, metric_unit, study_on
+from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
+from ..timeloop import RunOptions
+from .linear_box import LinearResponse, rss_stackup
+from .metrics import SATURATION_FRACTION, metric_unit
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
-from .store import MODEL_CODES, append_chunk, load_sweep, open_sweep
+from .study import Study, study_on
 from .surrogate import Surrogate, fit_surrogate
-from .linear_box import LinearResponse, rss_stackup
 
 FLIP_BAND = 0.10  # yield error bar: samples within this fraction of the limit are re-run one grid finer
 MIN_RECHECKED = 2  # ... and at least this many, the nearest (the metric's relative change)
@@ -66,7 +68,7 @@ class SweepResult:
     **Fields:**
 
     - ``metric``, ``limit_um``, ``samples``, ``seed``: the question; ``limits`` with several limits
-      (:func:`~jaxbelt.design.metrics.with_limits`) each one, ``{"metric", "limit", "unit"}``: the
+      (:func:`~jaxbelt.design.study.with_limits`) each one, ``{"metric", "limit", "unit"}``: the
       metric is then the largest value over its limit times ``limit_um`` (the first limit), and a
       configuration passes where every limit holds; ``None`` with one limit.
     - ``yield_``: the fraction of the ``samples`` configurations whose metric is ≤ the limit
@@ -261,10 +263,10 @@ class YieldDiscretisation:
         return dataclasses.asdict(self)
 
 
-def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distribution, k: int = 16, *, dt,
-                         integrator=None, grid=None, grid_fine=None) -> YieldDiscretisation:
+def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distribution, fine_options: RunOptions,
+                         k: int = 16, *, grid=None, grid_fine=None) -> YieldDiscretisation:
     """Re-evaluate the samples of ``res`` whose metric is nearest the limit on
-    ``fine_model`` (the same scene one level finer, run at ``dt`` with ``integrator``; the
+    ``fine_model`` (the same scene one level finer, run with ``fine_options``; the
     metric, components, evaluation time and window those of ``study``) and count the verdicts
     that change: the yield's discretisation bias beside its sampling interval. The samples re-run
     are those within :data:`FLIP_BAND` of the limit — a grid one level finer moves a design
@@ -273,14 +275,14 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distr
     :data:`MIN_RECHECKED` nearest, which measure the metric's relative change. Samples are those
     of :func:`run_sweep` (the same seed and distribution); a steered machine's saturation verdicts
     are kept. The finer grid's aligned reference runs in the same ``vmap`` batch as the samples
-    (:func:`jaxbelt.design.metrics.make_study_at`)."""
+    (:func:`jaxbelt.design.study.make_study_at`)."""
     n = res.samples
     thetas = sweep_samples(study, dist, n, res.seed)
     values = np.asarray(res.metric_values)
     order = np.argsort(np.abs(values - res.limit_um))
     within = int(np.sum(np.abs(values - res.limit_um) <= FLIP_BAND * res.limit_um))
     pick = order[: min(n, max(MIN_RECHECKED, min(k, within)))]
-    _, fine = study_on(fine_model, study, thetas[pick], dt=dt, integrator=integrator, limits=study.limits)
+    _, fine = study_on(fine_model, study, thetas[pick], fine_options, limits=study.limits)
     if study.limits:  # each limit's value: on the scale of the first, as the sweep's metric
         lims = np.array([v for _, v in study.limits])
         fine = np.max(np.asarray(fine) / lims, axis=1) * lims[0]

@@ -12,7 +12,7 @@ verified again.
 
 **Several limits at once** (``limits``, e.g. ``{"longitudinal_max": 20, "steering_max": 3}``
 beside a max-type study metric): every metric's response is divided by its limit and stacked
-(:func:`jaxbelt.design.metrics.with_limits`), so one max-type constraint holds all of them; it is
+(:func:`jaxbelt.design.study.with_limits`), so one max-type constraint holds all of them; it is
 carried on the scale of the study's own limit (``ratio × limit_um``), so ``worst_case_um``, the
 verification values and the plot read as before, and ``limits`` reports each metric in its own
 unit, its predicted and verified worst case, and which one *binds* (the largest verified ratio).
@@ -28,12 +28,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..infra.programs import stored_jit
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
-from ..programs import stored_jit
 from ..steady import map_configurations
+from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
-from .metrics import (METRICS, Study, aggregate, aligned_values, for_runs, limit_values, metric_unit, response_sizes,
-                      study_on, with_limits)
+from .metrics import METRICS, aggregate, aligned_values, metric_unit, response_sizes
+from .study import Study, for_runs, limit_values, study_on, with_limits
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -183,7 +184,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     **Arguments:** ``weights`` (P,) cost weights (default 1); ``h_max`` cap of a half-width
     (mm / mrad); ``n_corners`` worst corners and ``n_random`` random corners verified per
     iteration; ``evaluate_many(thetas (m, P)) -> metrics (m,)`` runs the full model (default: a
-    ``vmap`` of :func:`jaxbelt.design.metrics.metric_value`; with ``limits``, each limit's value
+    ``vmap`` of :func:`jaxbelt.design.study.metric_value`; with ``limits``, each limit's value
     (m, n_limits)); ``limits`` further limits held at the same time, ``{metric: limit}`` in each
     metric's unit (max-type metrics; the study's metric must be one too).
 
@@ -193,7 +194,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
         raise ValueError(f"limit_um = {limit_um}: must be a positive number")
     names = None
     if limits:
-        if METRICS[study.metric][0] != "max":
+        if METRICS[study.metric].aggregate != "max":
             raise ValueError(f"limits: several limits at once need a max-type metric (not {study.metric})")
         names = ((study.metric, float(limit_um)),) + tuple((k, float(v)) for k, v in limits.items())
         work = with_limits(study, names)
@@ -286,16 +287,16 @@ def _on_limit_scale(values, limit_um: float, names=None) -> np.ndarray:
     return limit_um * np.max(values / np.array([lim for _, lim in names]), axis=1)
 
 
-def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integrator=None,
+def box_discretisation(box: ToleranceBox, study: Study, fine_model, fine_options: RunOptions, *,
                        grid=None, grid_fine=None) -> BoxDiscretisation:
     """The box's worst corners (those of the last verification within :data:`NEAR_WORST` of the
-    worst one's excess over the floor) and the scene's own misalignment on ``study``'s grid and on ``fine_model``'s — the same scene one level finer, run at ``dt``
-    with ``integrator`` (the metric, components, evaluation time and window those of ``study``)
+    worst one's excess over the floor) and the scene's own misalignment on ``study``'s grid and on ``fine_model``'s — the same scene one level finer, run with
+    ``fine_options`` (the metric, components, evaluation time and window those of ``study``)
     — and the half-widths' relative change that follows (:class:`BoxDiscretisation`).
 
     On the box's own grid the values are the box's: its last verification's full runs at the
     worst corners and the response ``r0`` at the scene's misalignment. The finer grid runs them
-    as one batch with its aligned reference (:func:`jaxbelt.design.metrics.make_study_at`);
+    as one batch with its aligned reference (:func:`jaxbelt.design.study.make_study_at`);
     where the scene is aligned (its own misalignment zero) the run at ``θ = 0`` is that
     reference itself, read from it (:func:`jaxbelt.design.metrics.aligned_values`), not
     repeated."""
@@ -305,7 +306,7 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, *, dt, integ
     corners = box.corners[worst_rows >= worst - NEAR_WORST * max(worst - floor, 0.0)]
     aligned_scene = not np.any(np.asarray(study.base))
     thetas = corners if aligned_scene else np.concatenate([np.zeros((1, corners.shape[1])), corners])
-    fine_study, values = study_on(fine_model, study, thetas, dt=dt, integrator=integrator, limits=box.limit_names or ())
+    fine_study, values = study_on(fine_model, study, thetas, fine_options, limits=box.limit_names or ())
     fine = _on_limit_scale(values, box.limit_um, box.limit_names)
     if aligned_scene:
         metric, per_limit = aligned_values(fine_study)

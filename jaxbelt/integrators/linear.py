@@ -42,7 +42,7 @@ from ..linalg.border_first import (BorderFirstFactors, border_first, border_firs
 from ..linalg.bordered import (BorderedFactorisation, factor_solve, factor_solve_transposed, factorise,
                                refactorise_border, scaled_schur, solve_with_adjoint, with_chained_interior)
 from ..model import BeltModel
-from ..programs import stored_jit
+from ..infra.programs import stored_jit
 
 
 class StepOperator(eqx.Module):

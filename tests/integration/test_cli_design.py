@@ -106,8 +106,8 @@ def test_sweep_form_from_the_study_linearisation_equals_a_plain_study(files, cap
     scene = jb.load_scene(str(files / "small.toml"))
     model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
     dist = design.distribution_from_dict(tomllib.loads((files / "dist.toml").read_text()), model)
-    plain = design.make_study(model, r["metric"], dt=opts.dt, n_steps=opts.n_steps, components=list(dist.labels),
-                              integrator=jb.make_solver("direct", "reuse"))
+    plain = design.make_study(model, r["metric"], opts.replace(solver=jb.make_solver("direct", "reuse")),
+                              components=list(dist.labels))
     f = design.form(plain, dist, 8.0)
     assert plain.linearisation is None and 0 < r["form_beta"] < 10
     assert r["form_beta"] == pytest.approx(f.beta, rel=1e-8)

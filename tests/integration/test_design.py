@@ -19,7 +19,7 @@ from helpers import load, scene_with
 import jaxbelt as jb
 from jaxbelt import design
 from jaxbelt.design import linear_box, sampling
-from jaxbelt.design.store import load_sweep
+from jaxbelt.infra.store import load_sweep
 
 
 def coarse(name, n_eta=3):
@@ -42,9 +42,8 @@ def model2d(loaded2d):
 @pytest.fixture(scope="module")
 def study(loaded2d):
     model2d, opts = loaded2d
-    return design.make_study(model2d, "lateral_rms", t_eval=0.24, dt=opts.dt,
-                             components="roller 2:rotation,roller 3:dx,roller 3:dz",
-                             integrator=jb.make_solver("direct", "reuse"))
+    return design.make_study(model2d, "lateral_rms", opts.replace(solver=jb.make_solver("direct", "reuse")), t_eval=0.24,
+                             components="roller 2:rotation,roller 3:dx,roller 3:dz")
 
 
 CHUNK = 8  # every batched evaluation of the study: one compiled vmap of 8 configurations
@@ -82,12 +81,12 @@ def test_parameter_space_excludes_structural_zeros(model2d):
 def test_study_rejects_bad_metric_and_time(loaded2d):
     model2d, opts = loaded2d
     with pytest.raises(ValueError, match="unknown"):
-        design.make_study(model2d, "lateral_avg", dt=opts.dt, n_steps=opts.n_steps)
+        design.make_study(model2d, "lateral_avg", opts)
     with pytest.raises(ValueError, match="t_eval"):
-        design.make_study(model2d, "lateral_rms", t_eval=0.0, dt=opts.dt)
+        design.make_study(model2d, "lateral_rms", opts, t_eval=0.0)
     model1, opts1 = load("two-roller-1d")
     with pytest.raises(ValueError, match="2D scene"):
-        design.make_study(model1, "lateral_max", t_eval=0.05, dt=opts1.dt)
+        design.make_study(model1, "lateral_max", opts1, t_eval=0.05)
 
 
 @pytest.mark.slow
@@ -96,11 +95,10 @@ def test_metrics_are_zero_for_the_aligned_machine_and_match_their_definitions(st
     k = study.n_steps - 1
     assert np.isclose(float(design.metric_value(study, jnp.zeros(4))), float(jnp.sqrt(jnp.mean(dv[k] ** 2))), rtol=1e-12)
     aligned = design.make_study(study.model.replace(chi_static=jnp.zeros_like(study.base)), "lateral_max",
-                                t_eval=study.t_eval, dt=study.dt, components="roller 2:rotation",
-                                integrator=study.integrator)
+                                study.options, t_eval=study.t_eval, components="roller 2:rotation")
     assert float(design.metric_value(aligned, jnp.zeros(2))) == 0.0
-    peak = design.make_study(study.model, "lateral_peak", t_eval=study.t_eval, dt=study.dt,
-                             components="roller 2:rotation", integrator=study.integrator)
+    peak = design.make_study(study.model, "lateral_peak", study.options, t_eval=study.t_eval,
+                             components="roller 2:rotation")
     dv2 = design.tracer_deviation(peak, jnp.zeros(2))[1]
     assert np.isclose(float(design.metric_value(peak, jnp.zeros(2))), float(jnp.max(jnp.abs(dv2[-peak.window:]))))
     assert float(design.metric_value(peak, jnp.zeros(2), smooth=True)) >= float(design.metric_value(peak, jnp.zeros(2)))
@@ -130,8 +128,7 @@ def test_gradient_2d_drive_idle_tension_translations_and_rotations():
     roller's x out of the parameters (test_parameter_space_excludes_structural_zeros)."""
     model, opts = coarse("three-roller-tension")
     model = model.replace(chi_static=model.chi_static.at[jnp.array([1, 9, 14])].set(jnp.array([1e-3, 2e-4, 5e-4])))
-    st = design.make_study(model, "lateral_rms", t_eval=0.16, dt=opts.dt,
-                           components="roller 1,roller 2,roller 3:dz,roller 3:ax", integrator=opts.solver)
+    st = design.make_study(model, "lateral_rms", opts, t_eval=0.16, components="roller 1,roller 2,roller 3:dz,roller 3:ax")
     assert "roller 2:dx" not in st.space.labels()  # the load sets it
     grad = _fd_check(st, jnp.zeros(st.space.size), 1e-3)
     assert float(jnp.min(jnp.abs(grad))) > 0
@@ -140,7 +137,7 @@ def test_gradient_2d_drive_idle_tension_translations_and_rotations():
 @pytest.mark.slow
 def test_gradient_1d_translations():
     model, opts = load("two-roller-1d-idle-translated")
-    st = design.make_study(model, "longitudinal_rms", t_eval=0.1, dt=opts.dt, integrator=opts.solver)
+    st = design.make_study(model, "longitudinal_rms", opts, t_eval=0.1)
     _fd_check(st, jnp.zeros(st.space.size), 1e-4)
 
 
@@ -223,8 +220,7 @@ def test_box_on_the_default_scene_is_verified_by_full_runs():
     """The full-size scene (slow). Fast: the same box and verification on the coarse scene,
     through the CLI (test_cli_design.py::test_tolerance_json)."""
     model, opts = load("three-roller")  # the aligned nominal machine, N = 3762
-    st = design.make_study(model, "lateral_max", t_eval=0.1, dt=opts.dt, components="roller 2:rotation,roller 3:dz",
-                           integrator=opts.solver)
+    st = design.make_study(model, "lateral_max", opts, t_eval=0.1, components="roller 2:rotation,roller 3:dz")
     res = design.tolerance_box(st, 20.0, n_random=2, n_corners=2)
     assert res.verified and 0.97 * 20 <= res.worst_case_um <= 20.0
     full = [row["full_um"] for row in res.verification]
@@ -370,18 +366,18 @@ def test_a_diverging_reference_is_named_with_or_without_the_jacobian():
     bad = model.replace(M_roller=model.M_roller.at[-1].set(jnp.nan))
     for jacobian in (False, True):
         with pytest.raises(jb.NonFiniteStateError, match="diverged"):
-            design.make_study(bad, "longitudinal_max", dt=opts.dt, n_steps=4, jacobian=jacobian)
+            design.make_study(bad, "longitudinal_max", opts.replace(n_steps=4, solver=jb.make_solver()), jacobian=jacobian)
 
 
 def test_study_and_its_values_in_one_batch_equal_the_reference_run_and_single_runs(study, metric_fn, model2d):
     """make_study_at: the aligned reference and the configurations as one vmap batch give the
     study make_study builds (its reference run apart) and the metric of a run per configuration
     (on the misaligned base: the run at θ = 0 is not the reference)."""
-    from jaxbelt.design.metrics import make_study_at
+    from jaxbelt.design.study import make_study_at
 
     thetas = np.array([[0.0, 0.0, 0.0, 0.0], [0.05, -0.1, 0.2, -0.3]])
-    st, values = make_study_at(model2d, "lateral_rms", thetas, t_eval=0.24, dt=study.dt,
-                               components="roller 2:rotation,roller 3:dx,roller 3:dz", integrator=study.integrator)
+    st, values = make_study_at(model2d, "lateral_rms", thetas, study.options, t_eval=0.24,
+                               components="roller 2:rotation,roller 3:dx,roller 3:dz")
     assert st.n_steps == study.n_steps and st.window == study.window and st.space == study.space
     assert np.allclose(st.ref_u, study.ref_u, rtol=0, atol=1e-15) and np.allclose(st.ref_v, study.ref_v, rtol=0, atol=1e-15)
     single = [float(metric_fn(jnp.asarray(t))) for t in thetas]

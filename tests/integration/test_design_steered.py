@@ -35,8 +35,8 @@ def study():
 
     model, opts = load(scene_with(_coarse, "three-roller-steered"))
     # with its Jacobian, as jaxbelt tolerance builds it: the reference is the forward-mode run's primal
-    return design.make_study(model, "lateral_max", dt=opts.dt, n_steps=opts.n_steps, components=COMPONENTS,
-                             integrator=make_solver("direct", "reuse"), jacobian=True)
+    return design.make_study(model, "lateral_max", opts.replace(solver=make_solver("direct", "reuse")),
+                             components=COMPONENTS, jacobian=True)
 
 
 def _batch(rows):
@@ -88,7 +88,7 @@ def test_box_with_several_limits_verified_by_closed_loop_runs(study):
     # reference (the loop's steering angle in the floor) meet a re-run, no change but round-off
     from jaxbelt.design.tolerance import box_discretisation
 
-    same = box_discretisation(tight, study, study.model, dt=study.dt, integrator=study.integrator)
+    same = box_discretisation(tight, study, study.model, study.options)
     assert same.floor_um > 0 and same.floor_fine_um == pytest.approx(same.floor_um, rel=1e-9)
     assert same.worst_case_fine_um == pytest.approx(same.worst_case_um, rel=1e-9)
     # the worst corners (those within NEAR_WORST of the worst) and the aligned reference
@@ -97,8 +97,7 @@ def test_box_with_several_limits_verified_by_closed_loop_runs(study):
 
 def test_sweep_counts_saturation_as_failure(study):
     narrow = eqx.tree_at(lambda m: m.control.limit, study.model, jnp.asarray([0.05e-3]))
-    st = design.make_study(narrow, "lateral_max", dt=study.dt, n_steps=study.n_steps, components=COMPONENTS,
-                           integrator=study.integrator)
+    st = design.make_study(narrow, "lateral_max", study.options, components=COMPONENTS)
     dist = design.Distribution(("roller 1:ax", "roller 3:dz"), ("normal", "normal"), (0.08, 0.001))
     res = design.run_sweep(st, dist, CHUNK, limit_um=1e4, chunk=CHUNK, with_form=False, rom="auto")
     mc = design.monte_carlo(st, dist, CHUNK, 1e4, chunk=CHUNK)
@@ -118,7 +117,7 @@ def test_sweep_counts_saturation_as_failure(study):
     # one batch meet the sweep's runs, no verdict changes
     from jaxbelt.design.sweep import yield_discretisation
 
-    same = yield_discretisation(res, st, st.model, dist, dt=st.dt, integrator=st.integrator)
+    same = yield_discretisation(res, st, st.model, dist, st.options)
     # no sample lies within 10 % of the 1e4 µm limit: the two nearest measure the metric's change
     assert same.samples == 2 and same.flipped == 0 and same.bias == 0.0
     assert same.metric_relative_change < 1e-9
@@ -166,8 +165,8 @@ def test_study_with_its_jacobian_equals_a_study_and_then_its_jacobian(study):
     from jaxbelt.design.metrics import aligned_values
 
     lin = study
-    study = design.make_study(lin.model, "lateral_max", dt=lin.dt, n_steps=lin.n_steps, components=COMPONENTS,
-                              integrator=make_solver("direct", "reuse"))
+    study = design.make_study(lin.model, "lateral_max", lin.options.replace(solver=make_solver("direct", "reuse")),
+                              components=COMPONENTS)
     assert study.linearisation is None and lin.linearisation is not None
     np.testing.assert_allclose(lin.ref_u, study.ref_u, rtol=0, atol=1e-15)
     np.testing.assert_allclose(lin.ref_angle, study.ref_angle, rtol=0, atol=1e-12)

@@ -23,8 +23,8 @@ def study():
     """Coarse, 30 steps (whole checkpoint chunks), the factorisation-reuse solver (cheaper to
     compile and to run; checked against the exact one in test_reuse.py)."""
     model, opts = load(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
-    return design.make_study(model, "lateral_max", t_eval=0.6, dt=opts.dt, components="roller 2:rotation",
-                             integrator=jb.make_solver("direct", "reuse"))
+    return design.make_study(model, "lateral_max", opts.replace(solver=jb.make_solver("direct", "reuse")), t_eval=0.6,
+                             components="roller 2:rotation")
 
 
 @pytest.fixture(scope="module")

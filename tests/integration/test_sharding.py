@@ -1,4 +1,4 @@
-"""jaxbelt.design.sharding: batched_map over 4 forced CPU devices, distributed_map over 2 processes.
+"""jaxbelt.infra.sharding: batched_map over 4 forced CPU devices, distributed_map over 2 processes.
 
 Device counts and jax.distributed must be set before jax starts, so those checks run in
 subprocesses (CPU only, bounded by timeouts).

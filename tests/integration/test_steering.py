@@ -1,4 +1,4 @@
-"""The steering plant measured on the model (jaxbelt.design.steering) against independent references:
+"""The steering plant measured on the model (jaxbelt.steering.report) against independent references:
 the moving-beam walk (jaxbelt.lateral_theory), the scene's geometry (hold angle = the drive's skew),
 Shelton's first-order span model in the string limit, python-control's gain margin, and closed-loop
 runs."""
@@ -9,8 +9,8 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt import lateral_theory as th
-from jaxbelt.design.steering import (SteeringWarning, response_transfer, stability_boundary, steering_report,
-                                     walk_slope)
+from jaxbelt.steering import SteeringWarning, margins, stability_boundary, steering_report, walk_rate
+from jaxbelt.steering.response import response_transfer
 
 
 def _skew(alpha=1e-3):
@@ -58,7 +58,8 @@ def test_coefficient_on_a_resolved_grid_against_moving_beam_theory():
     m = jb.build_model(sc)
     m = jb.with_misalignment(m.replace(control=m.control.with_gains(0.0, 0.0, 0.0)), rotation=jnp.asarray(_skew()))
     _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc))
-    c = walk_slope(np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1))
+    t = np.asarray(tr.t)
+    c = float(walk_rate(t, np.asarray(tr.tracer_v).mean(axis=1), (t[-1] / 2, t[-1])))
     assert c == pytest.approx(th.scene_walk_rate(sc, _skew()), rel=0.02)
 
 
@@ -100,7 +101,7 @@ def test_p_boundary_against_the_gain_margin(scene, report):
     assert report.response_gain_margin == pytest.approx(kp, rel=0.05)
     assert report.sample_delay_s == pytest.approx(dt / 2)
     assert report.plant_gain_margin == pytest.approx(kp, rel=0.05)
-    assert report.identified.margins(1.0)[0] > report.plant_gain_margin  # the hold's delay lowers it
+    assert margins(report.identified, 1.0)[0] > report.plant_gain_margin  # the hold's delay lowers it
 
 
 @pytest.fixture(scope="module")
@@ -149,7 +150,8 @@ def test_coefficient_on_the_design_scene_against_moving_beam_theory():
     rot[1, 1] = 1e-3
     m = jb.with_misalignment(m.replace(control=m.control.with_gains(0.0, 0.0, 0.0)), rotation=jnp.asarray(rot))
     _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc).replace(n_steps=1500))
-    c = walk_slope(np.asarray(tr.t), np.asarray(tr.tracer_v).mean(axis=1))
+    t = np.asarray(tr.t)
+    c = float(walk_rate(t, np.asarray(tr.tracer_v).mean(axis=1), (t[-1] / 2, t[-1])))
     assert c == pytest.approx(th.scene_walk_rate(sc, rot), rel=0.02)
 
 

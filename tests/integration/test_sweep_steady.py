@@ -8,7 +8,7 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.design import distribution_from_dict, evaluate_metric, make_study, run_sweep
-from jaxbelt.design.metrics import for_runs
+from jaxbelt.design.study import for_runs
 from jaxbelt.steady import forward_jacobian, map_configurations
 
 SCENE = "two-roller-steered"  # N = 180, PI loop on the idle roller about y
@@ -21,8 +21,7 @@ def steady_study():
     scene = jb.load_scene(SCENE)
     model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
     dist = distribution_from_dict(DIST, model)
-    study = make_study(model, "lateral_max", dt=opts.dt, integrator=opts.solver, components=list(dist.labels),
-                       jacobian=True, steady=True)
+    study = make_study(model, "lateral_max", opts, components=list(dist.labels), jacobian=True, steady=True)
     return study, dist
 
 
@@ -50,7 +49,7 @@ def test_sequential_batch_and_jacobian_equal_the_batched_ones(steady_study):
     """:func:`jaxbelt.steady.map_configurations` and :func:`jaxbelt.steady.forward_jacobian` give
     what ``vmap`` and ``jacfwd`` give (they only order the solves differently)."""
     study, _ = steady_study
-    from jaxbelt.design.metrics import run_deviation
+    from jaxbelt.design.study import run_deviation
 
     work = for_runs(study)
     thetas = np.array([[0.01, 0.2, 0.005], [-0.02, -0.3, 0.01]])[:, :study.space.size]

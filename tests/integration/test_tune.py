@@ -1,4 +1,4 @@
-"""Steering-loop tuning (:mod:`jaxbelt.design.tuning`, ``jaxbelt tune``) on ``two-roller-steered``.
+"""Steering-loop tuning (:mod:`jaxbelt.steering.tuning`, ``jaxbelt tune``) on ``two-roller-steered``.
 
 Closed-loop runs of 30 s, the measured response's own length (one compiled forward run serves
 both), and few Adam iterations; one measured response and one tuning shared by the module, and
@@ -12,8 +12,10 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.cli import main
-from jaxbelt.design import loop_response, tuning
-from jaxbelt.design.plant import SteeringPlant
+from jaxbelt.steering import tuning
+from jaxbelt.steering.plant import SteeringPlant
+from jaxbelt.steering.response import MeasuredResponse
+from jaxbelt.steering.transfer import margins
 
 T_END = 30.0
 
@@ -39,13 +41,12 @@ def result(setup):
 def test_gradient_matches_central_differences(setup):
     model, options, _ = setup
     g = np.array([1.5, 0.3])
-    kw = dict(dt=options.dt, n_steps=options.n_steps, solver=options.solver)
-    v, grad = tuning.objective_and_grad(model, g, **kw)
-    assert v == pytest.approx(float(tuning.objective(model, g, **kw)), rel=1e-10)
+    v, grad = tuning.objective_and_grad(model, g, options)
+    assert v == pytest.approx(float(tuning.objective(model, g, options)), rel=1e-10)
     for i in range(2):
         h = np.zeros(2)
         h[i] = 1e-4 * g[i]
-        fd = (float(tuning.objective(model, g + h, **kw)) - float(tuning.objective(model, g - h, **kw))) / (2 * h[i])
+        fd = (float(tuning.objective(model, g + h, options)) - float(tuning.objective(model, g - h, options))) / (2 * h[i])
         assert grad[i] == pytest.approx(fd, rel=1e-4)
 
 
@@ -93,14 +94,18 @@ def test_margins_match_python_control(result):
         assert p.phase_margin_deg == pytest.approx(pm, abs=0.1)
 
 
-def test_measured_response_margins_match_the_plant_form(setup):
-    """The grid margins of the measured response on a plant's own frequency response equal the plant's."""
+def test_measured_response_has_the_margins_of_the_plant_it_samples():
+    """A plant's step response, sampled and read as a measured response (a Fourier sum), has the
+    plant's own margins under the one ``margins``: the two descriptions of a transfer agree."""
     plant = SteeringPlant(-0.0742, 0.05, 0.25)
-    w = np.logspace(-3, 2, 20000)
+    dt = 1e-3
+    t = np.arange(1, 30001) * dt
+    measured = MeasuredResponse(t=t, step=plant.step_response(t), dt=dt, rate=plant.gain)
     for kp, ki in ((1.0, 0.1), (3.0, 1.0)):
-        gm, pm, w_pc, w_gc = loop_response.grid_margins(w, plant.loop_response(w, kp, ki))
-        ref = plant.margins(kp, ki)
-        assert gm == pytest.approx(ref[0], rel=1e-4) and pm == pytest.approx(ref[1], abs=1e-2)
+        gm, pm, w_pc, w_gc = margins(measured, kp, ki)
+        ref = margins(plant, kp, ki)
+        assert gm == pytest.approx(ref[0], rel=2e-3) and pm == pytest.approx(ref[1], abs=0.2)
+        assert w_pc == pytest.approx(ref[2], rel=2e-3) and w_gc == pytest.approx(ref[3], rel=2e-3)
 
 
 def test_cli_json(setup, capsys):

@@ -1,4 +1,4 @@
-"""The program store (:mod:`jaxbelt.programs`): a stored program gives what ``filter_jit`` gives,
+"""The program store (:mod:`jaxbelt.infra.programs`): a stored program gives what ``filter_jit`` gives,
 a later process loads it without tracing, and a call it cannot identify is never stored."""
 
 import equinox as eqx
@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxbelt import programs
+from jaxbelt.infra import programs
 
 TRACES = []
 

@@ -21,7 +21,7 @@ hold). The open-loop step response already holds the one-step lag (a step of the
 ``t = 0`` first shows at ``t_1``), so the closed P loop is exactly the discrete loop of the
 step-response samples, ``u_k = −k_p y_k``: its margin is :func:`response_gain_margin`, with no
 fitted form in between. The continuous identified plant needs the hold's delay ``T_s / 2``
-added (:func:`sampling_delay`, ``SteeringPlant.margins(..., sample_delay=…)``) to describe
+added (:func:`sampling_delay`, ``margins(plant, ..., sample_delay=…)``) to describe
 that loop.
 
 Library functions: :func:`steering_report` (``jaxbelt steering``), :func:`stability_boundary`,
@@ -37,15 +37,16 @@ import warnings
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jax import lax
 import numpy as np
 
 from ..misalignment import parameter_space
-from ..programs import stored_jit
+from ..infra.programs import stored_jit
 from ..steady import forward_jacobian, steady_walk
 from ..timeloop import RunOptions, belt_speed, simulate
 from ..control import samples_per_update
-from .plant import SteeringPlant, gain_margin, plant_step_response
+from .plant import SteeringPlant, identify_plant
+from .response import DiscreteLoop, actuator_step
+from .transfer import margins
 
 STEP_MRAD = 0.1  # default actuator step, mrad (linear range)
 
@@ -54,30 +55,9 @@ class SteeringWarning(UserWarning):
     """A steering loop cannot hold the belt within its range."""
 
 
-def walk_slope(t, v, window=(0.5, 1.0)):
-    """Least-squares slope of ``v`` (…, n) over ``t`` (n,) on the fraction ``window`` of the run
-    (default the second half), in the units of ``v`` per s."""
-    t = np.asarray(t, float)
-    v = np.asarray(v, float)
-    t_end = t[-1]
-    sel = (t >= window[0] * t_end) & (t <= window[1] * t_end)
-    ts = t[sel] - t[sel].mean()
-    return (v[..., sel] - v[..., sel].mean(axis=-1, keepdims=True)) @ ts / (ts @ ts)
-
-
 def _open(model, loop=0):
     """All loops open (gains 0)."""
     return model.replace(control=model.control.with_gains(0.0, 0.0, 0.0))
-
-
-def _stepped(model, amplitude, loop=0):
-    """Loop ``loop`` saturated to a held angle ``amplitude`` rad (module docstring), the others open."""
-    c = model.control
-    one = jnp.zeros_like(c.kp).at[loop].set(1.0)
-    c = eqx.tree_at(lambda s: (s.kp, s.ki, s.kd, s.sign, s.setpoint, s.limit, s.rate_limit, s.noise, s.profile_amplitude),
-                    c, (one, 0 * c.ki, 0 * c.kd, -jnp.ones_like(c.sign), -one, jnp.full_like(c.kp, amplitude),
-                        jnp.full_like(c.kp, jnp.inf), 0 * c.noise, 0 * c.profile_amplitude))
-    return model.replace(control=c)
 
 
 @stored_jit
@@ -114,66 +94,6 @@ def _require_loop(model, loop):
         raise ValueError(f"loop = {loop}: the scene has {model.control.n_loops} steering loop(s)")
 
 
-# ------------------------------------------------------------------------------ identification
-
-
-def identify_plant(t, response, gain, loop_time, starts=None, iterations: int = 40) -> tuple[SteeringPlant, float]:
-    """Fit the full :class:`~jaxbelt.design.plant.SteeringPlant` form to a unit step response.
-
-    **Arguments:** ``t`` (n,) s, the times of ``response`` (n,) m per rad (the step is at
-    ``t = 0``); ``gain`` the steady coefficient ``k`` (fixed: the measured slope); ``loop_time``
-    the belt's transit time ``L_loop / V`` (the recirculation's initial guess).
-    **Returns:** ``(plant, error)``, ``error`` the largest deviation from ``response`` over the
-    run as a fraction of its range. Levenberg–Marquardt on ``(τ, τ₂, z, θ, D, θ_r, τ_r)`` with the
-    Jacobian by ``jax.jacfwd`` of the time-stepped response, from a few starts; time constants
-    are kept ≥ 0 and ``θ_r`` ≥ one grid step.
-    """
-    t = np.asarray(t, float)
-    y = np.asarray(response, float)
-    scale = float(np.ptp(y)) or 1.0
-    h = float(min(t[1] - t[0], loop_time / 100)) / 2
-    tj = jnp.asarray(t)
-
-    def full(q):
-        return jnp.concatenate([jnp.asarray([gain], float), q[:3], q[3:4], q[4:5], q[5:7]])
-
-    def resid(q):  # q = (τ, τ₂, z, θ, D, θ_r, τ_r)
-        return (plant_step_response(full(q), tj, h) - y) / scale
-
-    lo = np.array([0.0, 0.0, -10 * loop_time, 0.0, -np.inf, h, 0.0])
-    if starts is None:
-        starts = [[0.2 * loop_time, 0.1 * loop_time, z, 0.0, 0.0, f * loop_time, 0.1 * loop_time]
-                  for f in (0.7, 0.85) for z in (0.0, -0.5 * loop_time)]
-    lo_j = jnp.asarray(lo)
-
-    def levenberg_marquardt(q0):  # one start; the starts run side by side (vmap), the loop compiled
-        q = jnp.maximum(q0, lo_j)
-
-        def step(_, st):
-            q, r, lam, done = st
-            J = jax.jacfwd(resid)(q)
-            A, g = J.T @ J, J.T @ r
-            qn = jnp.maximum(q - jnp.linalg.solve(A + lam * jnp.diag(jnp.diag(A) + 1e-12), g), lo_j)
-            rn = resid(qn)
-            better = rn @ rn < r @ r  # false for a non-finite trial: rejected, λ grows
-            small = (r @ r - rn @ rn) < 1e-12 * (r @ r)
-            stop = done | (better & small) | (~better & (lam * 10 > 1e8))
-            keep = done | ~better
-            return (jnp.where(keep, q, qn), jnp.where(keep, r, rn),
-                    jnp.where(done, lam, jnp.where(better, lam / 3, lam * 10)), stop)
-
-        q, r, _, _ = lax.fori_loop(0, iterations, step, (q, resid(q), jnp.asarray(1e-3), jnp.asarray(False)))
-        return q, r
-
-    qs, rs = jax.jit(jax.vmap(levenberg_marquardt))(jnp.asarray(np.asarray(starts, float)))
-    qs, rs = np.asarray(qs), np.asarray(rs)
-    best = int(np.argmin(np.sum(rs**2, axis=1)))
-    q, r = qs[best], rs[best]
-    plant = SteeringPlant(gain=float(gain), lag=float(q[0]), delay=float(q[3]), lag2=float(q[1]), zero=float(q[2]),
-                          feedthrough=float(q[4]), loop_delay=float(q[5]), loop_lag=float(q[6]))
-    return plant, float(np.max(np.abs(r)))
-
-
 # ------------------------------------------------------------------------------ the discrete loop
 
 
@@ -183,37 +103,12 @@ def sampling_delay(loops, dt, loop: int = 0) -> float:
     return 0.5 * float(samples_per_update(loops, dt)[loop]) * float(dt)
 
 
-def response_transfer(response, gain, dt, omega, sample_steps: int = 1):
-    """The discrete plant ``P(e^{iω T_s})`` of a sampled loop from the model's own unit step
-    response, no fitted form: ``response`` (n,) m per rad at ``t_k = k Δt``, ``k = 1 … n`` (the
-    runs' records; the angle steps at ``t = 0``), ``gain`` the steady coefficient ``k`` (m/s per
-    rad), ``T_s = sample_steps Δt``. With the samples ``y_m = y(m T_s)``, ``y_0 = 0``, the pulse
-    response ``h_m = y_m − y_{m−1}`` tends to ``h_∞ = k T_s`` (the integrator), so
-
-        P(z) = Σ_{m=1}^{M} (h_m − h_∞) z^{−m} + h_∞ z^{−1} / (1 − z^{−1})
-
-    (the first sum converges once the laps' transient has died out within the run). A loop
-    ``u_m = −C y_m`` through the hold is then exactly ``1 + C P(z) = 0``."""
-    y = np.asarray(response, float)[sample_steps - 1::sample_steps]
-    Ts = sample_steps * float(dt)
-    h = np.diff(np.concatenate([[0.0], y]))
-    h_inf = float(gain) * Ts
-    zi = np.exp(-1j * np.asarray(omega, float)[..., None] * Ts)  # z^{-1}
-    m = np.arange(1, len(h) + 1)
-    return ((h - h_inf) * zi ** m).sum(-1) + h_inf * zi[..., 0] / (1.0 - zi[..., 0])
-
-
-def response_gain_margin(response, gain, dt, sample_steps: int = 1, n_grid: int = 4000):
-    """``(gain_margin, omega_pc)`` of the sampled P loop on :func:`response_transfer` (the loop's
-    sign folded in): the smallest ``1/|P|`` over the crossings of the negative real axis below the
-    Nyquist frequency ``π / T_s``, each refined by bisection (rad/m; ``inf``/``nan`` without one)."""
-    Ts = sample_steps * float(dt)
-    sign = np.sign(gain)
-
-    def L(w):
-        return sign * response_transfer(response, gain, dt, np.atleast_1d(w), sample_steps)
-
-    return gain_margin(L, np.geomspace(1e-3 / Ts, np.pi / Ts * 0.999, n_grid))
+def response_gain_margin(response, gain, dt, sample_steps: int = 1):
+    """``(gain_margin, omega_pc)`` of the sampled P loop on the step response itself
+    (:class:`~jaxbelt.steering.response.DiscreteLoop`, the loop's sign folded in; rad/m,
+    ``inf``/``nan`` without a crossing)."""
+    gm, _, w_pc, _ = margins(DiscreteLoop(np.asarray(response, float), float(gain), float(dt), int(sample_steps)), 1.0)
+    return gm, w_pc
 
 
 # ------------------------------------------------------------------------------ the report
@@ -233,7 +128,7 @@ class SteeringReport:
     walk rate per unit of each misalignment component at the scene's misalignment (derivatives
     of the open-loop steady walk; structurally zero components, such as the drive rotation about
     z, are 0), or ``None`` when not asked for; ``plant`` the identified transfer function
-    (:class:`~jaxbelt.design.plant.SteeringPlant` as a dict: SI, m/s per rad, s, m per rad; ``None``
+    (:class:`~jaxbelt.steering.plant.SteeringPlant` as a dict: SI, m/s per rad, s, m per rad; ``None``
     when not identified);
     ``plant_fit_error`` its largest deviation from the model's step response as a fraction of
     the response's range; ``sample_delay_s`` the sampled loop's own delay ``T_s / 2``
@@ -276,7 +171,7 @@ class SteeringReport:
 
     @property
     def identified(self) -> SteeringPlant:
-        """The identified plant as a :class:`~jaxbelt.design.plant.SteeringPlant`."""
+        """The identified plant as a :class:`~jaxbelt.steering.plant.SteeringPlant`."""
         return SteeringPlant(**self.plant)
 
 
@@ -339,7 +234,7 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     a = step_mrad * 1e-3
     opened = _open(model, loop)
     aligned = opened.replace(chi_static=jnp.zeros_like(model.chi_static))
-    t, v, _, _ = run_batch([opened, _stepped(opened, a, loop), aligned], options, loop)
+    t, v, _, _ = run_batch([opened, opened.replace(control=actuator_step(opened.control, a, loop)), aligned], options, loop)
     space = parameter_space(model)
     dofs = list(space.chi_index) + [model.control.actuator_dof[loop]]
     J, walk = steady_walk_jacobian(opened, options, dofs)
@@ -362,7 +257,7 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     plant, err, gm, w_pc = None, float("nan"), float("nan"), float("nan")
     if identify:
         plant, err = identify_plant(t, resp, coeff, loop_time)  # mm/s per mrad = m/s per rad
-        gm, _, w_pc, _ = plant.margins(1.0, sample_delay=delay)
+        gm, _, w_pc, _ = margins(plant, 1.0, sample_delay=delay)
     rgm, rw_pc = response_gain_margin(resp, coeff, options.dt, n_s)
     sens = walk_sensitivity(model, options, loop, J[:-1]) if sensitivity else None
     return SteeringReport(

@@ -4,7 +4,8 @@ The belt's lateral response at an edge sensor to the steering roller's angle is,
 limit (Shelton's first-order span model), an integrator — a steady angle walks the belt at a
 steady rate, the *steering coefficient* — behind the span's first-order lag and the transport
 delay from the steering roller to the sensor. jaxbelt identifies that form from the full
-model's open-loop step response (:mod:`jaxbelt.design.steering`):
+model's open-loop step response (:func:`identify_plant`; the form a SIMC rule is made for by
+:func:`fit_plant`):
 
     G(s) = k e^{−θ s} / (s (1 + τ s))
 
@@ -35,6 +36,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import lax
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,64 +90,14 @@ class SteeringPlant:
         lagged = self.lag * -np.expm1(-tp / self.lag) if self.lag > 0 else 0.0 * tp
         return self.gain * amplitude * (tp - lagged)
 
-    def loop_response(self, omega, kp, ki=0.0, kd=0.0, sample_delay=0.0):
-        """The loop transfer ``L(iω) = |G(iω)| … C(iω)`` with the loop's sign folded in (complex),
-        times ``e^{−iω d}`` for the sampled loop's own delay ``d = sample_delay`` s (the zero-order
-        hold's ``T_s / 2``: :func:`jaxbelt.design.steering.sampling_delay`)."""
-        s = 1j * np.asarray(omega, float)
-        hold = np.exp(-sample_delay * s) if sample_delay else 1.0
-        return abs(self.gain) / self.gain * self.frequency_response(omega) * (kp + ki / s + kd * s) * hold
+    @property
+    def sign(self) -> float:
+        """The loop's sign, ``sign(k)`` (:class:`~jaxbelt.steering.transfer.Transfer`)."""
+        return float(np.sign(self.gain))
 
-    def margins(self, kp, ki=0.0, kd=0.0, omega=None, sample_delay=0.0):
-        """``(gain_margin, phase_margin_deg, omega_pc, omega_gc)`` of the loop with a PID
-        controller (gains in SI: rad/m, rad/(m s), rad s/m) and the sampled loop's own delay
-        ``sample_delay`` s (:meth:`loop_response`; 0: the continuous loop). Found on a log grid
-        refined by bisection; ``inf`` where the curve does not cross. Each margin is the smallest
-        over all its crossings (a recirculating plant crosses once per lap); the phase margin is
-        wrapped to [−180°, 180°), negative for a loop past −180° at its gain crossing."""
-        w = np.logspace(-4, 3, 20000) if omega is None else np.asarray(omega, float)
-        L = self.loop_response(w, kp, ki, kd, sample_delay)
-        mag = np.abs(L)
-        gm, w_pc = gain_margin(lambda x: self.loop_response(x, kp, ki, kd, sample_delay), w, L)
-        pm, w_gc = np.inf, np.nan
-        # every gain crossing: the phase's distance from −180°, wrapped to [−180°, 180°) (negative:
-        # the loop is past it); the smallest decides, as python-control's stability_margins
-        for i in np.flatnonzero((mag[:-1] - 1.0) * (mag[1:] - 1.0) <= 0):
-            x = _refine(lambda x: abs(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0]) - 1.0,
-                        w[i], w[i + 1])
-            p = float(np.mod(np.degrees(np.angle(self.loop_response(np.array([x]), kp, ki, kd, sample_delay)[0])),
-                             360.0) - 180.0)
-            if p < pm:
-                pm, w_gc = p, x
-        return float(gm), float(pm), float(w_pc), float(w_gc)
-
-
-def gain_margin(loop, omega, values=None):
-    """``(gain_margin, omega_pc)`` of a loop transfer ``loop(omega) -> L(iω)`` (complex, arrays)
-    sampled on the grid ``omega``: the smallest ``1 / |L|`` over every crossing of the negative
-    real axis (a recirculating plant crosses once per lap), each refined by bisection;
-    ``(inf, nan)`` without one. ``values``: ``loop(omega)`` if already computed."""
-    L = loop(omega) if values is None else values
-    gm, w_pc = np.inf, np.nan
-    for i in np.flatnonzero((L.imag[:-1] * L.imag[1:] <= 0) & (L.real[:-1] < 0)):
-        x = _refine(lambda x: loop(np.array([x]))[0].imag, omega[i], omega[i + 1])
-        lx = loop(np.array([x]))[0]
-        if lx.real < 0 and 1.0 / abs(lx) < gm:
-            gm, w_pc = 1.0 / abs(lx), x
-    return float(gm), float(w_pc)
-
-
-def _refine(f, a, b, iters: int = 60):
-    """Bisection of a sign change of ``f`` in ``[a, b]`` (log-spaced)."""
-    fa = f(a)
-    for _ in range(iters):
-        m = np.sqrt(a * b)
-        fm = f(m)
-        if fa * fm <= 0:
-            b = m
-        else:
-            a, fa = m, fm
-    return np.sqrt(a * b)
+    def frequency_grid(self):
+        """20000 log-spaced angular frequencies from 1e-4 to 1e3 rad/s."""
+        return np.logspace(-4, 3, 20000)
 
 
 def plant_parameters(p: SteeringPlant):
@@ -209,3 +161,80 @@ def plant_step_response(params, t, h: float):
     grid = jnp.arange(n + 1) * h
     y = k * jnp.interp(t - theta, grid, x, left=0.0) + D * (t >= theta)
     return y
+
+
+# ------------------------------------------------------------------------------ identification
+
+
+def identify_plant(t, response, gain, loop_time, starts=None, iterations: int = 40) -> tuple[SteeringPlant, float]:
+    """Fit the full :class:`SteeringPlant` form to a unit step response.
+
+    **Arguments:** ``t`` (n,) s, the times of ``response`` (n,) m per rad (the step is at
+    ``t = 0``); ``gain`` the steady coefficient ``k`` (fixed: the measured slope); ``loop_time``
+    the belt's transit time ``L_loop / V`` (the recirculation's initial guess).
+    **Returns:** ``(plant, error)``, ``error`` the largest deviation from ``response`` over the
+    run as a fraction of its range. Levenberg–Marquardt on ``(τ, τ₂, z, θ, D, θ_r, τ_r)`` with the
+    Jacobian by ``jax.jacfwd`` of the time-stepped response, from a few starts; time constants
+    are kept ≥ 0 and ``θ_r`` ≥ one grid step.
+    """
+    t = np.asarray(t, float)
+    y = np.asarray(response, float)
+    scale = float(np.ptp(y)) or 1.0
+    h = float(min(t[1] - t[0], loop_time / 100)) / 2
+    tj = jnp.asarray(t)
+
+    def full(q):
+        return jnp.concatenate([jnp.asarray([gain], float), q[:3], q[3:4], q[4:5], q[5:7]])
+
+    def resid(q):  # q = (τ, τ₂, z, θ, D, θ_r, τ_r)
+        return (plant_step_response(full(q), tj, h) - y) / scale
+
+    lo = np.array([0.0, 0.0, -10 * loop_time, 0.0, -np.inf, h, 0.0])
+    if starts is None:
+        starts = [[0.2 * loop_time, 0.1 * loop_time, z, 0.0, 0.0, f * loop_time, 0.1 * loop_time]
+                  for f in (0.7, 0.85) for z in (0.0, -0.5 * loop_time)]
+    lo_j = jnp.asarray(lo)
+
+    def levenberg_marquardt(q0):  # one start; the starts run side by side (vmap), the loop compiled
+        q = jnp.maximum(q0, lo_j)
+
+        def step(_, st):
+            q, r, lam, done = st
+            J = jax.jacfwd(resid)(q)
+            A, g = J.T @ J, J.T @ r
+            qn = jnp.maximum(q - jnp.linalg.solve(A + lam * jnp.diag(jnp.diag(A) + 1e-12), g), lo_j)
+            rn = resid(qn)
+            better = rn @ rn < r @ r  # false for a non-finite trial: rejected, λ grows
+            small = (r @ r - rn @ rn) < 1e-12 * (r @ r)
+            stop = done | (better & small) | (~better & (lam * 10 > 1e8))
+            keep = done | ~better
+            return (jnp.where(keep, q, qn), jnp.where(keep, r, rn),
+                    jnp.where(done, lam, jnp.where(better, lam / 3, lam * 10)), stop)
+
+        q, r, _, _ = lax.fori_loop(0, iterations, step, (q, resid(q), jnp.asarray(1e-3), jnp.asarray(False)))
+        return q, r
+
+    qs, rs = jax.jit(jax.vmap(levenberg_marquardt))(jnp.asarray(np.asarray(starts, float)))
+    qs, rs = np.asarray(qs), np.asarray(rs)
+    best = int(np.argmin(np.sum(rs**2, axis=1)))
+    q, r = qs[best], rs[best]
+    plant = SteeringPlant(gain=float(gain), lag=float(q[0]), delay=float(q[3]), lag2=float(q[1]), zero=float(q[2]),
+                          feedthrough=float(q[4]), loop_delay=float(q[5]), loop_lag=float(q[6]))
+    return plant, float(np.max(np.abs(r)))
+
+
+def fit_plant(response) -> SteeringPlant:
+    """The least-squares fit of ``k e^{−θs}/(s(1+τs))`` to a measured step response: ``θ`` on a
+    0.01 s grid and ``τ`` on a 0.02 s grid (both 0–2 s), ``k`` linear."""
+    t, y = response.t, response.step
+    taus = np.arange(1, 100) * 0.02
+    best = (np.inf, 0.0, 0.0, 0.0)
+    for theta in np.arange(0.0, 2.0, 0.01):
+        tp = np.maximum(t - theta, 0.0)
+        B = np.vstack([tp, tp - taus[:, None] * -np.expm1(-tp / taus[:, None])])  # τ = 0, then taus
+        by, bb = B @ y, np.einsum("ij,ij->i", B, B)
+        r = y @ y - by**2 / np.where(bb > 0, bb, np.inf)
+        i = int(np.argmin(r))
+        if r[i] < best[0]:
+            best = (r[i], by[i] / bb[i], 0.0 if i == 0 else taus[i - 1], theta)
+    return SteeringPlant(gain=float(best[1]), lag=float(best[2]), delay=float(best[3]))

@@ -17,11 +17,11 @@ Both are ``jnp`` functions of the gains through the whole run (:func:`objective`
 **Constraints.** Gain margin ≥ 6 dB and phase margin ≥ 45° (``gm_min_db``, ``pm_min_deg``) of the
 loop ``L = sign(k) G C`` on two descriptions of the plant:
 
-- the identified plant (:class:`~jaxbelt.design.plant.SteeringPlant` by
-  :func:`jaxbelt.design.steering.identify_plant`, with the loop's recirculation;
-  :meth:`~jaxbelt.design.plant.SteeringPlant.margins`);
+- the identified plant (:class:`~jaxbelt.steering.plant.SteeringPlant` by
+  :func:`jaxbelt.steering.plant.identify_plant`, with the loop's recirculation;
+  :meth:`~jaxbelt.steering.plant.SteeringPlant.margins`);
 - the measured open-loop response of the full model
-  (:class:`~jaxbelt.design.loop_response.MeasuredResponse`: the step response of the actuator
+  (:class:`~jaxbelt.steering.response.MeasuredResponse`: the step response of the actuator
   angle, turned into ``G(iω)`` by a Fourier sum), unless
   ``constrain_response=False`` (a check that does not rest on the fit). On ``two-roller-steered``
   the once-around resonance (near ``2π / T_loop``) is what limits the gain; a plant without the
@@ -41,7 +41,7 @@ from the SIMC ratio ``k_i = k_p / (8 θ_eff)``). The result is the best iterate.
 **Classical tunings**, run through the same full model for comparison:
 
 - *SIMC* (Skogestad), PI, on the integrating-plus-delay fit the rule is made for
-  (:func:`~jaxbelt.design.loop_response.fit_plant`: ``k e^{−θs}/(s(1+τs))``, no
+  (:func:`~jaxbelt.steering.plant.fit_plant`: ``k e^{−θs}/(s(1+τs))``, no
   recirculation), the lag folded into the delay by the half rule,
   ``θ_eff = θ + τ / 2``, ``τ_c = θ_eff``, ``k_p = 1 / (|k| (τ_c + θ_eff))``,
   ``k_i = k_p / (4 (τ_c + θ_eff))``;
@@ -57,22 +57,23 @@ from __future__ import annotations
 import dataclasses
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ..control import walk_rate
 from ..model import BeltModel
-from ..programs import stored_jit
+from ..infra.programs import stored_jit
 from ..timeloop import RunOptions, belt_speed, simulate
-from .loop_response import MeasuredResponse, fit_plant, frequency_grid, grid_margins, pid_response
-from .plant import SteeringPlant
-from .steering import identify_plant
+from .plant import SteeringPlant, fit_plant, identify_plant
+from .response import MeasuredResponse, actuator_step
+from .transfer import margins
 
 OBJECTIVES = {"ise": "µm²·s", "peak": "µm"}
 PEAK_SHARPNESS = 5.0  # β of the soft maximum, per µm
 M_TO_UM = 1e6
+WALK_WINDOW_S = 5.0  # the measured response's walk rate: the slope over the run's last seconds
 
 
 # ------------------------------------------------------------------------------- objective
@@ -109,15 +110,16 @@ def _metric(e, dt, kind: str, skip: int):
     raise ValueError(f"objective = {kind!r}: one of {', '.join(OBJECTIVES)}")
 
 
-def objective(model: BeltModel, gains, *, dt, n_steps: int, solver=None, kind: str = "ise",
-              skip_s: float = 0.5) -> jax.Array:
+def objective(model: BeltModel, gains, options: RunOptions, *, kind: str = "ise", skip_s: float = 0.5) -> jax.Array:
     """The tuning objective (module docstring) of the closed loop with ``gains`` = ``(k_p, k_i)``
-    or ``(k_p, k_i, k_d)`` in SI (rad/m, rad/(m s), rad s/m): ``ise`` in µm²·s, ``peak`` in µm.
-    ``jnp`` throughout: ``jax.grad`` w.r.t. ``gains`` is the exact gradient through the run."""
+    or ``(k_p, k_i, k_d)`` in SI (rad/m, rad/(m s), rad s/m) over the run ``options`` (solver,
+    ``n_steps`` of ``dt``): ``ise`` in µm²·s, ``peak`` in µm. ``jnp`` throughout: ``jax.grad``
+    w.r.t. ``gains`` is the exact gradient through the run."""
     _loop(model)
     if kind not in OBJECTIVES:
         raise ValueError(f"objective = {kind!r}: one of {', '.join(OBJECTIVES)}")
-    e = _errors(model, jnp.asarray(gains, model.ell.dtype), solver, jnp.asarray(dt, model.ell.dtype), int(n_steps))
+    dt, n_steps = options.dt, int(options.n_steps)
+    e = _errors(model, jnp.asarray(gains, model.ell.dtype), options.solver, jnp.asarray(dt, model.ell.dtype), n_steps)
     return _metric(e, dt, kind, _skip_steps(skip_s, dt, n_steps))
 
 
@@ -128,16 +130,16 @@ def _skip_steps(skip_s, dt, n_steps) -> int:
     return k
 
 
-def objective_and_grad(model: BeltModel, gains, *, dt, n_steps: int, solver=None, kind: str = "ise",
-                       skip_s: float = 0.5):
+def objective_and_grad(model: BeltModel, gains, options: RunOptions, *, kind: str = "ise", skip_s: float = 0.5):
     """``(value, gradient)`` of :func:`objective` w.r.t. ``(k_p, k_i)`` (SI, positive; ``k_d`` the
     model's), by reverse mode through the whole run: the compiled program :func:`tune` steps with
     (it differentiates in the logarithms of the gains; this undoes the chain rule)."""
     loops = _loop(model)
     g = np.asarray(gains, float)
     kd = jnp.asarray([float(loops.kd[0])]) if float(loops.kd[0]) > 0 else jnp.zeros((0,))
-    v, gx = _log_value_and_grad(jnp.log(jnp.asarray(g)), kd, model, solver, jnp.asarray(dt, model.ell.dtype),
-                                int(n_steps), kind, _skip_steps(skip_s, dt, n_steps))
+    dt, n_steps = options.dt, int(options.n_steps)
+    v, gx = _log_value_and_grad(jnp.log(jnp.asarray(g)), kd, model, options.solver, jnp.asarray(dt, model.ell.dtype),
+                                n_steps, kind, _skip_steps(skip_s, dt, n_steps))
     return float(v), np.asarray(gx) / g
 
 
@@ -153,28 +155,25 @@ def _log_value_and_grad(log_gains, kd, model, solver, dt, n_steps, kind, skip):
 
 def open_loop_response(model: BeltModel, options: RunOptions, t_end: float | None = None,
                        amplitude: float = 1e-4) -> MeasuredResponse:
-    """The measured response (:class:`~jaxbelt.design.loop_response.MeasuredResponse`): two runs
+    """The measured response (:class:`~jaxbelt.steering.response.MeasuredResponse`): two runs
     of ``t_end`` s (default the run of ``options``) from the static state, one with the loop open
-    (gains 0) and one with the actuator angle stepped to ``amplitude`` rad at ``t = 0`` through
-    the loop's own actuator path (the controller saturated: ``k_p = 1``, ``k_i = k_d = 0``, the
-    setpoint 1 m away, the range ``amplitude``, no rate limit), so the actuator's lag is part of
-    the response. The same compiled program as :func:`objective` where the length is the same.
-    The run should be long enough for the once-around echoes to die out (tens of seconds): the
-    walk rate is the mean over its last 5 s."""
+    (gains 0) and one with the actuator angle stepped to ``amplitude`` rad at ``t = 0``
+    (:func:`~jaxbelt.steering.response.actuator_step`), so the actuator's lag is part of the
+    response. The same compiled program as :func:`objective` where the length is the same. The run
+    should be long enough for the once-around echoes to die out (tens of seconds): the walk rate is
+    read over its last :data:`WALK_WINDOW_S` s (:func:`jaxbelt.control.walk_rate`)."""
     loops = _loop(model)
     n = int(options.n_steps) if t_end is None else int(round(t_end / options.dt))
     dt = jnp.asarray(options.dt, model.ell.dtype)
-    sign = float(loops.sign[0])
-    held = eqx.tree_at(lambda c: (c.setpoint, c.limit, c.rate_limit), loops,
-                       (jnp.full_like(loops.setpoint, sign), jnp.full_like(loops.limit, amplitude),
-                        jnp.full_like(loops.rate_limit, jnp.inf)))
+    held = actuator_step(loops, amplitude)
     zero = jnp.zeros(3, model.ell.dtype)
     v0 = np.asarray(_errors(model, zero, options.solver, dt, n)) + float(loops.setpoint[0])
-    v1 = np.asarray(_errors(model.replace(control=held), zero.at[0].set(1.0), options.solver, dt, n)) + sign
+    v1 = np.asarray(_errors(model.replace(control=held), zero.at[0].set(1.0), options.solver, dt, n)) + \
+        float(held.setpoint[0])
     step = (v1 - v0) / amplitude
-    last = min(int(round(5.0 / options.dt)), n - 1)
-    rate = float(np.mean(np.diff(step[-last - 1:])) / options.dt)
-    return MeasuredResponse(t=(np.arange(n) + 1) * float(options.dt), step=step, dt=float(options.dt), rate=rate)
+    t = (np.arange(n) + 1) * float(options.dt)
+    rate = float(walk_rate(t, step, (t[-1] - WALK_WINDOW_S, t[-1])))
+    return MeasuredResponse(t=t, step=step, dt=float(options.dt), rate=rate)
 
 
 # ---------------------------------------------------------------------------- results
@@ -217,7 +216,7 @@ class TuningResult:
     ``ise`` | ``peak``; ``objective_unit``; ``t_end_s`` the run's length and ``skip_s`` the start
     window left out; ``gm_min_db``, ``pm_min_deg`` the constraints; ``constrain_response`` whether
     the measured response is constrained too; ``plant`` the identified plant (SI,
-    :class:`~jaxbelt.design.plant.SteeringPlant`'s fields) and ``plant_source`` what identified it;
+    :class:`~jaxbelt.steering.plant.SteeringPlant`'s fields) and ``plant_source`` what identified it;
     ``response_rate`` m/s per rad, the measured walk rate; ``iterations``, ``learning_rate``;
     ``start``, ``tuned`` (:class:`TuningPoint`); ``start_note`` where the start comes from, in words
     (the scene's gains, or why others: a missing integral gain, margins the scene's gains miss);
@@ -287,12 +286,10 @@ class _Check:
     def __init__(self, plant, response, gm_min_db, pm_min_deg, constrain_response):
         self.plant, self.response, self.constrain = plant, response, constrain_response
         self.gm, self.pm = gm_min_db, pm_min_deg
-        self.w = frequency_grid(response.dt)
-        self.G = np.sign(response.rate) * response.frequency_response(self.w)
 
     def margins(self, kp, ki, kd):
-        gm, pm, _, w_gc = self.plant.margins(kp, ki, kd)
-        rgm, rpm, _, _ = grid_margins(self.w, self.G * pid_response(self.w, kp, ki, kd))
+        gm, pm, _, w_gc = margins(self.plant, kp, ki, kd)
+        rgm, rpm, _, _ = margins(self.response, kp, ki, kd)
         return _db(gm), pm, w_gc, _db(rgm), rpm
 
     def ok(self, kp, ki, kd):
@@ -328,7 +325,7 @@ def tune(model: BeltModel, options: RunOptions, *, kind: str = "ise", iterations
     plant and the measured response, and the classical tunings beside it.
 
     **Arguments:** ``kind`` ``ise`` | ``peak``; ``iterations`` Adam steps; ``plant`` the identified
-    plant (default: :func:`jaxbelt.design.steering.identify_plant` on ``response``, the
+    plant (default: :func:`jaxbelt.steering.plant.identify_plant` on ``response``, the
     recirculating form); ``response`` the measured open-loop response (default:
     :func:`open_loop_response` over the run, at least 30 s); ``start`` ``(k_p, k_i)`` SI (default:
     the scene's gains, pulled into the feasible set); ``progress`` a progress bar.
@@ -351,7 +348,7 @@ def tune(model: BeltModel, options: RunOptions, *, kind: str = "ise", iterations
     if plant is None:
         loop_time = float(loops.loop_length) / belt_speed(model)
         plant, _ = identify_plant(response.t, response.step, response.rate, loop_time)
-        plant_source = "jaxbelt.design.steering.identify_plant"
+        plant_source = "jaxbelt.steering.plant.identify_plant"
     check = _Check(plant, response, gm_min_db, pm_min_deg, constrain_response)
     kd = float(loops.kd[0])
 
@@ -439,7 +436,7 @@ def tune(model: BeltModel, options: RunOptions, *, kind: str = "ise", iterations
     kp_t, ki_t = np.exp(np.asarray(best[1]))
     tuned = point("tuned", kp_t, ki_t)
     classical = [point("SIMC", *simc(fit_plant(response)))]
-    k_u, _, w_u, _ = grid_margins(check.w, check.G)  # the P-only loop at k_p = 1 on the measured response
+    k_u, _, w_u, _ = margins(response, 1.0)  # the P-only loop at k_p = 1 on the measured response
     if np.isfinite(k_u):
         classical.append(point("Ziegler–Nichols", *ziegler_nichols(k_u, w_u)))
     return TuningResult(
