@@ -19,7 +19,7 @@ or a local function) makes the call an ordinary ``filter_jit`` call, never a gue
 
 Calls under a transformation (``jit``, ``grad``, ``vmap``: an argument is a tracer) are ordinary
 ``filter_jit`` calls, so differentiating through a stored function is unchanged. A program that
-cannot be serialised (a host callback) is run as compiled and not kept.
+cannot be exported (a host callback) is an ordinary call and not kept.
 """
 
 from __future__ import annotations
@@ -125,21 +125,18 @@ def _fill(skeleton, outputs):
 
 
 def _load(path: Path):
-    from jax.experimental import serialize_executable as se
     try:
         with open(path, "rb") as fh:
-            payload, in_tree, out_tree, skeleton = pickle.load(fh)
-        return se.deserialize_and_load(payload, in_tree, out_tree), skeleton
-    except Exception:  # a damaged or foreign file: compiled again and rewritten
+            payload, skeleton = pickle.load(fh)
+        return jax.jit(jax.export.deserialize(bytearray(payload)).call), skeleton
+    except Exception:  # a damaged or foreign file: traced again and rewritten
         return None
 
 
-def _save(path: Path, compiled, skeleton):
-    from jax.experimental import serialize_executable as se
+def _save(path: Path, exported, skeleton):
     try:
-        payload, in_tree, out_tree = se.serialize(compiled)
-        blob = pickle.dumps((payload, in_tree, out_tree, skeleton))
-    except Exception:  # a host callback, an output that does not pickle: not kept
+        blob = pickle.dumps((bytes(exported.serialize()), skeleton))
+    except Exception:  # an output that does not pickle: not kept
         return
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     with os.fdopen(fd, "wb") as fh:
@@ -148,7 +145,7 @@ def _save(path: Path, compiled, skeleton):
 
 
 def stored_jit(fn):
-    """:func:`equinox.filter_jit` of ``fn`` whose compiled programs are kept in the program store
+    """:func:`equinox.filter_jit` of ``fn`` whose traced programs are kept in the program store
     when it is on (module docstring)."""
     jitted = eqx.filter_jit(fn)
 
@@ -166,9 +163,14 @@ def stored_jit(fn):
             hit = _load(path)
         if hit is None:
             box = []
-            compiled = jax.jit(lambda arrays: program(arrays, box)).lower(leaves).compile()
-            hit = (compiled, box[0])
-            _save(path, compiled, box[0])
+            specs = [jax.ShapeDtypeStruct(np.shape(x), x.dtype, weak_type=getattr(x, "weak_type", False))
+                     for x in leaves]
+            try:
+                exported = jax.export.export(jax.jit(lambda arrays: program(arrays, box)))(specs)
+            except Exception:  # what StableHLO cannot carry (a host callback): an ordinary call
+                return jitted(*args, **kwargs)
+            hit = (jax.jit(exported.call), box[0])
+            _save(path, exported, box[0])
         _LOADED[key] = hit
         executable, skeleton = hit
         return _fill(skeleton, executable(leaves))
