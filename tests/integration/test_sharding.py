@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxbelt.design import sharding
+from jaxbelt.infra import sharding
 
 TIMEOUT_S = 240
 
@@ -23,7 +23,7 @@ TIMEOUT_S = 240
 METRIC = textwrap.dedent("""
     import jax, jax.numpy as jnp, numpy as np
     import jaxbelt as jb
-    from jaxbelt.design import sharding
+    from jaxbelt.infra import sharding
     jb.enable_x64()
     scene = jb.load_scene("two-roller-1d-idle-translated")
     model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
@@ -132,7 +132,7 @@ def test_distributed_map_two_processes_equals_single_process(tmp_path):
         env = _env(XLA_FLAGS=_devices(2),
                    JAXBELT_COORDINATOR=f"127.0.0.1:{port}", JAXBELT_NUM_PROCESSES="2",
                    JAXBELT_PROCESS_ID=str(pid), JAX_COORDINATOR_BIND_ADDRESS=f"127.0.0.1:{port}")
-        script = "from jaxbelt.design import sharding; assert sharding.initialize_from_env()\n" + WORKER
+        script = "from jaxbelt.infra import sharding; assert sharding.initialize_from_env()\n" + WORKER
         procs.append(subprocess.Popen(
             [sys.executable, "-c", script, str(pid), str(tmp_path / f"out{pid}.npy")],
             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
