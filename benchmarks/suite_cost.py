@@ -13,7 +13,8 @@ listens to JAX's compile events (``jax.monitoring``) per test:
 
 ``wall_s_if_split_perfectly`` is the one-process test seconds halved: the wall time two workers
 could reach at best, before start-up and their competition for memory bandwidth. Writes
-``results/suite_cost.json``. Takes eight to ten minutes on two cores.
+``results/suite_cost.json``, and ``tests/module_seconds.json``: the one-process seconds of every
+test module, which ``tests/conftest.py`` schedules the workers by (heaviest module first). Takes eight to ten minutes on two cores.
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/suite_cost.py``.
 """
 
@@ -31,6 +32,7 @@ from pathlib import Path
 from _common import write
 
 ROOT = Path(__file__).resolve().parent.parent
+MODULE_SECONDS = ROOT / "tests" / "module_seconds.json"
 
 PLUGIN = r'''
 import collections, json, os, time
@@ -105,6 +107,7 @@ def _totals(workers):
     out["other_s"] = tot["wall"] - sum(tot[k] for k in PHASES)
     out["programs_over_half_a_second"] = big
     out["slowest_modules_s"] = dict(by_module.most_common(10))
+    out["module_s"] = dict(by_module)
     out["test_s_by_process"] = {k: sum(c.get("wall", 0.0) for c in w["tests"].values())
                                 for k, w in sorted(workers.items())}
     return out
@@ -125,7 +128,13 @@ def main():
     one = results["one_process"]
     results["wall_s_if_split_perfectly"] = one["test_s"] / 2
     results["duplicated_or_contended_s"] = results["two_workers"]["test_s"] - one["test_s"]
+    module_s = results["one_process"].pop("module_s")
+    results["two_workers"].pop("module_s")
     write("suite_cost", results)
+    # the scheduling table tests/conftest.py reads: seconds per test module, one process, measured
+    table = {m.removesuffix(".py"): max(1, round(v)) for m, v in sorted(module_s.items(), key=lambda kv: -kv[1])}
+    MODULE_SECONDS.write_text(json.dumps(table, indent=1) + "\n")
+    print(f"wrote {MODULE_SECONDS}", file=sys.stderr)
     print(json.dumps({k: v for k, v in one.items() if k != "slowest_modules_s"}, indent=1))
 
 

@@ -11,7 +11,9 @@ runs only the slow ones.
 """
 
 import gc
+import json
 import os
+from pathlib import Path
 
 # Compiling dominates the suite (hundreds of whole-run programs, most run for a few dozen steps):
 # LLVM at -O0 instead of -O3 compiles ~35 % faster and runs the programs 2–4× slower, a net
@@ -64,23 +66,9 @@ def pytest_addoption(parser):
 
 # xdist's loadfile scheduling hands whole modules to the two workers in collection order; heaviest
 # first, so that the run ends on small modules and both workers finish together (pyproject.toml
-# turns off xdist's own reordering by test count). Seconds per module from a --durations run (a
-# stale or missing entry, default 5, only costs balance).
-MODULE_SECONDS = {
-    "test_steady": 75, "test_design_steered": 20, "test_steering": 16, "test_cli_design": 16, "test_tune": 14,
-    "test_model2d": 12, "test_rom_box": 12, "test_design": 11, "test_linalg": 11,
-    "test_simulate_api": 10, "test_cli_reduce": 10, "test_reuse": 9, "test_validation": 7,
-    "test_plot_fields": 7, "test_design_surrogate": 6, "test_rom_indicator": 6, "test_bench": 6,
-    "test_lateral_theory": 6, "test_border_first": 6, "test_cli": 5, "test_readme": 5,
-    "test_accuracy": 5, "test_kept_interior": 5, "test_scene": 5, "test_linear_solvers": 4,
-    "test_pymor_reference": 4, "test_rom_dmdc": 4, "test_rom_snapshots": 3, "test_rom_pod": 3,
-    "test_stability": 3, "test_integrators": 3, "test_invariants": 3, "test_rom_training": 3,
-    "test_rom_dmd": 3, "test_grad": 2, "test_transport": 2, "test_rom_modal": 2, "test_timeloop": 2,
-    "test_elements": 2, "test_reference": 2, "test_control_law": 2, "test_control": 1,
-    "test_sharding": 1, "test_vmap": 1, "test_rom_reduced": 1, "test_rom_ranks": 1,
-    "test_notebooks": 1, "test_accuracy_richardson": 1, "test_docs": 1, "test_layers": 1,
-    "test_geometry": 1, "test_prestress": 1, "test_control_scene": 1,
-}
+# turns off xdist's own reordering by test count). Seconds per module as benchmarks/suite_cost.py
+# measured them (a module not in the table, default 5, only costs balance).
+MODULE_SECONDS = json.loads((Path(__file__).parent / "module_seconds.json").read_text())
 
 
 def pytest_collection_modifyitems(config, items):
