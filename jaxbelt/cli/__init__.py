@@ -58,7 +58,8 @@ def enable_compilation_cache():
     ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``). **Returns:** the directory, or
     ``None`` where it is off. The large programs are also kept whole, traced and compiled, in its
     folder ``programs`` (:mod:`jaxbelt.infra.programs`): a later process loads them instead of tracing
-    them again, which the compilation cache alone does not skip. Every program is kept, however quickly it compiled: a command runs
+    them again, which the compilation cache alone does not skip (``JAXBELT_PROGRAM_STORE=0`` switches
+    that part off). Every program is kept, however quickly it compiled: a command runs
     about a hundred small programs (model build, static solve, bookkeeping) that take ~30 ms each
     to compile and ~5 ms to load, which a time threshold would recompile on every call."""
     if os.environ.get("JAXBELT_COMPILATION_CACHE", "1") == "0":
@@ -68,7 +69,8 @@ def enable_compilation_cache():
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    use_program_store(Path(path) / "programs")
+    if os.environ.get("JAXBELT_PROGRAM_STORE", "1") != "0":
+        use_program_store(Path(path) / "programs")
     return path
 
 
