@@ -61,7 +61,7 @@ def main():
         c = choose_grid(scene, x, t_from=t_from)
         r = tracer_run(c.scene)
         eu, ev = window_error_um(r, c.scene, truth, truth_scene, t_from)
-        chosen.append(dict(**{k: v for k, v in c.as_dict().items() if k != "discretisation_error_um"},
+        chosen.append(dict(**{k: v for k, v in c.to_dict().items() if k != "discretisation_error_um"},
                            true_longitudinal_um=eu, true_lateral_um=ev, run_s=r.run_s))
         print(f"need {x:g} µm: n_eta {c.grid.n_eta} n_xi {c.grid.n_xi} dt {c.grid.dt:g}, estimate {c.estimate_um:.3g} "
               f"µm, true u {eu:.3g} v {ev:.3g} µm, {r.run_s:.3f} s", flush=True)

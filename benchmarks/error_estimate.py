@@ -102,7 +102,7 @@ def main():
         true_u, true_v, truth_s = truth_error(scene, est)
         row = dict(case=name, kind=scene.kind, lateral_transport=scene.solver.lateral_transport,
                    closed_loop=bool(scene.control), grid=dict(n_xi=est.grid.n_xi, n_eta=est.grid.n_eta, dt_s=est.grid.dt),
-                   estimate=est.as_dict(), true_longitudinal_um=true_u, true_lateral_um=true_v,
+                   estimate=est.to_dict(), true_longitudinal_um=true_u, true_lateral_um=true_v,
                    effectivity_longitudinal=_effectivity(est.longitudinal_um, true_u),
                    effectivity_lateral=_effectivity(est.lateral_um, true_v),
                    cost_runs=est.cost_runs, estimate_wall_s=est.estimate_s, run_s=est.run_s,

@@ -62,7 +62,7 @@ def plant_and_loops():
         r = steering_report(m, o.replace(n_steps=n), sensitivity=False)
         d = r.to_dict()
         d.pop("step_response")
-        d["plant_gain_margin_without_hold"] = margins(r.identified, 1.0)[0]
+        d["plant_gain_margin_without_hold"] = margins(r.plant, 1.0)[0]
         out[f"report_{n}_steps"] = d
         print(f"report {n}: k {r.coefficient_mm_s_per_mrad:.5g}, hold {r.hold_angle_mrad:.5g}, GM response "
               f"{r.response_gain_margin:.4g}, plant {r.plant_gain_margin:.4g} (no hold {d['plant_gain_margin_without_hold']:.4g})")
@@ -106,7 +106,7 @@ def string_limit():
         G = th.string_loop_response(sc, w)
         meas = response_transfer(r.step_response["sensor_mm_per_mrad"], r.coefficient_mm_s_per_mrad, dt, w) \
             * np.exp(0.5j * w * dt)
-        fit = r.identified.frequency_response(w)
+        fit = r.plant.frequency_response(w)
         row = dict(width_mm=w_mm, K_L=kl, grid=[ne, nf], dt_s=dt, coefficient_mm_s_per_mrad=r.coefficient_mm_s_per_mrad,
                    string_mm_s_per_mrad=float((1j * w[0] * G[0]).real), theory_mm_s_per_mrad=th.scene_walk_rate(sc, _skew()) * 1e3,
                    frequency_over_transit=frac.tolist(), response_deviation=np.abs(meas / G - 1).tolist(),

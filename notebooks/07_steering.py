@@ -109,7 +109,7 @@ print(f"open loop: {float(sensor[0, -1]) * 1e6:.1f} µm at the sensor after {T_L
 
 # %%
 report = steering_report(model, opts, sensitivity=False)
-plant = report.identified
+plant = report.plant
 print(f"coefficient {report.coefficient_mm_s_per_mrad:.4g} mm/s per mrad; disturbance {report.disturbance_mm_s:.4g} mm/s; "
       f"hold angle {report.hold_angle_mrad:.4g} mrad (range ±{report.limit_mrad:g}); plant fit within "
       f"{100 * report.plant_fit_error:.1f} % of the response's range; P-loop boundary k_p = "

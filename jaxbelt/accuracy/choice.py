@@ -57,6 +57,7 @@ import time
 import jax
 import numpy as np
 
+from ..infra.results import to_json
 from ..scene import Scene
 from ..timeloop import NonFiniteStateError
 from .estimate import (DIRECTIONS, DiscretisationError, TracerRun, admissible, at_times, estimate_error, refine,
@@ -123,14 +124,14 @@ class GridChoice:
     model: str = "2d"
     checks: tuple[ModelCheck, ...] = ()
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         """The JSON form (``chosen`` of the commands' ``--accuracy-um``)."""
-        return dict(n_xi=self.grid.n_xi, n_eta=self.grid.n_eta, dt_s=self.grid.dt, solver=self.solver,
+        return to_json(dict(n_xi=self.grid.n_xi, n_eta=self.grid.n_eta, dt_s=self.grid.dt, solver=self.solver,
                     model=self.model, precision=self.precision, estimate_um=self.estimate_um,
                     predicted_um=self.predicted_um, cost_s=self.cost_s, accuracy_um=self.accuracy_um,
                     quantities=list(self.quantities), factors=self.factors, rounds=self.rounds,
                     automatic=list(self.automatic), checks=[dataclasses.asdict(c) for c in self.checks],
-                    discretisation_error_um=self.estimate.as_dict())
+                    discretisation_error_um=self.estimate.to_dict()))
 
 
 def precision_scope(precision: str):

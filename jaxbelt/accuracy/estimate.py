@@ -42,6 +42,7 @@ import jax
 import numpy as np
 
 from ..build import build_model
+from ..infra.results import to_json
 from ..mesh import build_mesh
 from ..scene import Scene, SceneError
 from ..state import initial_state
@@ -156,9 +157,9 @@ class DiscretisationError:
     def direction(self, name: str) -> DirectionError:
         return next(d for d in self.directions if d.direction == name)
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         """The JSON form (``discretisation_error_um`` of ``jaxbelt simulate --error-estimate``)."""
-        return dict(
+        return to_json(dict(
             longitudinal=self.longitudinal_um, lateral=self.lateral_um, dominant=self.dominant,
             orders={d.direction: d.order for d in self.directions},
             directions={d.direction: dict(longitudinal_um=d.longitudinal_um, lateral_um=d.lateral_um, order=d.order,
@@ -166,7 +167,7 @@ class DiscretisationError:
                         for d in self.directions},
             grid=dataclasses.asdict(self.grid), t_from_s=self.t_from_s, safety_factor=self.safety_factor,
             run_s=self.run_s,
-            estimate_s=self.estimate_s, cost_runs=self.cost_runs)
+            estimate_s=self.estimate_s, cost_runs=self.cost_runs))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -59,7 +59,7 @@ def choose_accuracy(args, scene, quantities=None, t_from: float = 0.0, **allow):
 
 def error_estimate(args, scene) -> dict:
     """``discretisation_error_um`` of the scene's run."""
-    return estimate_error(scene, progress=_progress(args), t_from=getattr(args, "accuracy_from", 0.0)).as_dict()
+    return estimate_error(scene, progress=_progress(args), t_from=getattr(args, "accuracy_from", 0.0)).to_dict()
 
 
 def print_accuracy(s: dict):

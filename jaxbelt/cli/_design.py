@@ -137,7 +137,7 @@ def load_design_model(args):
                                  allow_reuse=False)
         if chosen is not None:
             scene, _, model, options = rebuild(chosen.scene)
-            args.accuracy_chosen = chosen.as_dict()
+            args.accuracy_chosen = chosen.to_dict()
     args.design_scene = scene
     return model, options
 

@@ -310,7 +310,7 @@ def _run(args, demo, scene, mesh, model, options, chosen):
                               f"(weights in [{lo:.3g}, {hi:.3g}]): the run diverged and its results are not a "
                               f"solution; use {_transport_advice(s)}")
     if chosen is not None:
-        s["chosen"] = chosen.as_dict()
+        s["chosen"] = chosen.to_dict()
         s["discretisation_error_um"] = s["chosen"].pop("discretisation_error_um")
     elif getattr(args, "error_estimate", False):
         s["discretisation_error_um"] = error_estimate(args, scene)

@@ -1,4 +1,4 @@
-"""Tolerance design (model specification §6): metrics, sensitivities, tolerance boxes, yield, sharding.
+"""Tolerance design (model specification §6): metrics, studies, sensitivities, tolerance boxes, yield.
 
 Sits above :mod:`jaxbelt.timeloop` and :mod:`jaxbelt.rom` and is never imported by them.
 
@@ -20,7 +20,8 @@ design.run_sweep(study, dist, n=1000, limit_um=20.0)   # Monte-Carlo yield, FORM
 Every result is a frozen dataclass with documented fields (:class:`SweepResult`,
 :class:`ToleranceBox`, :class:`SensitivityReport`, :class:`MonteCarloResult`,
 :class:`FormResult`, :class:`ImportanceSamplingResult`); the command line's JSON is their
-``to_dict()``.
+``to_dict()`` (:mod:`jaxbelt.infra.results`). Loop design (the steering plant, its margins and
+gains) is :mod:`jaxbelt.steering`.
 """
 
 from ..misalignment import COMPONENTS as COMPONENTS

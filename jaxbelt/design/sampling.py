@@ -36,6 +36,7 @@ from ..infra.programs import stored_jit
 from ..steady import map_configurations
 from .study import Study, evaluate, for_runs, metric_value
 from .sensitivity import response_jacobian
+from ..infra.results import Result
 from ..infra.sharding import batched_map
 
 DISTRIBUTIONS = ("normal", "uniform")
@@ -191,7 +192,7 @@ def standard_normal_samples(n: int, P: int, seed: int) -> np.ndarray:
 
 
 @dataclasses.dataclass(frozen=True)
-class MonteCarloResult:
+class MonteCarloResult(Result):
     """A Monte-Carlo yield (:func:`monte_carlo`). **Fields:** ``yield_`` the fraction of samples
     that pass (:func:`passes`: on a steered machine a saturated actuator fails); ``ci95`` its
     Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the configurations, mm / mrad;
@@ -231,7 +232,7 @@ def _g_and_grad(study, dist_scale, uniform, u, limit):
 
 
 @dataclasses.dataclass(frozen=True)
-class FormResult:
+class FormResult(Result):
     """First-order reliability (:func:`form`). **Fields:** ``beta`` the reliability index
     (negative when the nominal configuration fails); ``yield_`` ``Φ(β)``; ``u_star`` (P,) the
     design point in the standard normal space; ``theta_star`` (P,) the same in mm / mrad;
@@ -318,7 +319,7 @@ def linear_design_point(r0, J, dist: Distribution, limit_um: float, kind: str) -
 
 
 @dataclasses.dataclass(frozen=True)
-class ImportanceSamplingResult:
+class ImportanceSamplingResult(Result):
     """A yield by importance sampling (:func:`importance_sampling`). **Fields:** ``yield_``;
     ``ci95`` its normal-approximation 95 % interval; ``failure_probability``; ``std_error`` of
     that estimate; ``samples``."""

@@ -22,6 +22,7 @@ import numpy as np
 from .metrics import response_from_deviation
 from .study import Study, for_runs, metric_value, response
 from ..infra.programs import stored_jit
+from ..infra.results import Result
 
 
 KINK_UM = 1e-6  # a metric at or below this is at its kink r = 0
@@ -98,7 +99,7 @@ def response_jacobian(study: Study, theta=None, mode: str = "auto"):
 
 
 @dataclasses.dataclass(frozen=True)
-class SensitivityReport:
+class SensitivityReport(Result):
     """A metric and its gradient w.r.t. every misalignment component (:func:`sensitivity_report`).
 
     **Fields:** ``metric``; ``value_um`` the metric, µm (µm/s for ``walk_rate``); ``t_eval_s``;
@@ -121,9 +122,6 @@ class SensitivityReport:
     gradient_s: float
     compile_s: float
 
-    def to_dict(self) -> dict:
-        """The report as JSON-able data (``jaxbelt sensitivity --json``), keys as the fields."""
-        return dataclasses.asdict(self)
 
 
 def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> SensitivityReport:

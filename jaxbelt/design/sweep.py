@@ -44,6 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..infra.results import Result, to_json
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearResponse, rss_stackup
@@ -62,7 +63,7 @@ ROM_STEERED = ("the POD surrogate does not carry the steering loop (use the resp
 
 
 @dataclasses.dataclass(frozen=True)
-class SweepResult:
+class SweepResult(Result):
     """The yield study of :func:`run_sweep`.
 
     **Fields:**
@@ -133,8 +134,8 @@ class SweepResult:
             v = getattr(self, name)
             if v is None or (name == "metric_values" and not values):
                 continue
-            out["yield" if name == "yield_" else name] = v.tolist() if isinstance(v, np.ndarray) else v
-        return out
+            out["yield" if name == "yield_" else name] = v
+        return to_json(out)
 
 
 def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "") -> dict:
@@ -243,7 +244,7 @@ def sweep_samples(study: Study, dist: Distribution, n: int, seed: int) -> np.nda
 
 
 @dataclasses.dataclass(frozen=True)
-class YieldDiscretisation:
+class YieldDiscretisation(Result):
     """The discretisation bias of a sweep's yield (:func:`yield_discretisation`).
 
     **Fields:** ``bias`` the yield on the grid one level finer minus the sweep's, from the
@@ -259,8 +260,6 @@ class YieldDiscretisation:
     grid: dict
     grid_fine: dict
 
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
 
 
 def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distribution, fine_options: RunOptions,

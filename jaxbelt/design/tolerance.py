@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..infra.programs import stored_jit
+from ..infra.results import Result, to_json
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..steady import map_configurations
 from ..timeloop import RunOptions
@@ -61,7 +62,7 @@ def _shares(lin: LinearResponse, h, W: float) -> np.ndarray:
 
 
 @dataclasses.dataclass(frozen=True)
-class ToleranceBox:
+class ToleranceBox(Result):
     """The verified tolerance box of a study (:func:`tolerance_box`).
 
     **Fields:** ``metric``, ``limit_um``, ``t_eval_s`` the question; ``half_widths`` (P,) in
@@ -114,7 +115,7 @@ class ToleranceBox:
                                               "verification", "iterations", "rss_um", "limits", "binding_limit")}
         out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
                               for lab, h, u, s in zip(self.labels, self.half_widths, self.units, self.share)]
-        return out
+        return to_json(out)
 
 
 def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners, max_iter, space, names=None):
@@ -242,7 +243,7 @@ NEAR_WORST = 1e-3  # corners run on the finer grid: within this fraction of the 
 
 
 @dataclasses.dataclass(frozen=True)
-class BoxDiscretisation:
+class BoxDiscretisation(Result):
     """The discretisation uncertainty of a tolerance box (:func:`box_discretisation`).
 
     **Fields:** ``worst_case_um``/``worst_case_fine_um`` the largest metric over the box's
@@ -265,10 +266,6 @@ class BoxDiscretisation:
     grid_fine: dict
     runs: int
 
-    def to_dict(self) -> dict:
-        out = dataclasses.asdict(self)
-        out["half_width_uncertainty"] = [float(x) for x in self.half_width_uncertainty]
-        return out
 
 
 def _box_floor(box: ToleranceBox, kind: str) -> float:

@@ -38,9 +38,11 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from ..infra.results import Result
+
 
 @dataclasses.dataclass(frozen=True)
-class SteeringPlant:
+class SteeringPlant(Result):
     """``G(s)`` of the module docstring.
 
     **Fields:** ``gain`` ``k``, m/s per rad (signed; the steady walk per actuator angle); ``lag``
@@ -66,8 +68,6 @@ class SteeringPlant:
         """``T_r = θ_r + 2 τ_r``, s: one lap of the recirculation (0 without)."""
         return self.loop_delay + 2 * self.loop_lag
 
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
 
     def frequency_response(self, omega):
         """``G(iω)`` for angular frequencies ``omega`` (rad/s), complex."""

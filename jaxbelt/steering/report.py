@@ -39,11 +39,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..misalignment import parameter_space
+from ..control import samples_per_update
 from ..infra.programs import stored_jit
+from ..infra.results import Result
+from ..misalignment import parameter_space
 from ..steady import forward_jacobian, steady_walk
 from ..timeloop import RunOptions, belt_speed, simulate
-from ..control import samples_per_update
 from .plant import SteeringPlant, identify_plant
 from .response import DiscreteLoop, actuator_step
 from .transfer import margins
@@ -115,7 +116,7 @@ def response_gain_margin(response, gain, dt, sample_steps: int = 1):
 
 
 @dataclasses.dataclass(frozen=True)
-class SteeringReport:
+class SteeringReport(Result):
     """The plant of one steering loop, measured on the model with the loop open.
 
     **Fields:** ``loop`` the loop's label ``"roller/axis"``; ``coefficient_mm_s_per_mrad`` the
@@ -128,8 +129,8 @@ class SteeringReport:
     walk rate per unit of each misalignment component at the scene's misalignment (derivatives
     of the open-loop steady walk; structurally zero components, such as the drive rotation about
     z, are 0), or ``None`` when not asked for; ``plant`` the identified transfer function
-    (:class:`~jaxbelt.steering.plant.SteeringPlant` as a dict: SI, m/s per rad, s, m per rad; ``None``
-    when not identified);
+    (:class:`~jaxbelt.steering.plant.SteeringPlant`: SI, m/s per rad, s, m per rad; ``None`` when not
+    identified);
     ``plant_fit_error`` its largest deviation from the model's step response as a fraction of
     the response's range; ``sample_delay_s`` the sampled loop's own delay ``T_s / 2``
     (:func:`sampling_delay`); ``plant_gain_margin`` the identified plant's P-loop gain margin with
@@ -149,7 +150,7 @@ class SteeringReport:
     limit_mrad: float
     saturated: bool
     walk_sensitivity: dict | None
-    plant: dict | None
+    plant: SteeringPlant | None
     plant_fit_error: float
     sample_delay_s: float
     plant_gain_margin: float
@@ -165,14 +166,6 @@ class SteeringReport:
     loop_time_s: float
     elapsed_s: float
 
-    def to_dict(self) -> dict:
-        """The report as JSON-able data (``jaxbelt steering --json``), keys as the fields."""
-        return dataclasses.asdict(self)
-
-    @property
-    def identified(self) -> SteeringPlant:
-        """The identified plant as a :class:`~jaxbelt.steering.plant.SteeringPlant`."""
-        return SteeringPlant(**self.plant)
 
 
 def _period_of(w):
@@ -263,7 +256,7 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     return SteeringReport(
         loop=label, coefficient_mm_s_per_mrad=coeff, disturbance_mm_s=disturbance, hold_angle_mrad=float(hold),
         limit_mrad=limit, saturated=saturated, walk_sensitivity=sens,
-        plant=None if plant is None else plant.to_dict(), plant_fit_error=err,
+        plant=plant, plant_fit_error=err,
         sample_delay_s=delay, plant_gain_margin=float(gm), plant_crossover_period_s=_period_of(w_pc),
         response_gain_margin=rgm, response_crossover_period_s=_period_of(rw_pc),
         step_mrad=float(step_mrad), t_end_s=float(t[-1]), dt_s=float(options.dt),
@@ -276,7 +269,7 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
 
 
 @dataclasses.dataclass(frozen=True)
-class StabilityBoundary:
+class StabilityBoundary(Result):
     """The P-only loop's stability boundary from closed-loop runs of the model.
 
     **Fields:** ``loop`` the label; ``kp_mrad_per_mm`` the boundary (midpoint of the last
@@ -295,8 +288,6 @@ class StabilityBoundary:
     runs: int
     elapsed_s: float
 
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
 
 
 def _growth(t, v):

@@ -65,6 +65,7 @@ import optax
 from ..control import walk_rate
 from ..model import BeltModel
 from ..infra.programs import stored_jit
+from ..infra.results import Result
 from ..timeloop import RunOptions, belt_speed, simulate
 from .plant import SteeringPlant, fit_plant, identify_plant
 from .response import MeasuredResponse, actuator_step
@@ -179,7 +180,7 @@ def open_loop_response(model: BeltModel, options: RunOptions, t_end: float | Non
 # ---------------------------------------------------------------------------- results
 
 @dataclasses.dataclass(frozen=True)
-class TuningPoint:
+class TuningPoint(Result):
     """One set of gains, run through the full model and checked on the plant.
 
     **Fields:** ``rule`` where the gains come from (``start``, ``tuned``, ``SIMC``,
@@ -209,7 +210,7 @@ class TuningPoint:
 
 
 @dataclasses.dataclass(frozen=True)
-class TuningResult:
+class TuningResult(Result):
     """:func:`tune`'s report (``jaxbelt tune --json`` is :meth:`to_dict`).
 
     **Fields:** ``scene`` name; ``loop`` the loop's label (``"roller/axis"``); ``objective``
@@ -245,19 +246,6 @@ class TuningResult:
     improvement: float
     wall_s: float
 
-    def to_dict(self) -> dict:
-        """JSON-able: floats, with ``None`` for ``inf`` and ``nan``."""
-        return _json_floats(dataclasses.asdict(self))
-
-
-def _json_floats(x):
-    if isinstance(x, dict):
-        return {k: _json_floats(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_floats(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
-    return x
 
 
 # ----------------------------------------------------------------------------- tuning

@@ -55,7 +55,7 @@ def test_estimate_1d_bounds_the_error_within_a_factor_of_three(scene_1d, estimat
     # the impulsive start of the drive dominates: the time step is the direction to refine
     assert est.dominant == "dt" and est.direction("dt").longitudinal_um > 10 * est.direction("n_xi").longitudinal_um
     assert est.cost_runs > 1 and est.run_s > 0 and est.estimate_s > est.run_s
-    d = est.as_dict()
+    d = est.to_dict()
     assert set(d) >= {"longitudinal", "lateral", "dominant", "orders"} and d["orders"]["dt"] is not None
 
 
@@ -76,7 +76,7 @@ def test_chosen_grid_meets_the_accuracy_and_is_verified(scene_1d, estimate_1d):
     assert c.estimate_um <= target
     assert c.factors["dt"] > 1 and c.grid.dt < scene_1d.time.dt  # the dominant direction refined
     assert c.quantities == ("longitudinal",) and c.model == "1d"
-    d = c.as_dict()
+    d = c.to_dict()
     assert set(d) >= {"n_xi", "n_eta", "dt_s", "solver", "precision", "estimate_um", "cost_s"}
     # float32: its rounding measured against float64 on the chosen grid, independently here
     check = next(ch for ch in c.checks if ch.name == "float32")

@@ -77,7 +77,7 @@ def test_pi_loop_holds_the_belt(scene, report):
 def test_plant_reproduces_step_response(report):
     r = report.step_response
     y = np.asarray(r["sensor_mm_per_mrad"])
-    fit = report.identified.step_response(np.asarray(r["t_s"]))
+    fit = report.plant.step_response(np.asarray(r["t_s"]))
     assert np.max(np.abs(fit - y)) / np.ptp(y) < 0.02  # within 2 % of the response's range
 
 
@@ -101,7 +101,7 @@ def test_p_boundary_against_the_gain_margin(scene, report):
     assert report.response_gain_margin == pytest.approx(kp, rel=0.05)
     assert report.sample_delay_s == pytest.approx(dt / 2)
     assert report.plant_gain_margin == pytest.approx(kp, rel=0.05)
-    assert margins(report.identified, 1.0)[0] > report.plant_gain_margin  # the hold's delay lowers it
+    assert margins(report.plant, 1.0)[0] > report.plant_gain_margin  # the hold's delay lowers it
 
 
 @pytest.fixture(scope="module")
@@ -128,7 +128,7 @@ def test_plant_in_the_string_limit_is_sheltons_span_model(string_report):
     measured = response_transfer(r.step_response["sensor_mm_per_mrad"], coeff, r.dt_s, w) * np.exp(0.5j * w * r.dt_s)
     assert np.max(np.abs(measured / G - 1)) < 0.15
     low = w <= 0.2 * 2 * np.pi / r.loop_time_s
-    assert np.max(np.abs(r.identified.frequency_response(w[low]) / G[low] - 1)) < 0.15
+    assert np.max(np.abs(r.plant.frequency_response(w[low]) / G[low] - 1)) < 0.15
 
 
 def test_saturation_is_reported(scene):
