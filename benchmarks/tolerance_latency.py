@@ -97,6 +97,17 @@ def _command(argv, env, command="tolerance"):
     return time.perf_counter() - t0
 
 
+def _remeasure():
+    """For measuring one command again into the existing results: ``(results, cache, env)``, the
+    results file's contents, a fresh compilation-cache directory (a context manager) and the
+    command line's environment with it."""
+    path = Path(__file__).parent / "results" / "tolerance_latency.json"
+    out = {k: v for k, v in json.loads(path.read_text()).items() if k != "machine"}
+    cache = tempfile.TemporaryDirectory()
+    env = {**os.environ, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1", "JAXBELT_CACHE_DIR": cache.name}
+    return out, cache, env
+
+
 def main():
     import argparse
 
@@ -110,11 +121,8 @@ def main():
                          "times warm (median and spread), into the existing results")
     args = ap.parse_args()
     if args.tolerance_again:
-        path = Path(__file__).parent / "results" / "tolerance_latency.json"
-        out = {k: v for k, v in json.loads(path.read_text()).items() if k != "machine"}
-        with tempfile.TemporaryDirectory() as cache:
-            env = {**os.environ, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1",
-                   "JAXBELT_CACHE_DIR": cache}
+        out, cache, env = _remeasure()
+        with cache:
             cold = _command([], env)
             warm = [_command([], env) for _ in range(args.tolerance_again)]
         out["command"]["error_bars"] = {"empty_cache_s": cold, "warm_cache_s": float(np.median(warm)),
@@ -123,12 +131,9 @@ def main():
         write("tolerance_latency", out)
         return
     if args.only:
-        path = Path(__file__).parent / "results" / "tolerance_latency.json"
-        out = {k: v for k, v in json.loads(path.read_text()).items() if k != "machine"}
+        out, cache, env = _remeasure()
         command, *argv = dict(OTHER_COMMANDS)[args.only]
-        with tempfile.TemporaryDirectory() as cache:
-            env = {**os.environ, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1",
-                   "JAXBELT_CACHE_DIR": cache}
+        with cache:
             out["other_commands"][args.only].update(empty_cache_s=_command(argv, env, command),
                                                      warm_cache_s=_command(argv, env, command))
         print(args.only, out["other_commands"][args.only], flush=True)

@@ -11,10 +11,10 @@ import numpy as np
 
 from .assembly import dae_matrices, static_rhs
 from .control import ControllerState, initial_controller_state
+from .infra.programs import stored_jit
 from .linalg import bordered_solve
 from .mesh import Mesh
 from .model import BeltModel
-from .infra.programs import stored_jit
 from .registry import START_RULES
 from .scene import Scene
 

@@ -56,7 +56,7 @@ def enable_compilation_cache():
     (``JAXBELT_COMPILATION_CACHE=0`` switches it off): a second call of the same command on the
     same scene shapes skips XLA compilation. Directory ``$JAXBELT_CACHE_DIR`` or
     ``$XDG_CACHE_HOME/jaxbelt/xla`` (``~/.cache/jaxbelt/xla``). **Returns:** the directory, or
-    ``None`` where it is off. The large programs are also kept whole, traced and compiled, in its
+    ``None`` where it is off. The large programs are also kept traced (serialised StableHLO) in its
     folder ``programs`` (:mod:`jaxbelt.infra.programs`): a later process loads them instead of tracing
     them again, which the compilation cache alone does not skip (``JAXBELT_PROGRAM_STORE=0`` switches
     that part off). Every program is kept, however quickly it compiled: a command runs

@@ -56,6 +56,7 @@ unit.
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 
 import jax
@@ -71,7 +72,7 @@ CLOSED_LOOP_WINDOW = 0.2  # fraction of [0, t_eval]: the window of steady operat
 
 
 @dataclasses.dataclass(frozen=True)
-class Metric:
+class Metric(abc.ABC):
     """One metric of the module table: its ``name``, how its response is aggregated
     (``aggregate``: ``"max"`` max-abs, ``"rms"``), the ``unit`` of its value, whether it needs a
     2D scene (``needs_2d``) and a steering loop (``needs_loop``), a one-line ``description``;
@@ -85,10 +86,10 @@ class Metric:
     needs_loop: bool
     description: str
 
+    @abc.abstractmethod
     def response(self, study, du, dv, angle):
         """The response vector ``r`` from the tracer deviations ``du``, ``dv`` (steps, n_tr) µm and
         the actuator angles ``angle`` (steps, n_c) mrad."""
-        raise NotImplementedError
 
     def steps_read(self, study) -> int:
         """How many of the last steps of a run :meth:`response` reads."""

@@ -112,7 +112,8 @@ class Study(eqx.Module):
     @property
     def options(self) -> RunOptions:
         """The study's run settings (solver, run length, time step) as :class:`jaxbelt.RunOptions`:
-        what a study of the same question on the same machine is built with."""
+        what a study of the same question on the same machine is built with (a steady study's run
+        length is 1, which steady studies do not read)."""
         return RunOptions(self.solver, self.n_steps, float(self.dt))
 
     def configured(self, theta) -> BeltModel:

@@ -4,10 +4,13 @@ JAX's persistent compilation cache skips XLA's compilation in a second process, 
 tracing and MLIR lowering that come before its lookup, and for the large programs of a design
 command (a steady solve with its Newton–GMRES loops, its tangents, a batch of them) those are most
 of a warm command's time. :func:`stored_jit` is :func:`equinox.filter_jit` that, where a store is
-switched on (:func:`use_program_store`; the command line does), also keeps each compiled program as
-a serialised executable (:mod:`jax.experimental.serialize_executable`) under a key of everything
-that defines it, and in a later process loads it instead of tracing: a call then costs the
-executable's loading and its run.
+switched on (:func:`use_program_store`; the command line does), also keeps each traced program as
+serialised StableHLO (:func:`jax.export.export`) under a key of everything that defines it, and in
+a later process loads it instead of tracing: a call then costs the module's loading, JAX's
+compilation-cache lookup of it (the compilation cache holds the executable) and its run. The
+executable itself is not what is kept: XLA:CPU executables deserialised side by side in one
+process were measured to fail at run time (a kernel "not found"), while the compilation cache's
+own path is JAX's tested one.
 
 **The key** is a SHA-256 of: the function's module and name; a digest of the package's own source
 files (any change to jaxbelt's code is a new program); the versions of jax and jaxlib, the backend
@@ -39,7 +42,7 @@ import jaxlib
 import numpy as np
 
 _STORE: list[Path | None] = [None]
-_LOADED: dict[str, tuple] = {}  # key -> (executable, output skeleton), this process
+_LOADED: dict[str, tuple] = {}  # key -> (jitted call of the loaded program, output skeleton), this process
 _SOURCE_DIGEST: list[str] = []
 _UNSTABLE = (" at 0x", "<lambda>", "<locals>")
 
@@ -88,8 +91,10 @@ def _static_text(x) -> str:
 
 
 def program_key(fn, args, kwargs):
-    """``(key, leaves, rebuild)`` of a call: its key (``None`` where the call cannot be identified
-    across processes), its array arguments, and the function of those arrays that runs the call."""
+    """``(key, leaves, program)`` of a call: its key (``None`` where the call cannot be identified
+    across processes), its array arguments, and ``program(arrays, box)``, the call as a function of
+    those arrays alone (its array outputs as a list; the output's skeleton, the non-array parts and
+    where each array goes, appended to ``box``)."""
     dyn, static = eqx.partition((args, kwargs), eqx.is_array)
     leaves, in_tree = jax.tree.flatten(dyn)
     if any(isinstance(x, jax.core.Tracer) for x in leaves):

@@ -25,7 +25,8 @@ added (:func:`sampling_delay`, ``margins(plant, ..., sample_delay=…)``) to des
 that loop.
 
 Library functions: :func:`steering_report` (``jaxbelt steering``), :func:`stability_boundary`,
-:func:`identify_plant`, :func:`response_transfer`, :func:`response_gain_margin`.
+:func:`response_gain_margin`; the plant's identification is :func:`jaxbelt.steering.plant.identify_plant`,
+the discrete loop :class:`jaxbelt.steering.response.DiscreteLoop`.
 """
 
 from __future__ import annotations
@@ -165,7 +166,6 @@ class SteeringReport(Result):
     belt_speed_m_s: float
     loop_time_s: float
     elapsed_s: float
-
 
 
 def _period_of(w):

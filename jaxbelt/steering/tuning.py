@@ -18,12 +18,13 @@ Both are ``jnp`` functions of the gains through the whole run (:func:`objective`
 loop ``L = sign(k) G C`` on two descriptions of the plant:
 
 - the identified plant (:class:`~jaxbelt.steering.plant.SteeringPlant` by
-  :func:`jaxbelt.steering.plant.identify_plant`, with the loop's recirculation;
-  :meth:`~jaxbelt.steering.plant.SteeringPlant.margins`);
+  :func:`jaxbelt.steering.plant.identify_plant`, with the loop's recirculation);
 - the measured open-loop response of the full model
   (:class:`~jaxbelt.steering.response.MeasuredResponse`: the step response of the actuator
   angle, turned into ``G(iω)`` by a Fourier sum), unless
-  ``constrain_response=False`` (a check that does not rest on the fit). On ``two-roller-steered``
+  ``constrain_response=False`` (a check that does not rest on the fit).
+
+Both through the one :func:`jaxbelt.steering.transfer.margins`. On ``two-roller-steered``
   the once-around resonance (near ``2π / T_loop``) is what limits the gain; a plant without the
   recirculation (``k e^{−θs}/(s(1+τs))``) misses it.
 
@@ -63,9 +64,9 @@ import numpy as np
 import optax
 
 from ..control import walk_rate
-from ..model import BeltModel
 from ..infra.programs import stored_jit
 from ..infra.results import Result
+from ..model import BeltModel
 from ..timeloop import RunOptions, belt_speed, simulate
 from .plant import SteeringPlant, fit_plant, identify_plant
 from .response import MeasuredResponse, actuator_step
