@@ -62,12 +62,20 @@ def program_store() -> Path | None:
     return _STORE[0]
 
 
+PACKAGE_ROOT = Path(__file__).resolve().parents[1]  # the jaxbelt package (this module lives in jaxbelt/infra)
+
+
+def source_files() -> list[Path]:
+    """Every ``.py`` file of the package, in a fixed order: what :func:`source_digest` reads."""
+    return sorted(PACKAGE_ROOT.rglob("*.py"))
+
+
 def source_digest() -> str:
     """SHA-256 of the package's ``.py`` files (names and contents), computed once per process."""
     if not _SOURCE_DIGEST:
         h = hashlib.sha256()
-        root = Path(__file__).parent
-        for p in sorted(root.rglob("*.py")):
+        root = PACKAGE_ROOT
+        for p in source_files():
             h.update(str(p.relative_to(root)).encode())
             h.update(p.read_bytes())
         _SOURCE_DIGEST.append(h.hexdigest())

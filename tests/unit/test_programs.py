@@ -92,3 +92,10 @@ def test_a_damaged_file_is_compiled_again(store):
     programs._LOADED.clear()
     assert float(energy(s, x)["e"]) == pytest.approx(5.0)
     assert len(TRACES) == 2 and path.stat().st_size > 100
+
+
+def test_source_digest_reads_the_whole_package():
+    """A stored program is keyed on every module it may have traced, not only the store's own
+    package: a change to the steady solver or the time step must give new keys."""
+    names = {p.relative_to(programs.PACKAGE_ROOT).as_posix() for p in programs.source_files()}
+    assert {"__init__.py", "steady.py", "timeloop.py", "linalg/gmres.py", "infra/programs.py"} <= names
