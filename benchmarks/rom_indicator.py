@@ -1,4 +1,4 @@
-"""The a-posteriori error estimate of the reduced models (``jaxbelt.rom.indicator.error_rom`` times
+"""The a-posteriori error estimate of the reduced models (``jaxbelt.rom.error_estimate.error_rom`` times
 the safety factor calibrated on the training data) against the true error, on configurations no
 fit has seen — every number from ``jaxbelt reduce --json`` itself (in this process, so compiled
 programs are shared between cases).

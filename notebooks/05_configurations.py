@@ -49,7 +49,7 @@ from IPython.display import Image, display
 
 import jaxbelt as jb
 from jaxbelt import plot, rom
-from jaxbelt.rom.indicator import error_rom, residual_indicator
+from jaxbelt.rom.error_estimate import error_rom, residual_indicator
 
 jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
@@ -276,7 +276,7 @@ print(f"total speedup ×{t_full / (offline + t_online):.2f} for these {len(test_
 #
 # Without the full runs, how would one know which predictions to trust? Two estimates from the
 # full-order one-step residuals of the reduced trajectory (lifted to full states), neither needing
-# a reference run. The **error ROM** (`jaxbelt.rom.indicator.error_rom`, what `jaxbelt reduce`
+# a reference run. The **error ROM** (`jaxbelt.rom.error_estimate.error_rom`, what `jaxbelt reduce`
 # reports as `error_estimate_mm`) propagates window means of the residuals through the full
 # step's Jacobian in a small residual-enriched subspace; the simpler **triangle-inequality
 # indicator** (`residual_indicator`) only accumulates the tracer residual of every `stride`-th

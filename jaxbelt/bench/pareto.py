@@ -14,7 +14,7 @@ Scene ``three-roller-t72`` (the source's §7.2 setup with the Table 7.2 misalign
 * **precision**: float32 (its own process, without ``jax_enable_x64``) against float64;
 * **reduced models** at several ranks: DMD of the post-transport states (trained on the first
   400 steps, 50 in quick mode, predicting the rest) and the fully reduced POD step
-  (:mod:`jaxbelt.rom.reduced`, trained on the same steps, all ranks from one projection).
+  (:mod:`jaxbelt.rom.pod_step`, trained on the same steps, all ranks from one projection).
 
 **Truth**: the finest run, 36 × 208 at Δt = 0.005 s (N = 14994, 4× the default's unknowns and
 steps), reuse solver with 2 refinement iterations. How converged it is: the lateral tracer

@@ -15,8 +15,8 @@ from .. import plot, rom
 from ..build import build_model
 from ..integrators import DirectBackwardEuler, Reuse
 from ..design.sampling import distribution_from_dict
-from ..rom.results import METHODS as REDUCE_METHODS
-from ..rom.results import FullRunDivergedError, ReducedRunDivergedError
+from ..rom.comparison import FullRunDivergedError, ReducedRunDivergedError
+from ..rom.config import METHODS as REDUCE_METHODS
 from ..timeloop import RunOptions
 from ._common import (SCENE_HELP, SimulationError, UsageError, check_at_least, emit, finite_or_none, fmt,
                       output_file, scene_from_args)
@@ -53,7 +53,7 @@ the nominal configuration plus one run per varied parameter, e.g. for a two-roll
 (dmdc is valid at the drive speed(s) it was trained at; vary drive speeds with pdmd).
 
 The error is the tracer RMSE in mm over the predicted steps (the source's tolerance: 0.02 mm).
-The error estimate (--stride K > 0; jaxbelt.rom.indicator.error_rom) needs no reference run: the
+The error estimate (--stride K > 0; jaxbelt.rom.error_estimate.error_rom) needs no reference run: the
 reduced trajectory's full-order residuals, averaged over windows of K steps (step by step where
 the window mean still changes, as on the start-up), are propagated through the full step's
 Jacobian in a residual-enriched subspace (with the quasi-static response of a settled

@@ -17,7 +17,7 @@ each level it:
    randomized range finder with subspace iterations
    (:func:`~jaxbelt.rom.dmd.randomized_svd`; ``O(N m k)`` against the thin SVD's ``O(N m²)``);
 3. estimates the tracer RMSE of ``held_out`` configurations drawn uniformly from the box, each
-   over the whole horizon (:func:`~jaxbelt.rom.indicator.error_rom` × a safety factor). No
+   over the whole horizon (:func:`~jaxbelt.rom.error_estimate.error_rom` × a safety factor). No
    full-order run of them is made;
 4. where they all pass, calibrates the safety factor on the training data
    (:func:`~jaxbelt.rom.calibration.calibrate`: the same fit on the first half of the window
@@ -61,9 +61,9 @@ from ..state import initial_state
 from .calibration import SAFETY_MARGIN, Calibration, calibrate
 from .dmd import randomized_svd
 from .dmdc import DMDcModel, belt_inputs, fit_dmdc_in_basis, stack_controlled
-from .indicator import BasisTrajectory, ErrorRomOptions, error_rom
-from .reduced import parameters
-from .results import CALIBRATION_RUNS
+from .error_estimate import BasisTrajectory, ErrorRomOptions, error_rom
+from .pod_step import parameters
+from .config import CALIBRATION_RUNS
 from .snapshots import collect_first_order, state_to_z, tracer_operator
 from .training import axial_design
 
@@ -154,7 +154,7 @@ def fit_over_trajectories(trajectories, inputs, modes: int) -> DMDcModel:
 @functools.partial(jax.jit, static_argnums=3)
 def prediction_trajectory(fit: DMDcModel, z0, u, n_steps: int) -> BasisTrajectory:
     """A DMDc prediction of ``n_steps`` steps from ``z0`` under the input ``u`` as
-    :func:`~jaxbelt.rom.indicator.error_rom` reads it (the start projected, the full ``z0`` as
+    :func:`~jaxbelt.rom.error_estimate.error_rom` reads it (the start projected, the full ``z0`` as
     the true start)."""
     coords = jnp.concatenate([(fit.basis.T @ z0)[None], fit.predict(z0, u, n_steps, observe=fit.basis.T)])
     return BasisTrajectory(fit.basis, coords, z0)
@@ -257,7 +257,7 @@ def calibration_cases(cfit: DMDcModel, runs, steps: int, C):
     training runs it has partly seen: for each ``(model, Z, μ, integrator)`` of ``runs`` (``Z``
     the run's post-transport snapshots, (2N, steps + 1)), the run's tracers (``C`` (n_tr, N)),
     the fit's prediction of them from ``Z[:, 0]`` over ``steps`` steps, that prediction as a
-    :class:`~jaxbelt.rom.indicator.BasisTrajectory`, and the integrator."""
+    :class:`~jaxbelt.rom.error_estimate.BasisTrajectory`, and the integrator."""
     N = C.shape[1]
     Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
     for m, Z, mu, integrator in runs:
@@ -268,7 +268,7 @@ def calibration_cases(cfit: DMDcModel, runs, steps: int, C):
 
 def _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C) -> Calibration:
     """The error estimate's safety factor from the training data: DMDc fitted on the first half
-    of the window predicts the first :data:`~jaxbelt.rom.results.CALIBRATION_RUNS` training runs
+    of the window predicts the first :data:`~jaxbelt.rom.config.CALIBRATION_RUNS` training runs
     over all of it (:func:`~jaxbelt.rom.calibration.calibrate`)."""
     cfit = fit_over_trajectories([Z[:, : max(1, steps // 2) + 1] for Z in trajs], inputs, modes)
     runs = [(m, Z, mu, integrator) for m, Z, mu in zip(models, trajs, inputs)][:CALIBRATION_RUNS]

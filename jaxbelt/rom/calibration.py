@@ -1,6 +1,6 @@
 """Trusting the error estimate, and choosing how much to train on, from training data alone.
 
-:func:`calibrate` turns :func:`~jaxbelt.rom.indicator.error_rom`'s raw estimate into a bound: it
+:func:`calibrate` turns :func:`~jaxbelt.rom.error_estimate.error_rom`'s raw estimate into a bound: it
 predicts part of the training data with a model fitted on the rest, where the true error is
 known, and scales the estimate by ``SAFETY_MARGIN / min(1, min effectivity)``
 (:func:`safety_factor`). :func:`snapshot_count` decides the number of full-order training
@@ -37,7 +37,7 @@ import numpy as np
 
 from ..integrators import AbstractIntegrator, make_solver
 from ..state import initial_state
-from .indicator import error_rom
+from .error_estimate import error_rom
 from .metrics import rmse
 from .snapshots import collect_first_order, tracer_operator
 
@@ -77,7 +77,7 @@ def calibrate(cases, dt, margin: float = SAFETY_MARGIN, **kwargs) -> Calibration
 
     ``cases``: iterable of ``(model, truth, prediction, trajectory, integrator)`` — the observed
     tracers of the full model and of a reduced model fitted on part of the training data (each
-    (n, o), m), that prediction as a :class:`~jaxbelt.rom.indicator.BasisTrajectory`, and the
+    (n, o), m), that prediction as a :class:`~jaxbelt.rom.error_estimate.BasisTrajectory`, and the
     full model's integrator for it (``None``: :func:`error_rom`'s default); ``dt`` the time step;
     ``kwargs``: further :func:`error_rom` arguments (``stride``, ``order``, ``options``, …).
     """

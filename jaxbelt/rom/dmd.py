@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .indicator import BasisTrajectory
+from .error_estimate import BasisTrajectory
 from .snapshots import collect_first_order
 
 
@@ -209,7 +209,7 @@ def stack_trajectories(trajectories):
 
 
 def dmd_coordinates(Z, fit, x_start, k: int) -> BasisTrajectory:
-    """An exact-DMD prediction (:class:`~jaxbelt.rom.DMDModel`), as :func:`~jaxbelt.rom.indicator.error_rom` reads it,
+    """An exact-DMD prediction (:class:`~jaxbelt.rom.DMDModel`), as :func:`~jaxbelt.rom.error_estimate.error_rom` reads it,
     from ``x_start`` over ``k`` steps: ``x_start`` and ``Re(Φ Λʲ b)``, j = 1 … k, as coordinates in
     an orthonormal basis of the training snapshots ``Z`` (exact DMD modes lie in their span), so
     the full states are never formed. ``x_start`` is a full-order state: no initial error."""

@@ -6,7 +6,7 @@ and found it could not predict a new configuration (§6.4.2, §7.4): a single li
 that information.
 
 **DMD with control** (Proctor, Brunton & Kutz 2016, unknown ``B``): ``x_{k+1} ≈ A x_k + B u_k``
-with the static misalignments as input, ``u = [μ; 1]`` (:func:`jaxbelt.rom.reduced.parameters`
+with the static misalignments as input, ``u = [μ; 1]`` (:func:`jaxbelt.rom.pod_step.parameters`
 plus a constant for the parameter-free forcing), fitted in POD coordinates (see
 :func:`fit_dmdc`); the prediction runs in the reduced coordinates ``ξ_{k+1} = Ã ξ_k + B̃ u_k``,
 ``x = V ξ``. The belt's step is affine in the misalignments (the fully reduced step's docstring
@@ -187,7 +187,7 @@ def interpolation_weights(P, mu):
     return (jnp.linalg.pinv(Aff / rs) @ rhs)[:, 0]
 
 
-class ParametricDMD(eqx.Module):
+class ParametricDMDModel(eqx.Module):
     """Partitioned parametric DMD: ``basis`` (N, r), per training configuration a reduced DMD
     (``eigs`` (J, k), ``modes`` (J, r, k) padded with zeros), amplitudes ``b`` (J, k) from each
     configuration's first snapshot, and the training parameters ``params`` (J, d)."""
@@ -214,7 +214,7 @@ class ParametricDMD(eqx.Module):
 
 def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: int | None = None,
                        energy_tol: float | None = None, discard_unstable: bool = True,
-                       unstable_tol: float = 1e-5, basis=None) -> ParametricDMD:
+                       unstable_tol: float = 1e-5, basis=None) -> ParametricDMDModel:
     """Parametric DMD from training ``trajectories`` (list of (N, m_j) snapshot sequences, all on
     one time axis: each starting at the same step of its configuration — in 2D one or a few
     steps after the initial state, see the module docstring) with parameters ``params`` (J, d).
@@ -228,7 +228,7 @@ def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: 
     spurious growing mode of one configuration, multiplied by its interpolation weight, ruins the
     prediction. The tolerance is not round-off: the mode that carries the static offset sits at
     ``λ ≈ 1`` with ``|λ| - 1`` up to ~1e-6 from the fit, and dropping it costs far more than it
-    saves (1D held-out test: 0.65 mm with 1e-8, 0.013 mm with 1e-5; ``(1 + 1e-5)^5000 = 1.05``). Check the error indicator (:mod:`jaxbelt.rom.indicator`) on long horizons.
+    saves (1D held-out test: 0.65 mm with 1e-8, 0.013 mm with 1e-5; ``(1 + 1e-5)^5000 = 1.05``). Check the error indicator (:mod:`jaxbelt.rom.error_estimate`) on long horizons.
     """
     if basis is not None:
         V = jnp.asarray(basis)[:, :rank]
@@ -248,7 +248,7 @@ def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: 
     amps = jnp.stack([jnp.pad(f.amplitudes(xi[:, 0]), (0, k - f.eigs.shape[0])) for f, xi in zip(fits, reduced)])
     if discard_unstable:
         amps = jnp.where(jnp.abs(eigs) > 1 + unstable_tol, 0.0, amps)
-    return ParametricDMD(V, eigs, modes, amps, jnp.asarray(params))
+    return ParametricDMDModel(V, eigs, modes, amps, jnp.asarray(params))
 
 
 def stack_controlled(trajectories, inputs):
@@ -259,5 +259,5 @@ def stack_controlled(trajectories, inputs):
     return X, Y, jnp.concatenate(list(inputs), axis=1)
 
 
-__all__ = ["DMDcModel", "fit_dmdc", "fit_dmdc_in_basis", "ParametricDMD", "fit_parametric_dmd", "interpolation_weights",
+__all__ = ["DMDcModel", "fit_dmdc", "fit_dmdc_in_basis", "ParametricDMDModel", "fit_parametric_dmd", "interpolation_weights",
            "belt_inputs", "stack_controlled", "DMDModel"]

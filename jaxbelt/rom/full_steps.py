@@ -1,7 +1,7 @@
 """The full-order step as a map on scaled first-order states, as the error estimates evaluate it:
 one step (or several) of a model's integrator, batched over states, and its Jacobian-vector
 products, each a compiled program reused by every configuration of the same mesh
-(:mod:`jaxbelt.rom.indicator` is its user)."""
+(:mod:`jaxbelt.rom.error_estimate` is its user)."""
 
 from __future__ import annotations
 

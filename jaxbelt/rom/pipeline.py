@@ -1,8 +1,8 @@
 """Train a reduced model, predict one configuration with it and compare with the full model: the
 whole of ``jaxbelt reduce`` as one function, :func:`reduce_and_compare`.
 
-**Methods** (:data:`~jaxbelt.rom.results.METHODS`): ``"pod"`` the fully reduced POD step
-(:func:`~jaxbelt.rom.reduced.fit_reduced_pod`), linearised at the first training configuration
+**Methods** (:data:`~jaxbelt.rom.config.METHODS`): ``"pod"`` the fully reduced POD step
+(:func:`~jaxbelt.rom.pod_step.fit_reduced_pod`), linearised at the first training configuration
 and run with the predicted one's parameters, predicting every step from its initial state;
 ``"dmd"`` exact DMD of the predicted configuration's own pre-transport snapshots, predicting the
 steps after the training window from its last snapshot (modes with ``|λ| > 1 + 1e-5`` dropped,
@@ -11,11 +11,11 @@ steps after the training window from its last snapshot (modes with ``|λ| > 1 + 
 initial state. The error is the tracer RMSE over the predicted steps, at the full run's recorded
 steps.
 
-**Error estimate** (``stride > 0``): the error ROM (:func:`~jaxbelt.rom.indicator.error_rom`) of
+**Error estimate** (``stride > 0``): the error ROM (:func:`~jaxbelt.rom.error_estimate.error_rom`) of
 the prediction times a safety factor calibrated on the training data only
 (:func:`~jaxbelt.rom.calibration.calibrate`): the same fit on the first half of the training window
 (DMD: the first two thirds) predicting the first training runs (at most
-:data:`~jaxbelt.rom.results.CALIBRATION_RUNS`) over the whole window.
+:data:`~jaxbelt.rom.config.CALIBRATION_RUNS`) over the whole window.
 
 **Timings** exclude compilation on both sides (the first calls, compilation included, are
 reported apart): the full run in the given solver's mode and in the reuse mode (frozen factors,
@@ -43,11 +43,12 @@ from .box import calibration_cases as dmdc_calibration_cases
 from .box import prediction_trajectory
 from .dmdc import belt_inputs, fit_dmdc, fit_parametric_dmd, stack_controlled
 from .calibration import calibrate
-from .indicator import BasisTrajectory, error_rom
+from .error_estimate import BasisTrajectory, error_rom
 from .metrics import rmse, rrmse
-from .reduced import fit_reduced_pod, parameters
-from .results import (FullRunDivergedError, ReduceConfig, ReducedRunDivergedError, ReductionEstimate, ReductionResult,
-                      Spectra, Timings)
+from .pod_step import fit_reduced_pod, parameters
+from .comparison import (FullRunDivergedError, ReducedRunDivergedError, ReductionEstimate, ReductionResult, Spectra,
+                         Timings)
+from .config import ReduceConfig
 from .snapshots import collect_first_order, state_to_z, tracer_operator
 
 REUSE_MATCH_MM = 1e-6  # the reuse mode replaces the given one only if it reproduces its tracers this closely

@@ -39,7 +39,7 @@ def collect_first_order(model, n_steps: int, dt, integrator: AbstractIntegrator 
     scaled first-order states ``z = [x; Δt ẋ]`` before each step's transport (2N, n_steps) and
     after it, the start state first (2N, n_steps + 1). The velocity is scaled by ``Δt`` so both
     halves are lengths (a POD of mixed m and m/s would weigh them by the unit system). These are
-    the snapshots of the fully reduced step (:mod:`jaxbelt.rom.reduced`)."""
+    the snapshots of the fully reduced step (:mod:`jaxbelt.rom.pod_step`)."""
     state = initial_state(model) if state is None else state
     dt = jnp.asarray(dt, model.ell.dtype)
     final, rec = _scan_recorded(model, _solver(integrator), state, dt, int(n_steps))

@@ -18,7 +18,7 @@ import jaxbelt as jb
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, tracer_operator)
 from jaxbelt.rom.calibration import calibrate, safety_factor, snapshot_count
-from jaxbelt.rom.indicator import (BasisTrajectory, ErrorRomOptions, _quasi_static_response, _split_changing_windows,
+from jaxbelt.rom.error_estimate import (BasisTrajectory, ErrorRomOptions, _quasi_static_response, _split_changing_windows,
                                   error_rom, residual_indicator, warm_error_rom)
 
 N_TRAIN, N_TEST = 100, 200

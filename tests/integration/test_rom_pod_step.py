@@ -7,9 +7,9 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ranks, parameters, pod_basis, rmse
-from jaxbelt.rom.reduced import reduced_operators
+from jaxbelt.rom.pod_step import reduced_operators
 
-N_TRAIN, N_TEST = 150, 400  # 150: the training run of test_rom_dmdc / test_rom_indicator (one compiled program)
+N_TRAIN, N_TEST = 150, 400  # 150: the training run of test_rom_dmdc / test_rom_error_estimate (one compiled program)
 DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene
 
 
