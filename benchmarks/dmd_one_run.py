@@ -57,7 +57,7 @@ def main():
     n_pred = opts.n_steps - TRAIN
 
     def one():
-        return jax.block_until_ready(dmd.dmd_forecast(model, fastest, opts.dt, TRAIN, n_pred, Cz))
+        return jax.block_until_ready(dmd.dmd_forecast(model, jb.RunOptions(fastest, TRAIN, opts.dt), n_pred, Cz))
 
     fc = one()
     one_s = min(_clock(one) for _ in range(5))

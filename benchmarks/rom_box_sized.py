@@ -76,7 +76,7 @@ def main():
 
     # the same sizing in this process, then fresh configurations against the full model
     solver = jb.DirectBackwardEuler(jb.Reuse(), transport=opts.solver.transport)
-    trained = train_over_box(nominal, labels, h, STEPS, opts.dt, solver)
+    trained = train_over_box(nominal, labels, h, jb.RunOptions(solver, STEPS, opts.dt))
     kappa = trained.calibration.safety_factor
     base = aligned(nominal)
     C = tracer_operator(nominal)
@@ -94,7 +94,7 @@ def main():
         err_t = np.sqrt(np.mean((truth - pred) ** 2, axis=1)) * 1e3
         traj = prediction_trajectory(trained.fit, z0, u, STEPS)
         est = error_rom(m, traj.basis, traj.coords, opts.dt, traj.z_true0, stride=10, order="post",
-                        integrator=solver)
+                        solver=solver)
         est_t = kappa * np.asarray(est.error_mm)[steps[keep] - 1]
         true_mm = float(rmse(truth, pred)) * 1e3
         row = dict(theta=theta.tolist(), rmse_mm=true_mm, estimate_mm=float(np.sqrt(np.mean(est_t**2))),

@@ -149,21 +149,21 @@ def ablation(paths):
     names = ["two-roller-1d", "two-roller-1d-train1", "two-roller-1d-train2"]
     ms = [load(n)[0] for n in names]
     dt = load(names[0])[1].dt  # the 1D scenes share their time step
-    runs = [collect_first_order(m, 150, dt) for m in ms]
+    runs = [collect_first_order(m, jb.RunOptions(jb.make_solver(), 150, dt)) for m in ms]
     slow, same = load(paths["two-roller-1d-drive6-slow"])[0], load(paths["two-roller-1d-drive6"])[0]
     C = tracer_operator(ms[0])
     Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
     n = 400
     tests = []
     roms = fit_reduced_pod_ranks(ms[0], jnp.concatenate([z for r in runs for z in r[1:]], axis=1), (10, 20, 30), dt)
-    Zs = collect_first_order(slow, n, dt)[2]
+    Zs = collect_first_order(slow, jb.RunOptions(jb.make_solver(), n, dt))[2]
     for r, rom in roms.items():
         xi0 = rom.project(slow, jb.initial_state(slow))
         o = rom.run(xi0, parameters(slow), n)
         tests.append((f"POD r={r}", slow, rom.basis, jnp.concatenate([xi0[None], o.xi]), Zs, o.tracer_u))
     post = [r[2] for r in runs[:2]]
     X, Y, U = stack_controlled(post, [belt_inputs(parameters(m), z.shape[1] - 1) for m, z in zip(ms[:2], post)])
-    Zd = collect_first_order(same, n, dt)[2]
+    Zd = collect_first_order(same, jb.RunOptions(jb.make_solver(), n, dt))[2]
     u = belt_inputs(parameters(same), 1)[:, 0]
     for r in (10, 30):
         f = fit_dmdc(X, Y, U, rank=r)

@@ -102,7 +102,7 @@ print(f"N = {N}; {len(train_names)} training configurations, {len(test_names)} h
 
 
 def first_order_run(chi, n):
-    return rom.collect_first_order(base.replace(chi_static=chi), n, dt=DT, integrator=reuse)
+    return rom.collect_first_order(base.replace(chi_static=chi), jb.RunOptions(reuse, n, DT))
 
 
 # the axial design of the last section: the aligned machine and each component the test runs vary
@@ -294,8 +294,8 @@ for ax, i in zip(axs, picks):
     xi0 = pod.project(m, st)
     out = pod.run(xi0, rom.parameters(m), TEST)
     coords = jnp.concatenate([xi0[None], out.xi])
-    est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, integrator=reuse)
-    ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, integrator=reuse)
+    est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, solver=reuse)
+    ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, solver=reuse)
     e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out.tracer_u)) ** 2, 1)) * 1e3
     plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est.error_mm), ax=ax,
                              estimate_label="error ROM estimate")

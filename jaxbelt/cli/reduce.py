@@ -246,7 +246,7 @@ def _sized_training(test, box, n_steps, opts, args):
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         warm = pool.submit(warm_up)
-        trained = rom.train_over_box(test, labels, half_widths, n_steps, opts.dt, solver, tol_mm=args.tol_mm,
+        trained = rom.train_over_box(test, labels, half_widths, RunOptions(solver, n_steps, opts.dt), tol_mm=args.tol_mm,
                                      held_out=args.held_out, stride=max(args.stride, 1), progress=progress)
         warm.result()
     if not trained.converged:

@@ -101,7 +101,7 @@ from ..infra.programs import stored_jit
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
 from ..rom.pod_step import reduced_operators
 from ..state import initial_state
-from ..timeloop import simulate
+from ..timeloop import RunOptions, simulate
 from .metrics import METRICS, M_TO_UM, RAD_TO_MRAD, aggregate, response_from_deviation, saturation
 from .study import Study, with_linearisation
 from .sampling import STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, standard_normal_samples
@@ -339,8 +339,8 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     """Fully reduced POD step from the training runs' snapshots, and its nominal anchor."""
     snaps = []
     for theta in train:
-        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)), study.n_steps, study.dt,
-                                               study.solver)
+        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)),
+                                               RunOptions(study.solver, study.n_steps, study.dt))
         snaps += [z_pre, z_post]
     Z = jnp.concatenate(snaps, axis=1)
     x_nominal = snaps[1][:study.model.n_unknowns, 1:]  # the nominal run after each transport

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .error_estimate import BasisTrajectory
+from ..timeloop import RunOptions
 from .snapshots import collect_first_order
 
 
@@ -163,11 +164,11 @@ class DMDForecast(eqx.Module):
     sketch_full: jax.Array
 
 
-@eqx.filter_jit
-def dmd_forecast(model, integrator, dt, n_train: int, n_predict: int, observe, tol: float = 1e-5) -> DMDForecast:
+def dmd_forecast(model, options: RunOptions, n_predict: int, observe, tol: float = 1e-5) -> DMDForecast:
     """Snapshots, fit and forecast of single-configuration DMD as one compiled program.
 
-    Runs ``n_train`` full steps of ``integrator`` from ``model``'s initial state, fits exact DMD
+    Runs ``options.n_steps`` full steps (``n_train``) of ``options.solver`` with ``options.dt``
+    from ``model``'s initial state, fits exact DMD
     to the pre-transport first-order snapshots with the randomized range finder (a sketch of
     :data:`SKETCH` columns, :func:`randomized_svd`), keeps the modes with ``|λ| ≤ 1 + tol``
     (:meth:`DMDModel.stable`) and forecasts ``n_predict`` steps after the last snapshot,
@@ -176,9 +177,14 @@ def dmd_forecast(model, integrator, dt, n_train: int, n_predict: int, observe, t
     ``Ã`` vanish, their eigenvalues are 0 and their modes zero; the other eigenpairs and modes are
     those of the rank-``r`` fit, and the least-squares amplitudes of the kept modes are unchanged.
     The forecast equals ``fit_dmd(Z).stable().predict(...)`` to round-off (where ``sketch_full``
-    is false). ``n_train`` and ``n_predict`` are static (scan lengths).
+    is false). ``n_train`` and ``n_predict`` are static (scan lengths); ``dt`` is traced.
     """
-    _, Z, _ = collect_first_order(model, n_train, dt, integrator)
+    return _dmd_forecast(model, options.solver, options.dt, int(options.n_steps), int(n_predict), observe, tol)
+
+
+@eqx.filter_jit
+def _dmd_forecast(model, solver, dt, n_train: int, n_predict: int, observe, tol: float) -> DMDForecast:
+    _, Z, _ = collect_first_order(model, RunOptions(solver, n_train, dt))
     X, Y = Z[:, :-1], Z[:, 1:]
     k = min(SKETCH, *X.shape)
     U, s, Vh = randomized_svd(X, k)

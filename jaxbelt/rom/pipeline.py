@@ -37,7 +37,7 @@ import numpy as np
 
 from ..integrators import AbstractIntegrator, DirectBackwardEuler, Reuse, solver_name
 from ..state import initial_state
-from ..timeloop import SaveAt, compile_simulate, simulate
+from ..timeloop import RunOptions, SaveAt, compile_simulate, simulate
 from .dmd import dmd_coordinates, fit_dmd
 from .box import calibration_cases as dmdc_calibration_cases
 from .box import prediction_trajectory
@@ -116,7 +116,7 @@ class _Fit:
     offline_first_s: float
     online_s: float
     estimate_input: Callable[[], BasisTrajectory]  # the prediction as error_rom reads it
-    calibration_cases: Callable[[int], Iterator]  # half -> calibrate's (model, truth, prediction, trajectory, integrator)
+    calibration_cases: Callable[[int], Iterator]  # half -> calibrate's (model, truth, prediction, trajectory, solver)
     spectra: Callable[[], Spectra]
     modes_discarded: int | None = None
     training_starts_at_step: int | None = None
@@ -130,7 +130,7 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     **Arguments:** ``model`` the configuration predicted; ``train`` the training configurations
     (same mesh; pod is linearised at the first; dmdc/pdmd need at least two: the nominal
     configuration plus one run per varied parameter); ``config`` (:class:`ReduceConfig`);
-    ``train_solvers`` each training model's own integrator (default ``config.solver``);
+    ``train_solvers`` each training model's own solver (default ``config.solver``);
     ``trained`` (dmdc only) a :class:`~jaxbelt.rom.box.BoxTraining` sized to a tolerance: its
     training runs and fit are used as they are (``train`` is then its models, the training steps
     and modes its own), and its loop's time, compilation included, is the offline time.
@@ -288,7 +288,7 @@ def _estimate(ctx: _Context, fit: _Fit, at) -> ReductionEstimate:
     t0 = time.perf_counter()
     traj = fit.estimate_input()
     est = error_rom(ctx.model, traj.basis, traj.coords, ctx.dt, traj.z_true0, stride=config.stride, order=fit.order,
-                    integrator=ctx.test_solver, options=config.estimate)
+                    solver=ctx.test_solver, options=config.estimate)
     test_s = time.perf_counter() - t0
     if ctx.trained is not None:  # calibrated on the same fit and training runs already
         cal = ctx.trained.calibration
@@ -314,7 +314,7 @@ def _fit_pod(ctx: _Context) -> _Fit:
     nominal, nominal_solver = ctx.train[0], ctx.fit_solvers[0]
 
     def train():
-        snaps = [collect_first_order(m, m_train, dt, s)[1:] for m, s in zip(ctx.train, ctx.snapshot_solvers)]
+        snaps = [collect_first_order(m, RunOptions(s, m_train, dt))[1:] for m, s in zip(ctx.train, ctx.snapshot_solvers)]
         Z = jnp.concatenate([z for p in snaps for z in p], axis=1)
         return snaps, fit_reduced_pod(nominal, Z, dt, nominal_solver, n_modes=modes)
 
@@ -344,7 +344,7 @@ def _fit_dmd(ctx: _Context) -> _Fit:
     m_train, modes, C, N, Cz = ctx.m_train, ctx.config.n_modes, ctx.C, ctx.N, ctx.Cz
 
     def train():
-        Zpre = collect_first_order(ctx.model, m_train, ctx.dt, ctx.test_solver)[1]
+        Zpre = collect_first_order(ctx.model, RunOptions(ctx.test_solver, m_train, ctx.dt))[1]
         full_fit = fit_dmd(Zpre, rank=modes)
         return Zpre, full_fit, full_fit.stable()
 
@@ -376,7 +376,7 @@ def _fit_dmd(ctx: _Context) -> _Fit:
 
 def _trajectories(ctx: _Context):
     """The post-transport snapshots ``Z_post`` (2N, m_train + 1) of every training run."""
-    return [collect_first_order(m, ctx.m_train, ctx.dt, s)[2] for m, s in zip(ctx.train, ctx.snapshot_solvers)]
+    return [collect_first_order(m, RunOptions(s, ctx.m_train, ctx.dt))[2] for m, s in zip(ctx.train, ctx.snapshot_solvers)]
 
 
 def _fit_dmdc(ctx: _Context) -> _Fit:

@@ -80,17 +80,17 @@ def with_parameters(model, mu):
     return eqx.tree_at(lambda m: (m.chi_static, m.omega), model, (mu[:q], mu[q:]))
 
 
-def solve_map(model, dt, integrator: AbstractIntegrator | None = None, run_data=None):
+def solve_map(model, dt, solver: AbstractIntegrator | None = None, run_data=None):
     """``(z, μ) -> z̃``: one full-order solve of step ``dt`` (before transport) on scaled
-    first-order states. ``run_data``: the integrator's (``integrator.init``), by default from
+    first-order states. ``run_data``: the solver's (``solver.init``), by default from
     ``model``'s initial state."""
-    integrator = make_solver() if integrator is None else integrator
+    solver = make_solver() if solver is None else solver
     if run_data is None:
-        run_data = integrator.init(model, initial_state(model), dt)
+        run_data = solver.init(model, initial_state(model), dt)
 
     def f(z, mu):
         m = with_parameters(model, mu)
-        return state_to_z(m, integrator.step(m, z_to_state(m, z, dt), dt, run_data), dt)
+        return state_to_z(m, solver.step(m, z_to_state(m, z, dt), dt, run_data), dt)
 
     return f
 
@@ -198,24 +198,24 @@ class ReducedStep(eqx.Module):
                            singular_values=self.singular_values)
 
 
-def reduced_operators(model, V, dt, integrator: AbstractIntegrator | None = None, ref_state=None, mu_ref=None,
+def reduced_operators(model, V, dt, solver: AbstractIntegrator | None = None, ref_state=None, mu_ref=None,
                       singular_values=None) -> ReducedStep:
-    """Project the full step of size ``dt`` (``integrator``'s solve, default
+    """Project the full step of size ``dt`` (``solver``'s solve, default
     :func:`jaxbelt.make_solver`'s, then the shift transport) onto ``V`` (2N, r): the
     :class:`ReducedStep` of basis ``V`` (``singular_values`` stored with it).
 
     Linearisation point: ``ref_state`` (default: the initial state of ``model``) and
     ``mu_ref`` (default :func:`parameters` of ``model``). Costs r + q + 2 Jacobian-vector products.
     """
-    integrator = make_solver() if integrator is None else integrator
-    if integrator.transport != "shift":
+    solver = make_solver() if solver is None else solver
+    if solver.transport != "shift":
         raise ValueError("the fully reduced step needs the 'shift' transport rule (masses constant)")
     ref_state = initial_state(model) if ref_state is None else ref_state
     mu_ref = parameters(model) if mu_ref is None else jnp.asarray(mu_ref)
     V = jnp.asarray(V)
     dt = jnp.asarray(dt, V.dtype)
     c = shift_functional(model)
-    ops = _operators(model, integrator, ref_state, mu_ref, V, c, dt)
+    ops = _operators(model, solver, ref_state, mu_ref, V, c, dt)
 
     def lift(C):
         return jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V
@@ -226,9 +226,9 @@ def reduced_operators(model, V, dt, integrator: AbstractIntegrator | None = None
 
 
 @eqx.filter_jit
-def _operators(model, integrator, ref_state, mu_ref, V, c, dt):
+def _operators(model, solver, ref_state, mu_ref, V, c, dt):
     z_ref = state_to_z(model, ref_state, dt)
-    solve = solve_map(model, dt, integrator, integrator.init(model, ref_state, dt))
+    solve = solve_map(model, dt, solver, solver.init(model, ref_state, dt))
     R = roller_R(model, ref_state.u)
     transport = transport_map(model, R, dt)
 
@@ -255,23 +255,23 @@ def _operators(model, integrator, ref_state, mu_ref, V, c, dt):
     return dict(A=V.T @ SV, B=V.T @ T, d=V.T @ c_full, Z=V.T @ ZV, G=V.T @ GV, H=V.T @ Hmu, h=V.T @ h0)
 
 
-def fit_reduced_pod(model, snapshots, dt, integrator: AbstractIntegrator | None = None, ref_state=None,
+def fit_reduced_pod(model, snapshots, dt, solver: AbstractIntegrator | None = None, ref_state=None,
                     mu_ref=None, **choice) -> ReducedStep:
     """Fully reduced POD model from scaled first-order snapshots (2N, m) — e.g. ``Z_pre`` and
     ``Z_post`` of :func:`~jaxbelt.rom.snapshots.collect_first_order`, of one configuration or
-    several side by side, taken with time step ``dt`` (and ``integrator``). ``choice``:
+    several side by side, taken with time step ``dt`` (and ``solver``). ``choice``:
     ``n_modes=`` / ``energy_tol=`` / ``rule="source"`` as :func:`~jaxbelt.rom.pod.pod_basis`.
     ``model``: the configuration to linearise at (use the nominal one for multi-configuration
     training)."""
     V, s = pod_basis(jnp.asarray(snapshots), **choice)
-    return reduced_operators(model, V, dt, integrator, ref_state, mu_ref, singular_values=s)
+    return reduced_operators(model, V, dt, solver, ref_state, mu_ref, singular_values=s)
 
 
-def fit_reduced_pod_ranks(model, snapshots, ranks, dt, integrator: AbstractIntegrator | None = None, ref_state=None,
+def fit_reduced_pod_ranks(model, snapshots, ranks, dt, solver: AbstractIntegrator | None = None, ref_state=None,
                           mu_ref=None) -> dict:
     """``{r: ReducedStep}`` for every ``r`` in ``ranks`` from one SVD and one projection at the
     largest rank (:meth:`ReducedStep.truncate`): the offline cost of a rank study is that of its
     largest model, compiled once."""
     ranks = sorted({int(r) for r in ranks})
-    top = fit_reduced_pod(model, snapshots, dt, integrator, ref_state, mu_ref, n_modes=ranks[-1])
+    top = fit_reduced_pod(model, snapshots, dt, solver, ref_state, mu_ref, n_modes=ranks[-1])
     return {r: top.truncate(r) for r in ranks}

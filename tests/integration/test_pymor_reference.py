@@ -25,7 +25,7 @@ R = 12
 @pytest.fixture(scope="module")
 def setup():
     m, opts = load("two-roller-1d-train1")
-    _, Zp, Zq = collect_first_order(m, 150, opts.dt)  # the training run of test_rom_dmdc / test_rom_error_estimate
+    _, Zp, Zq = collect_first_order(m, jb.RunOptions(jb.make_solver(), 150, opts.dt))  # the training run of test_rom_dmdc / test_rom_error_estimate
     Z = np.asarray(jnp.concatenate([Zp, Zq], axis=1))
     return m, opts.dt, Z
 
