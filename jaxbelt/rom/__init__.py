@@ -1,8 +1,18 @@
 """Model order reduction on the belt model (model specification §5): snapshots, metrics, modal decomposition,
 POD-Galerkin (as the source), the fully reduced POD step, exact DMD, DMD with control and
 parametric DMD, and an a-posteriori error estimate (the error ROM of :mod:`jaxbelt.rom.error_estimate`);
-:func:`reduce_and_compare` trains one and measures it against the full model (``jaxbelt reduce``)."""
+each reduction behind one interface (:mod:`jaxbelt.rom.reduced_model`: ``fit`` and
+``predict(z0, mu, n)``); :func:`reduce_and_compare` trains one and measures it against the full
+model (``jaxbelt reduce``)."""
 
+from .reduced_model import AbstractReducedModel as AbstractReducedModel
+from .reduced_model import AbstractReduction as AbstractReduction
+from .reduced_model import Prediction as Prediction
+from .reduced_model import TrainingRuns as TrainingRuns
+from .pod_step import ReducedPOD as ReducedPOD
+from .dmd import DMD as DMD
+from .dmdc import DMDc as DMDc
+from .dmdc import ParametricDMD as ParametricDMD
 from .dmd import DMDModel as DMDModel
 from .dmd import fit_dmd as fit_dmd
 from .dmd import stack_trajectories as stack_trajectories
@@ -30,7 +40,6 @@ from .modal import fit_modal as fit_modal
 from .modal import forcing_order as forcing_order
 from .modal import modal_basis as modal_basis
 from .pipeline import reduce_and_compare as reduce_and_compare
-from .pipeline import warm_full_runs as warm_full_runs
 from .config import ReduceConfig as ReduceConfig
 from .comparison import ReductionResult as ReductionResult
 from .pod import PODGalerkin as PODGalerkin

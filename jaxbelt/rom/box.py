@@ -60,10 +60,10 @@ from ..state import initial_state
 from ..timeloop import RunOptions
 from .calibration import SAFETY_MARGIN, Calibration, calibrate
 from .dmd import randomized_svd
-from .dmdc import DMDcModel, belt_inputs, fit_dmdc_in_basis, stack_controlled
-from .error_estimate import BasisTrajectory, ErrorRomOptions, error_rom
+from .dmdc import DMDcModel, belt_inputs, calibration_cases, fit_dmdc_in_basis, prediction_trajectory, stack_controlled
+from .error_estimate import ErrorRomOptions, error_rom
 from .pod_step import parameters
-from .config import CALIBRATION_RUNS
+from .reduced_model import CALIBRATION_RUNS
 from .snapshots import collect_first_order, state_to_z, tracer_operator
 from .training import axial_design
 
@@ -149,15 +149,6 @@ def fit_over_trajectories(trajectories, inputs, modes: int) -> DMDcModel:
     U, _, _ = randomized_svd(Z, k, POWER_ITERATIONS)
     X, Y, Ui = stack_controlled(trajectories, [belt_inputs(u, t.shape[1] - 1) for u, t in zip(inputs, trajectories)])
     return fit_dmdc_in_basis(U[:, : min(int(modes), k)], X, Y, Ui)
-
-
-@functools.partial(jax.jit, static_argnums=3)
-def prediction_trajectory(fit: DMDcModel, z0, u, n_steps: int) -> BasisTrajectory:
-    """A DMDc prediction of ``n_steps`` steps from ``z0`` under the input ``u`` as
-    :func:`~jaxbelt.rom.error_estimate.error_rom` reads it (the start projected, the full ``z0`` as
-    the true start)."""
-    coords = jnp.concatenate([(fit.basis.T @ z0)[None], fit.predict(z0, u, n_steps, observe=fit.basis.T)])
-    return BasisTrajectory(fit.basis, coords, z0)
 
 
 def train_over_box(nominal, components, half_widths, options: RunOptions, *,
@@ -254,23 +245,9 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
                        seconds=time.perf_counter() - t0)
 
 
-def calibration_cases(cfit: DMDcModel, runs, steps: int, C):
-    """:func:`~jaxbelt.rom.calibration.calibrate`'s cases for a DMDc fit ``cfit`` predicting
-    training runs it has partly seen: for each ``(model, Z, μ, solver)`` of ``runs`` (``Z``
-    the run's post-transport snapshots, (2N, steps + 1)), the run's tracers (``C`` (n_tr, N)),
-    the fit's prediction of them from ``Z[:, 0]`` over ``steps`` steps, that prediction as a
-    :class:`~jaxbelt.rom.error_estimate.BasisTrajectory`, and the solver."""
-    N = C.shape[1]
-    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
-    for m, Z, mu, solver in runs:
-        u = belt_inputs(mu, 1)[:, 0]
-        yield (m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], u, steps, observe=Cz),
-               prediction_trajectory(cfit, Z[:, 0], u, steps), solver)
-
-
 def _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, options, C) -> Calibration:
     """The error estimate's safety factor from the training data: DMDc fitted on the first half
-    of the window predicts the first :data:`~jaxbelt.rom.config.CALIBRATION_RUNS` training runs
+    of the window predicts the first :data:`~jaxbelt.rom.reduced_model.CALIBRATION_RUNS` training runs
     over all of it (:func:`~jaxbelt.rom.calibration.calibrate`)."""
     cfit = fit_over_trajectories([Z[:, : max(1, steps // 2) + 1] for Z in trajs], inputs, modes)
     runs = [(m, Z, mu, solver) for m, Z, mu in zip(models, trajs, inputs)][:CALIBRATION_RUNS]
@@ -278,4 +255,4 @@ def _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, option
 
 
 __all__ = ["SCHEDULE", "SizingLevel", "BoxTraining", "train_over_box", "held_out_configurations",
-           "fit_over_trajectories", "prediction_trajectory", "calibration_cases"]
+           "fit_over_trajectories"]

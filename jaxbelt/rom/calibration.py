@@ -55,12 +55,12 @@ def safety_factor(effectivities, margin: float = SAFETY_MARGIN) -> float:
 
 @dataclasses.dataclass(frozen=True)
 class CalibrationCase:
-    """One case of :func:`calibrate`: ``true_mm`` the true tracer RMSE, ``estimate_mm`` the raw
+    """One case of :func:`calibrate`: ``true_um`` the true tracer RMSE, µm, ``estimate_um`` the raw
     :func:`error_rom` estimate of it, ``effectivity`` their ratio (``nan`` for a case without
     error)."""
 
-    true_mm: float
-    estimate_mm: float
+    true_um: float
+    estimate_um: float
     effectivity: float
 
 
@@ -87,7 +87,7 @@ def calibrate(cases, dt, margin: float = SAFETY_MARGIN, **kwargs) -> Calibration
         est_mm = error_rom(model, traj.basis, traj.coords, dt, traj.z_true0, solver=solver, **kwargs).rmse_mm
         # a case without error (the reduced model reproduces its training run) says nothing
         eta = est_mm / true_mm if true_mm > 1e-12 else float("nan")
-        rows.append(CalibrationCase(true_mm=true_mm, estimate_mm=est_mm, effectivity=eta))
+        rows.append(CalibrationCase(true_um=true_mm * 1e3, estimate_um=est_mm * 1e3, effectivity=eta))
     return Calibration(safety_factor=safety_factor([r.effectivity for r in rows], margin), cases=tuple(rows))
 
 

@@ -7,8 +7,10 @@ import dataclasses
 
 import numpy as np
 
+from ..infra.results import Result, to_json
 from .calibration import CalibrationCase
 from .error_estimate import EstimateCost
+from .reduced_model import AbstractReduction, Spectra
 
 
 class FullRunDivergedError(FloatingPointError):
@@ -20,43 +22,31 @@ class ReducedRunDivergedError(FloatingPointError):
 
 
 @dataclasses.dataclass(frozen=True)
-class Timings:
-    """Seconds, compilation excluded (``offline_first_call_s`` includes it), and the speedups
-    (module docstring). ``full_runs_s``: every full mode timed, by solver name; ``full_mode`` the
-    fastest one that reproduces the given solver's; ``scene_mode_run_s`` the given solver's."""
+class ReductionCost(Result):
+    """What the reduced model cost, s, compilation excluded (``offline_first_call_s`` includes
+    it): ``offline_s`` the training runs and the fit, ``online_s`` the prediction."""
 
-    full_run_s: float
-    full_mode: str
-    full_runs_s: dict
-    scene_mode_run_s: float
     offline_s: float
     offline_first_call_s: float
     online_s: float
-    speedup_online: float
-    speedup_total: float
-    speedup_total_vs_scene_mode: float
-    speedup_per_step_online: float
-    speedup_eq_7_5: float
-    note: str = ("compilation excluded on both sides; speedups against the fastest full mode reproducing the "
-                 "scene's own to 1e-6 mm; eq. 7.5 is the source's step-count formula")
 
 
 @dataclasses.dataclass(frozen=True)
-class ReductionEstimate:
+class ReductionEstimate(Result):
     """The calibrated error estimate of a prediction.
 
-    **Fields:** ``error_mm`` (k,) the estimated tracer RMSE at each compared step, mm;
-    ``rmse_mm`` / ``max_mm`` its rms and maximum over them (``None`` without compared steps);
-    ``raw_rmse_mm`` the same before the safety factor; ``safety_factor`` and the
+    **Fields:** ``error_um`` (k,) the estimated tracer RMSE at each compared step, µm;
+    ``rmse_um`` / ``max_um`` its rms and maximum over them (``None`` without compared steps);
+    ``raw_rmse_um`` the same before the safety factor; ``safety_factor`` and the
     ``calibration`` cases it came from; ``subspace_dim``, ``projected_spectral_radius`` and
     ``cost`` of the error ROM; ``full_steps_predicted`` the full steps the estimate replaces;
     ``test_s`` the estimate's seconds, ``total_s`` with the calibration.
     """
 
-    error_mm: np.ndarray
-    rmse_mm: float | None
-    max_mm: float | None
-    raw_rmse_mm: float | None
+    error_um: np.ndarray
+    rmse_um: float | None
+    max_um: float | None
+    raw_rmse_um: float | None
     safety_factor: float
     calibration: tuple[CalibrationCase, ...]
     subspace_dim: int
@@ -68,36 +58,26 @@ class ReductionEstimate:
 
 
 @dataclasses.dataclass(frozen=True)
-class Spectra:
-    """What a plot of the fit shows: ``singular_values`` of the training snapshots, ``marked`` the
-    number of modes to mark among them (``None``: the modes used), and for DMD-type methods the
-    ``eigs`` with their ``eig_weights`` (the scaled mode norms)."""
+class ReductionResult(Result):
+    """:func:`reduce_and_compare`'s result. Tracer errors in µm, times in s.
 
-    singular_values: np.ndarray
-    marked: int | None = None
-    eigs: np.ndarray | None = None
-    eig_weights: np.ndarray | None = None
-
-
-@dataclasses.dataclass(frozen=True)
-class ReductionResult:
-    """:func:`reduce_and_compare`'s result. Errors in mm, times in s.
-
-    **Fields:** ``method``; ``modes`` the reduced dimension used; ``modes_discarded`` (dmd: the
-    unstable modes dropped, else ``None``); ``training_starts_at_step`` (pdmd: the first snapshot
-    of its per-configuration trajectories, else ``None``); ``train_steps`` per training run;
-    ``n_train_runs``; ``n_steps``; ``predict_from_step`` (the prediction covers steps
-    ``predict_from_step + 1 … n_steps``); ``compared`` the trajectory field compared
-    (``"tracer_u"``, or ``"tracer_u_solved"`` for dmd's pre-transport states); ``n_unknowns``,
-    ``n_tracers``; ``rmse_mm``, ``rrmse`` and ``max_rmse_over_time_mm`` (``None`` without compared
-    steps) of the prediction; ``t`` (k,) the compared steps' times and ``error_mm`` (k,) the tracer
-    RMSE at each; ``estimate`` (:class:`ReductionEstimate`, ``None`` with ``stride = 0``);
-    ``timings`` (:class:`Timings`); ``spectra`` (:class:`Spectra`, where asked for); ``sizing``
-    the sizing loop's levels (:class:`~jaxbelt.rom.box.SizingLevel`) where the training was sized
-    to a tolerance (:func:`~jaxbelt.rom.box.train_over_box`), else ``None``.
+    **Fields:** ``method`` the reduction; ``modes`` the reduced dimension used;
+    ``modes_discarded`` (dmd: the unstable modes dropped, else ``None``);
+    ``training_starts_at_step`` (pdmd: the first snapshot of its per-configuration trajectories,
+    else ``None``); ``train_steps`` per training run; ``n_train_runs``; ``n_steps``;
+    ``predict_from_step`` (the prediction covers steps ``predict_from_step + 1 … n_steps``);
+    ``compared`` the trajectory field compared (``"tracer_u"``, or ``"tracer_u_solved"`` for
+    dmd's pre-transport states); ``n_unknowns``, ``n_tracers``; ``rmse_um``, ``rrmse`` and
+    ``max_rmse_over_time_um`` (``None`` without compared steps) of the prediction; ``t`` (k,) the
+    compared steps' times, s, and ``error_um`` (k,) the tracer RMSE at each; ``estimate``
+    (:class:`ReductionEstimate`, ``None`` with ``stride = 0``); ``cost``
+    (:class:`ReductionCost`, ``None`` where nothing was timed); ``spectra``
+    (:class:`~jaxbelt.rom.reduced_model.Spectra`, where asked for); ``sizing`` the sizing loop's
+    levels (:class:`~jaxbelt.rom.box.SizingLevel`) where the training was sized to a tolerance
+    (:func:`~jaxbelt.rom.box.train_over_box`), else ``None``.
     """
 
-    method: str
+    method: AbstractReduction
     modes: int
     modes_discarded: int | None
     training_starts_at_step: int | None
@@ -108,13 +88,13 @@ class ReductionResult:
     compared: str
     n_unknowns: int
     n_tracers: int
-    rmse_mm: float
+    rmse_um: float
     rrmse: float
-    max_rmse_over_time_mm: float | None
+    max_rmse_over_time_um: float | None
     t: np.ndarray
-    error_mm: np.ndarray
+    error_um: np.ndarray
     estimate: ReductionEstimate | None
-    timings: Timings
+    cost: ReductionCost | None
     spectra: Spectra | None
     sizing: tuple | None = None
 
@@ -125,8 +105,11 @@ class ReductionResult:
     @property
     def effectivity(self) -> float | None:
         """Estimated over true tracer RMSE (``None`` without an estimate)."""
-        if self.estimate is None or self.estimate.rmse_mm is None:
+        if self.estimate is None or self.estimate.rmse_um is None:
             return None
-        return self.estimate.rmse_mm / self.rmse_mm
+        return self.estimate.rmse_um / self.rmse_um
 
-
+    def to_dict(self) -> dict:
+        """JSON-able data (:mod:`jaxbelt.infra.results`): the fields, ``method`` by its name."""
+        return to_json(dict(dataclasses.asdict(self), method=self.method.name, predict_steps=self.predict_steps,
+                            effectivity=self.effectivity))

@@ -33,6 +33,9 @@ Tracers are read through ``C V`` (n_tr, r): full fields are never formed online.
 
 from __future__ import annotations
 
+import functools
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -43,8 +46,10 @@ from ..assembly import roller_R
 from ..integrators import AbstractIntegrator, make_solver
 from ..state import initial_state
 from ..transport import transport_step_with_weights
+from .error_estimate import BasisTrajectory
 from .pod import pod_basis
-from .snapshots import state_to_z, tracer_operator, z_to_state
+from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns
+from .snapshots import collect_first_order, state_to_z, tracer_operator, z_to_state
 
 
 def parameters(model):
@@ -275,3 +280,63 @@ def fit_reduced_pod_ranks(model, snapshots, ranks, dt, solver: AbstractIntegrato
     ranks = sorted({int(r) for r in ranks})
     top = fit_reduced_pod(model, snapshots, dt, solver, ref_state, mu_ref, n_modes=ranks[-1])
     return {r: top.truncate(r) for r in ranks}
+
+
+@functools.partial(jax.jit, static_argnums=3)
+def _run(step: ReducedStep, xi0, mu, n_steps: int) -> ReducedTrajectory:
+    return step.run(xi0, mu, n_steps)
+
+
+class ReducedPODModel(AbstractReducedModel):
+    """The fully reduced POD step fitted by :class:`ReducedPOD`: ``step`` (:class:`ReducedStep`)
+    and its training ``snapshots``, per run ``(Z_pre, Z_post)``
+    (:func:`~jaxbelt.rom.snapshots.collect_first_order`)."""
+
+    step: ReducedStep
+    snapshots: tuple
+
+    @property
+    def n_modes(self) -> int:
+        return self.step.n_modes
+
+    def predict(self, z0, mu, n_steps: int) -> Prediction:
+        xi0 = self.step.basis.T @ z0
+        out = _run(self.step, xi0, mu, int(n_steps))
+        return Prediction(tracer_u=out.tracer_u, basis=self.step.basis, coords=jnp.concatenate([xi0[None], out.xi]),
+                          z_start=z0, order="post")
+
+    def spectra(self, z0) -> Spectra:
+        return Spectra(singular_values=np.asarray(self.step.singular_values))
+
+
+class ReducedPOD(AbstractReduction):
+    """The fully reduced POD step (module docstring) of ``modes`` modes, trained on the snapshots
+    before and after transport of every training run and linearised at the first (nominal)
+    configuration with its own solver; it predicts any configuration from its initial state."""
+
+    modes: int = 20
+    name: ClassVar[str] = "pod"
+
+    def fit(self, training: TrainingRuns) -> ReducedPODModel:
+        snaps = tuple(collect_first_order(m, training.options(i))[1:] for i, m in enumerate(training.models))
+        Z = jnp.concatenate([z for p in snaps for z in p], axis=1)
+        step = fit_reduced_pod(training.models[0], Z, training.dt, training.own_solvers[0], n_modes=self.modes)
+        return ReducedPODModel(step=step, snapshots=snaps)
+
+    def calibration_cases(self, fitted: ReducedPODModel, training: TrainingRuns, half: int):
+        C = tracer_operator(training.models[0])
+        N, m_train = C.shape[1], int(training.n_steps)
+        first_half = [Z for Zpre, Zpost in fitted.snapshots for Z in (Zpre[:, :half], Zpost[:, :half + 1])]
+        cfit = fit_reduced_pod(training.models[0], jnp.concatenate(first_half, axis=1), training.dt,
+                               training.own_solvers[0], n_modes=self.modes)
+        for m, s, (_, Zpost) in training.calibration_subset(zip(training.models, training.solvers, fitted.snapshots)):
+            x0 = cfit.project(m, initial_state(m))
+            o = cfit.run(x0, parameters(m), m_train)
+            yield m, (C @ Zpost[:N, 1:]).T, o.tracer_u, BasisTrajectory(
+                cfit.basis, jnp.concatenate([x0[None], o.xi]), Zpost[:, 0]), s
+
+    def check_training(self, model, train, solvers):
+        super().check_training(model, train, solvers)
+        for i, s in enumerate(solvers):
+            if s.transport != "shift":
+                raise ValueError(f"pod needs the 'shift' transport rule; training model {i} uses {s.transport!r}")
