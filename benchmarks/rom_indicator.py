@@ -128,10 +128,10 @@ def run_case(argv):
     e = r["error_estimate"]
     return dict(
         scene=r["scene"], method=r["method"], modes=r["modes"], predict_steps=r["predict_steps"], compared=r["compared"],
-        rmse_mm=r["rmse_mm"], error_estimate_mm=r["error_estimate_mm"], effectivity=r["effectivity"],
-        max_rmse_over_time_mm=r["max_rmse_over_time_mm"], error_estimate_max_mm=r["error_estimate_max_mm"],
-        effectivity_max=r["error_estimate_max_mm"] / r["max_rmse_over_time_mm"],
-        raw_effectivity=e["raw_rmse_mm"] / r["rmse_mm"], safety_factor=e["safety_factor"],
+        rmse_mm=r["rmse_um"] / 1e3, error_estimate_mm=r["error_estimate_um"] / 1e3, effectivity=r["effectivity"],
+        max_rmse_over_time_mm=r["max_rmse_over_time_um"] / 1e3, error_estimate_max_mm=r["error_estimate_max_um"] / 1e3,
+        effectivity_max=r["error_estimate_max_um"] / r["max_rmse_over_time_um"],
+        raw_effectivity=e["raw_rmse_um"] / r["rmse_um"], safety_factor=e["safety_factor"],
         calibration_effectivities=[c["effectivity"] for c in e["calibration"]], cost=e["cost"],
         subspace_dim=e["subspace_dim"], estimate_s=e["total_s"], estimate_test_s=e["test_s"],
         full_run_s=r["timings"]["full_run_s"], full_mode=r["timings"]["full_mode"], wall_s=wall)

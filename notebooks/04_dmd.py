@@ -227,7 +227,7 @@ with tempfile.TemporaryDirectory() as tmp:
 assert code == 0
 rep = json.loads(buf.getvalue())
 tm = rep["timings"]
-print(f"jaxbelt reduce (DMD, {rep['train_steps']} snapshots, {rep['modes']} modes): RMSE {rep['rmse_mm']:.2e} mm")
+print(f"jaxbelt reduce (DMD, {rep['train_steps']} snapshots, {rep['modes']} modes): RMSE {rep['rmse_um']:.3g} µm")
 print(f"full run {tm['full_run_s']:.2f} s ({tm['full_mode']}); offline {tm['offline_s']:.2f} s, online {tm['online_s']:.3f} s")
 print(f"speedup online ×{tm['speedup_online']:.0f}, per step ×{tm['speedup_per_step_online']:.0f}; "
       f"total ×{tm['speedup_total']:.1f} (eq. 7.5: ×{tm['speedup_eq_7_5']:.1f}); source: ×7.2 per step, ×4.8 total")

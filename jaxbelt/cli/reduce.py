@@ -56,22 +56,22 @@ the nominal configuration plus one run per varied parameter, e.g. for a two-roll
   --train two-roller-1d two-roller-1d-train1
 (dmdc is valid at the drive speed(s) it was trained at; vary drive speeds with pdmd).
 
-The error is the tracer RMSE in mm over the predicted steps (the source's tolerance: 0.02 mm).
+The error is the tracer RMSE in µm over the predicted steps (the source's tolerance: 20 µm).
 The error estimate (--stride K > 0; jaxbelt.rom.error_estimate.error_rom) needs no reference run: the
 reduced trajectory's full-order residuals, averaged over windows of K steps (step by step where
 the window mean still changes, as on the start-up), are propagated through the full step's
 Jacobian in a residual-enriched subspace (with the quasi-static response of a settled
 residual), and multiplied by a safety
 factor calibrated on the training data (the same fit on the first half of the training window,
-predicting the training runs over the whole window). error_estimate_mm estimates rmse_mm,
-error_estimate_max_mm max_rmse_over_time_mm; effectivity = error_estimate_mm / rmse_mm.
+predicting the training runs over the whole window). error_estimate_um estimates rmse_um,
+error_estimate_max_um max_rmse_over_time_um; effectivity = error_estimate_um / rmse_um.
 
 Times exclude compilation on both sides (as with a warm compilation cache; the first calls,
 compilation included, are reported apart): the full run in the scene's own mode and in the
 reuse mode (frozen factors), offline = snapshot runs (in the fastest full mode) + fit, online =
 the reduced prediction.
 Speedups: "speedup total" = the fastest full mode that reproduces the scene's own mode to
-1e-6 mm / (offline + online) — the honest figure; "vs scene mode" the same against the scene's
+1e-3 µm / (offline + online) — the honest figure; "vs scene mode" the same against the scene's
 own mode; "eq. 7.5" the source's step-count formula n / (n_train + n_predicted / s), s the
 per-step online speedup against the fastest full mode.
 """
