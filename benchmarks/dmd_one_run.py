@@ -24,6 +24,7 @@ from _common import write
 
 import jaxbelt as jb
 from jaxbelt import rom
+from jaxbelt.bench.reduction import reduce_and_time
 from jaxbelt.rom import dmd
 
 SCENE, TRAIN = "three-roller-t72", 400
@@ -33,7 +34,7 @@ def main():
     jb.enable_x64()
     sc = jb.load_scene(SCENE)
     model, opts = jb.build_model(sc), jb.RunOptions.from_scene(sc)
-    config = rom.ReduceConfig(method="dmd", n_steps=opts.n_steps, dt=opts.dt, solver=opts.solver, train_steps=TRAIN,
+    config = rom.ReduceConfig(method=rom.DMD(), n_steps=opts.n_steps, dt=opts.dt, solver=opts.solver, train_steps=TRAIN,
                               stride=0)
     fastest = jb.DirectBackwardEuler(jb.Reuse())
     jax.block_until_ready(jb.simulate(model, fastest, n_steps=TRAIN, dt=opts.dt))
@@ -42,13 +43,13 @@ def main():
     out = dict(scene=SCENE, train_steps=TRAIN, n_steps=opts.n_steps, snapshot_steps_s=snap_s, variants={})
     full_fit = dmd.fit_dmd
     for name, svd in (("randomized", "auto"), ("full", "full")):
-        with mock.patch.object(rom.pipeline, "fit_dmd", lambda X, rank=None, svd=svd: full_fit(X, rank=rank, svd=svd)):
-            runs = [rom.reduce_and_compare(model, [model], config) for _ in range(3)]
+        with mock.patch.object(rom.dmd, "fit_dmd", lambda X, rank=None, svd=svd: full_fit(X, rank=rank, svd=svd)):
+            runs = [reduce_and_time(model, [model], config) for _ in range(3)]
         best = min(runs, key=lambda r: r.timings.offline_s + r.timings.online_s)
         t = dataclasses.asdict(best.timings)
         row = dict(offline_s=t["offline_s"], online_s=t["online_s"], full_run_s=t["full_run_s"],
                    full_mode=t["full_mode"], speedup_total=t["full_run_s"] / (t["offline_s"] + t["online_s"]),
-                   offline_over_snapshot_steps=t["offline_s"] / snap_s, rmse_mm=best.rmse_mm, modes=best.modes)
+                   offline_over_snapshot_steps=t["offline_s"] / snap_s, rmse_mm=best.result.rmse_um / 1e3, modes=best.result.modes)
         out["variants"][name] = row
         print(name, row, flush=True)
     # snapshots, fit and forecast as one compiled program (rom.dmd.dmd_forecast), the same fastest full run
@@ -57,7 +58,7 @@ def main():
     n_pred = opts.n_steps - TRAIN
 
     def one():
-        return jax.block_until_ready(dmd.dmd_forecast(model, fastest, opts.dt, TRAIN, n_pred, Cz))
+        return jax.block_until_ready(dmd.dmd_forecast(model, jb.RunOptions(fastest, TRAIN, opts.dt), n_pred, Cz))
 
     fc = one()
     one_s = min(_clock(one) for _ in range(5))

@@ -30,7 +30,7 @@ def err_mm(ref, tr):
 def study(model, dt, n_steps, ranks):
     eliminated = jb.make_solver("eliminated")
     _, ref = jb.simulate(model, eliminated, n_steps=n_steps, dt=dt)
-    _, X, _ = collect_snapshots(model, TRAIN, dt, eliminated)
+    _, X, _ = collect_snapshots(model, jb.RunOptions(eliminated, TRAIN, dt))
     dyn, _ = model.partition
     out = {"n_unknowns": int(model.n_unknowns), "n_dynamic": len(dyn), "steps": n_steps, "ranks": list(ranks),
            "train_steps_pod": TRAIN}

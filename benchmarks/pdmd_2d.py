@@ -90,7 +90,7 @@ def main():
     t0 = time.perf_counter()
     trajs, full_train, mus = [], [], []
     for m in models:
-        _, _, Zq = collect_first_order(m, STEPS, dt, REUSE)
+        _, _, Zq = collect_first_order(m, jb.RunOptions(REUSE, STEPS, dt))
         trajs.append(Zq[:, :TRAIN + 1:STRIDE])  # z_0, z_STRIDE, … z_TRAIN (the start state first)
         full_train.append(np.asarray((obs @ Zq[:, 1:]).T)[sel])  # steps STRIDE … STEPS: (STEPS / STRIDE, 2 n_tr)
         mus.append(parameters(m))

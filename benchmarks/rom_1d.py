@@ -24,7 +24,7 @@ def held_out(n_train=150, n_test=400):
     loaded = [load(n) for n in names]
     ms = [m for m, _ in loaded]
     dt = loaded[0][1].dt  # the three scenes share their time step
-    runs = [collect_first_order(m, n_train, dt) for m in ms]
+    runs = [collect_first_order(m, jb.RunOptions(jb.make_solver(), n_train, dt)) for m in ms]
     m0 = ms[0]
     C = tracer_operator(m0)
     Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
@@ -48,7 +48,7 @@ def held_out(n_train=150, n_test=400):
     # DMDc at the nominal speed: nominal + run 1 (same speed), tested on -6 mm
     post = [r[2] for r in runs[:2]]
     X, Y, U = stack_controlled(post, [belt_inputs(parameters(m), z.shape[1] - 1) for m, z in zip(ms[:2], post)])
-    z0 = collect_first_order(same_speed, 1, dt)[2][:, 0]
+    z0 = collect_first_order(same_speed, jb.RunOptions(jb.make_solver(), 1, dt))[2][:, 0]
     u = belt_inputs(parameters(same_speed), 1)[:, 0]
     for r in (10, 20, 30, 40):
         res[f"dmdc_pod_{r}_mm"] = err("same", fit_dmdc(X, Y, U, rank=r).predict(z0, u, n_test, observe=Cz))
@@ -67,14 +67,14 @@ def held_out(n_train=150, n_test=400):
 def main():
     m, opts = load("two-roller-1d-train1")
     dt = opts.dt
-    state, X, _ = collect_snapshots(m, 50, dt)
+    state, X, _ = collect_snapshots(m, jb.RunOptions(jb.make_solver(), 50, dt))
     _, ref = jb.simulate(m, jb.make_solver("eliminated"), n_steps=100, dt=dt, y0=state)
     pod = {}
     for r in (1, 3, 5, 10, 20):
         _, tr = jb.simulate(m, fit_pod(m, X, n_modes=r), n_steps=100, dt=dt, y0=state)
         pod[r] = float(rmse(ref.tracer_u, tr.tracer_u)) * 1e3
         print(f"POD {r:3d} modes: RMSE {pod[r]:.3e} mm")
-    state, X, Xd = collect_snapshots(m, 150, dt)
+    state, X, Xd = collect_snapshots(m, jb.RunOptions(jb.make_solver(), 150, dt))
     Z = first_order(X, Xd)
     dmd = fit_dmd(Z).stable()
     _, tr = jb.simulate(m, n_steps=200, dt=dt, y0=state)

@@ -55,7 +55,7 @@ def main():
 
     # ---------- A: POD single configuration ----------
     n_single = min(N_SINGLE, n_full // 2)
-    t_snap, (_, Zp, Zq) = clock(lambda: collect_first_order(m, n_single, dt, REUSE))
+    t_snap, (_, Zp, Zq) = clock(lambda: collect_first_order(m, jb.RunOptions(REUSE, n_single, dt)))
     Z = jnp.concatenate([Zp, Zq], axis=1)
     st0 = jb.initial_state(m)
     pod = {}
@@ -76,7 +76,7 @@ def main():
 
     # ---------- B: DMD from 400 snapshots (pre-transport, source's setup) ----------
     n_dmd = min(N_DMD, n_full // 2)
-    t_snap, (_, Zp, _) = clock(lambda: collect_first_order(m, n_dmd, dt, REUSE))
+    t_snap, (_, Zp, _) = clock(lambda: collect_first_order(m, jb.RunOptions(REUSE, n_dmd, dt)))
     t_fit, dmd = clock(lambda: fit_dmd(Zp))
     C = tracer_operator(m)
     obs = jnp.concatenate([jnp.concatenate([C, jnp.zeros_like(C)], 1),
@@ -109,7 +109,7 @@ def main():
     tm, snaps_pod, snaps_post, mus = [], [], [], []
     for name in train:
         mm, _ = load(name)
-        _, Zp, Zq = collect_first_order(mm, n_multi, dt, REUSE)
+        _, Zp, Zq = collect_first_order(mm, jb.RunOptions(REUSE, n_multi, dt))
         tm.append(mm)
         snaps_pod.append(jnp.concatenate([Zp[:, ::2], Zq[:, ::2]], axis=1))
         snaps_post.append(Zq)

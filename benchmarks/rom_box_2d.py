@@ -41,7 +41,7 @@ def main():
     t0 = time.perf_counter()
     post, both, mus = [], [], []
     for m in models:
-        _, Zp, Zq = collect_first_order(m, TRAIN, dt, REUSE)
+        _, Zp, Zq = collect_first_order(m, jb.RunOptions(REUSE, TRAIN, dt))
         post.append(Zq[:, ::STRIDE])
         both.append(jnp.concatenate([Zp[:, ::STRIDE], Zq[:, ::STRIDE]], axis=1))
         mus.append(parameters(m))

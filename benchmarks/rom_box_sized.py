@@ -30,7 +30,8 @@ import jaxbelt as jb
 from _common import RESULTS, load, machine, write
 from jaxbelt.misalignment import aligned, apply, parameter_space
 from jaxbelt.rom import belt_inputs, error_rom, parameters, rmse, state_to_z, tracer_operator, train_over_box
-from jaxbelt.rom.box import held_out_configurations, prediction_trajectory
+from jaxbelt.rom.box import held_out_configurations
+from jaxbelt.rom.dmdc import prediction_trajectory
 
 SCENE, STEPS, N_FRESH, FRESH_SEED = "three-roller", 1500, 12, 1
 TRANSLATION_MM, ROTATION_MRAD = 3.0, 0.5
@@ -68,15 +69,15 @@ def main():
         cache = str(Path(d) / "xla")
         for label in ("empty_cache", "warm_cache"):
             wall, report = command(box_path, cache)
-            runs[label] = dict(wall_s=wall, sizing=report["sizing"], rmse_mm=report["rmse_mm"],
-                               error_estimate_mm=report["error_estimate_mm"], effectivity=report["effectivity"],
+            runs[label] = dict(wall_s=wall, sizing=report["sizing"], rmse_mm=report["rmse_um"] / 1e3,
+                               error_estimate_mm=report["error_estimate_um"] / 1e3, effectivity=report["effectivity"],
                                modes=report["modes"], train_steps=report["train_steps"],
                                offline_s=report["timings"]["offline_s"])
             print(f"{label}: {wall:.1f} s, {report['train_steps']} steps, {report['modes']} modes", flush=True)
 
     # the same sizing in this process, then fresh configurations against the full model
     solver = jb.DirectBackwardEuler(jb.Reuse(), transport=opts.solver.transport)
-    trained = train_over_box(nominal, labels, h, STEPS, opts.dt, solver)
+    trained = train_over_box(nominal, labels, h, jb.RunOptions(solver, STEPS, opts.dt))
     kappa = trained.calibration.safety_factor
     base = aligned(nominal)
     C = tracer_operator(nominal)
@@ -94,7 +95,7 @@ def main():
         err_t = np.sqrt(np.mean((truth - pred) ** 2, axis=1)) * 1e3
         traj = prediction_trajectory(trained.fit, z0, u, STEPS)
         est = error_rom(m, traj.basis, traj.coords, opts.dt, traj.z_true0, stride=10, order="post",
-                        integrator=solver)
+                        solver=solver)
         est_t = kappa * np.asarray(est.error_mm)[steps[keep] - 1]
         true_mm = float(rmse(truth, pred)) * 1e3
         row = dict(theta=theta.tolist(), rmse_mm=true_mm, estimate_mm=float(np.sqrt(np.mean(est_t**2))),

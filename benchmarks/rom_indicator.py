@@ -1,4 +1,4 @@
-"""The a-posteriori error estimate of the reduced models (``jaxbelt.rom.indicator.error_rom`` times
+"""The a-posteriori error estimate of the reduced models (``jaxbelt.rom.error_estimate.error_rom`` times
 the safety factor calibrated on the training data) against the true error, on configurations no
 fit has seen — every number from ``jaxbelt reduce --json`` itself (in this process, so compiled
 programs are shared between cases).
@@ -128,10 +128,10 @@ def run_case(argv):
     e = r["error_estimate"]
     return dict(
         scene=r["scene"], method=r["method"], modes=r["modes"], predict_steps=r["predict_steps"], compared=r["compared"],
-        rmse_mm=r["rmse_mm"], error_estimate_mm=r["error_estimate_mm"], effectivity=r["effectivity"],
-        max_rmse_over_time_mm=r["max_rmse_over_time_mm"], error_estimate_max_mm=r["error_estimate_max_mm"],
-        effectivity_max=r["error_estimate_max_mm"] / r["max_rmse_over_time_mm"],
-        raw_effectivity=e["raw_rmse_mm"] / r["rmse_mm"], safety_factor=e["safety_factor"],
+        rmse_mm=r["rmse_um"] / 1e3, error_estimate_mm=r["error_estimate_um"] / 1e3, effectivity=r["effectivity"],
+        max_rmse_over_time_mm=r["max_rmse_over_time_um"] / 1e3, error_estimate_max_mm=r["error_estimate_max_um"] / 1e3,
+        effectivity_max=r["error_estimate_max_um"] / r["max_rmse_over_time_um"],
+        raw_effectivity=e["raw_rmse_um"] / r["rmse_um"], safety_factor=e["safety_factor"],
         calibration_effectivities=[c["effectivity"] for c in e["calibration"]], cost=e["cost"],
         subspace_dim=e["subspace_dim"], estimate_s=e["total_s"], estimate_test_s=e["test_s"],
         full_run_s=r["timings"]["full_run_s"], full_mode=r["timings"]["full_mode"], wall_s=wall)
@@ -149,21 +149,21 @@ def ablation(paths):
     names = ["two-roller-1d", "two-roller-1d-train1", "two-roller-1d-train2"]
     ms = [load(n)[0] for n in names]
     dt = load(names[0])[1].dt  # the 1D scenes share their time step
-    runs = [collect_first_order(m, 150, dt) for m in ms]
+    runs = [collect_first_order(m, jb.RunOptions(jb.make_solver(), 150, dt)) for m in ms]
     slow, same = load(paths["two-roller-1d-drive6-slow"])[0], load(paths["two-roller-1d-drive6"])[0]
     C = tracer_operator(ms[0])
     Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
     n = 400
     tests = []
     roms = fit_reduced_pod_ranks(ms[0], jnp.concatenate([z for r in runs for z in r[1:]], axis=1), (10, 20, 30), dt)
-    Zs = collect_first_order(slow, n, dt)[2]
+    Zs = collect_first_order(slow, jb.RunOptions(jb.make_solver(), n, dt))[2]
     for r, rom in roms.items():
         xi0 = rom.project(slow, jb.initial_state(slow))
         o = rom.run(xi0, parameters(slow), n)
         tests.append((f"POD r={r}", slow, rom.basis, jnp.concatenate([xi0[None], o.xi]), Zs, o.tracer_u))
     post = [r[2] for r in runs[:2]]
     X, Y, U = stack_controlled(post, [belt_inputs(parameters(m), z.shape[1] - 1) for m, z in zip(ms[:2], post)])
-    Zd = collect_first_order(same, n, dt)[2]
+    Zd = collect_first_order(same, jb.RunOptions(jb.make_solver(), n, dt))[2]
     u = belt_inputs(parameters(same), 1)[:, 0]
     for r in (10, 30):
         f = fit_dmdc(X, Y, U, rank=r)

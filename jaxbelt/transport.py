@@ -162,7 +162,7 @@ def transport_step_with_weights(model: BeltModel, u, u_dot, chi, m_e, s=None, R=
 
     ``s`` (shift rule only) imposes the shift instead of ``mean(ũ)`` and ``R`` freezes the roller
     kinematics used for the roller-relative correction: with both given the step is affine in
-    ``(u, u_dot, chi)`` — what the fully reduced step (:mod:`jaxbelt.rom.reduced`) projects.
+    ``(u, u_dot, chi)`` — what the fully reduced step (:mod:`jaxbelt.rom.pod_step`) projects.
     ``static_offset``: :func:`jaxbelt.assembly.static_surface_offset`, if already computed."""
     ux = _x_dofs(model, u)
     if rule not in TRANSPORT_RULES:

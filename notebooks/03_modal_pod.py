@@ -122,7 +122,7 @@ for order in ("frequency", "forcing"):
 # the first 50 steps, the reduced solve in their span, the transport on the full state.
 
 # %%
-_, X1, _ = rom.collect_snapshots(m1, TRAIN_1D, dt=DT1, integrator=jb.make_solver("eliminated"))
+_, X1, _ = rom.collect_snapshots(m1, jb.RunOptions(jb.make_solver("eliminated"), TRAIN_1D, DT1))
 dyn, _ = m1.partition  # (dynamic, algebraic) unknowns
 _, sv1 = rom.pod_basis(X1[jnp.asarray(dyn)], n_modes=1)
 # check=False: a basis with modes of numerically zero energy can make the projected step unstable;
@@ -170,7 +170,7 @@ m2, DT2 = jb.build_model(sc2), sc2.time.dt  # Δt = 0.02 s
 reuse2 = jb.make_solver("direct", "reuse")
 t0 = time.perf_counter()
 # one full run gives both the training snapshots (its first TRAIN_2D steps) and the reference
-_, Zpre, Zpost = jax.block_until_ready(rom.collect_first_order(m2, STEPS_2D, dt=DT2, integrator=reuse2))
+_, Zpre, Zpost = jax.block_until_ready(rom.collect_first_order(m2, jb.RunOptions(reuse2, STEPS_2D, DT2)))
 N2 = m2.n_unknowns
 ref_u = (rom.tracer_operator(m2, "x") @ Zpost[:N2, 1:]).T  # tracers after each step's transport
 ref_v = (rom.tracer_operator(m2, "z") @ Zpost[:N2, 1:]).T
@@ -243,7 +243,7 @@ thetas = jnp.diag(jnp.array([5.0, 5.0, 0.5, 0.5, 0.5, 5.0]))  # mm / mrad: Table
 
 def snapshots(theta):
     m = misalignment.apply(base, space, theta)
-    return rom.collect_snapshots(m, 50, dt=DT2, integrator=reuse2)[1][:, 3:]  # pre-transport x̃, steps 4 … 50
+    return rom.collect_snapshots(m, jb.RunOptions(reuse2, 50, DT2))[1][:, 3:]  # pre-transport x̃, steps 4 … 50
 
 
 t0 = time.perf_counter()

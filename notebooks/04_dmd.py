@@ -85,7 +85,7 @@ model, DT = jb.build_model(scene), scene.time.dt  # Δt = 0.02 s
 N = model.n_unknowns
 reuse = jb.make_solver("direct", "reuse")
 t0 = time.perf_counter()
-_, Zpre, _ = jax.block_until_ready(rom.collect_first_order(model, STEPS, dt=DT, integrator=reuse))
+_, Zpre, _ = jax.block_until_ready(rom.collect_first_order(model, jb.RunOptions(reuse, STEPS, DT)))
 print(f"N = {N} (2N = {2 * N} per snapshot); {STEPS} steps in {time.perf_counter() - t0:.1f} s (compilation included)")
 Cx, Cz = rom.tracer_operator(model, "x"), rom.tracer_operator(model, "z")
 obs = jnp.concatenate([jnp.concatenate([Cx, 0 * Cx], 1), jnp.concatenate([Cz, 0 * Cz], 1)])  # tracers from z
@@ -227,7 +227,7 @@ with tempfile.TemporaryDirectory() as tmp:
 assert code == 0
 rep = json.loads(buf.getvalue())
 tm = rep["timings"]
-print(f"jaxbelt reduce (DMD, {rep['train_steps']} snapshots, {rep['modes']} modes): RMSE {rep['rmse_mm']:.2e} mm")
+print(f"jaxbelt reduce (DMD, {rep['train_steps']} snapshots, {rep['modes']} modes): RMSE {rep['rmse_um']:.3g} µm")
 print(f"full run {tm['full_run_s']:.2f} s ({tm['full_mode']}); offline {tm['offline_s']:.2f} s, online {tm['online_s']:.3f} s")
 print(f"speedup online ×{tm['speedup_online']:.0f}, per step ×{tm['speedup_per_step_online']:.0f}; "
       f"total ×{tm['speedup_total']:.1f} (eq. 7.5: ×{tm['speedup_eq_7_5']:.1f}); source: ×7.2 per step, ×4.8 total")
@@ -255,7 +255,7 @@ chis = jnp.stack([jb.build_model(on_grid(n)).chi_static for n in names])
 
 
 def first_order_run(chi):
-    return rom.collect_first_order(model.replace(chi_static=chi), MULTI_STEPS, dt=DT, integrator=reuse)[1]
+    return rom.collect_first_order(model.replace(chi_static=chi), jb.RunOptions(reuse, MULTI_STEPS, DT))[1]
 
 
 Zs = jax.vmap(first_order_run)(chis)  # (3, 2N, MULTI_STEPS), one compiled batch

@@ -49,7 +49,7 @@ from IPython.display import Image, display
 
 import jaxbelt as jb
 from jaxbelt import plot, rom
-from jaxbelt.rom.indicator import error_rom, residual_indicator
+from jaxbelt.rom.error_estimate import error_rom, residual_indicator
 
 jb.enable_x64()  # jaxbelt's results are meant in float64
 SMALL = os.environ.get("JAXBELT_NOTEBOOK_SMALL") == "1"  # the test suite's quick run
@@ -102,7 +102,7 @@ print(f"N = {N}; {len(train_names)} training configurations, {len(test_names)} h
 
 
 def first_order_run(chi, n):
-    return rom.collect_first_order(base.replace(chi_static=chi), n, dt=DT, integrator=reuse)
+    return rom.collect_first_order(base.replace(chi_static=chi), jb.RunOptions(reuse, n, DT))
 
 
 # the axial design of the last section: the aligned machine and each component the test runs vary
@@ -276,7 +276,7 @@ print(f"total speedup ×{t_full / (offline + t_online):.2f} for these {len(test_
 #
 # Without the full runs, how would one know which predictions to trust? Two estimates from the
 # full-order one-step residuals of the reduced trajectory (lifted to full states), neither needing
-# a reference run. The **error ROM** (`jaxbelt.rom.indicator.error_rom`, what `jaxbelt reduce`
+# a reference run. The **error ROM** (`jaxbelt.rom.error_estimate.error_rom`, what `jaxbelt reduce`
 # reports as `error_estimate_mm`) propagates window means of the residuals through the full
 # step's Jacobian in a small residual-enriched subspace; the simpler **triangle-inequality
 # indicator** (`residual_indicator`) only accumulates the tracer residual of every `stride`-th
@@ -294,8 +294,8 @@ for ax, i in zip(axs, picks):
     xi0 = pod.project(m, st)
     out = pod.run(xi0, rom.parameters(m), TEST)
     coords = jnp.concatenate([xi0[None], out.xi])
-    est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, integrator=reuse)
-    ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, integrator=reuse)
+    est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, solver=reuse)
+    ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, solver=reuse)
     e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out.tracer_u)) ** 2, 1)) * 1e3
     plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est.error_mm), ax=ax,
                              estimate_label="error ROM estimate")

@@ -14,7 +14,7 @@ Scene ``three-roller-t72`` (the source's §7.2 setup with the Table 7.2 misalign
 * **precision**: float32 (its own process, without ``jax_enable_x64``) against float64;
 * **reduced models** at several ranks: DMD of the post-transport states (trained on the first
   400 steps, 50 in quick mode, predicting the rest) and the fully reduced POD step
-  (:mod:`jaxbelt.rom.reduced`, trained on the same steps, all ranks from one projection).
+  (:mod:`jaxbelt.rom.pod_step`, trained on the same steps, all ranks from one projection).
 
 **Truth**: the finest run, 36 × 208 at Δt = 0.005 s (N = 14994, 4× the default's unknowns and
 steps), reuse solver with 2 refinement iterations. How converged it is: the lateral tracer
@@ -129,7 +129,7 @@ def _reduced_models(model, n_steps, dt, n_train, dmd_ranks, pod_ranks, repeat, t
     n = int(n_steps)
     k = int(round(OUT_DT / dt))
     s0 = initial_state(model)
-    snap = eqx.filter_jit(lambda m, t: collect_first_order(m, n_train, t, reuse)).lower(model, jnp.asarray(dt)).compile()
+    snap = eqx.filter_jit(lambda m, t: collect_first_order(m, RunOptions(reuse, n_train, t))).lower(model, jnp.asarray(dt)).compile()
     snap_bytes = compiled_bytes(snap)
     snap(model, jnp.asarray(dt))
     t_snap = min(clock(snap, model, jnp.asarray(dt))[0] for _ in range(repeat))
@@ -163,7 +163,7 @@ def _reduced_models(model, n_steps, dt, n_train, dmd_ranks, pod_ranks, repeat, t
                                      train_steps=n_train, **_errors(u, v, truth))
         _log(f"  DMD r={label}: {rows[f'DMD r={label}']['lateral_max_um']:.3g} µm lateral")
     Z = jnp.concatenate([Zp, Zq], axis=1)
-    t_fit, roms = fit_time(lambda: fit_reduced_pod_ranks(model, Z, pod_ranks, dt=dt, integrator=reuse))
+    t_fit, roms = fit_time(lambda: fit_reduced_pod_ranks(model, Z, pod_ranks, dt=dt, solver=reuse))
     mu = parameters(model)
     for r, rom in roms.items():
         xi0 = rom.project(model, s0)

@@ -12,15 +12,19 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .. import plot, rom
+from ..bench.reduction import reduce_and_time, warm_full_runs
 from ..build import build_model
 from ..integrators import DirectBackwardEuler, Reuse
 from ..design.sampling import distribution_from_dict
-from ..rom.results import METHODS as REDUCE_METHODS
-from ..rom.results import FullRunDivergedError, ReducedRunDivergedError
+from ..infra.results import to_json
+from ..rom.comparison import FullRunDivergedError, ReducedRunDivergedError
 from ..timeloop import RunOptions
 from ._common import (SCENE_HELP, SimulationError, UsageError, check_at_least, emit, finite_or_none, fmt,
                       output_file, scene_from_args)
 from ._design import read_toml
+
+REDUCTIONS = {"pod": rom.ReducedPOD, "dmd": rom.DMD, "dmdc": rom.DMDc, "pdmd": rom.ParametricDMD}
+"""The reductions by their --method name."""
 
 REDUCE_HELP = """\
 Train a reduced model and compare its tracer displacements with the full model's.
@@ -52,22 +56,22 @@ the nominal configuration plus one run per varied parameter, e.g. for a two-roll
   --train two-roller-1d two-roller-1d-train1
 (dmdc is valid at the drive speed(s) it was trained at; vary drive speeds with pdmd).
 
-The error is the tracer RMSE in mm over the predicted steps (the source's tolerance: 0.02 mm).
-The error estimate (--stride K > 0; jaxbelt.rom.indicator.error_rom) needs no reference run: the
+The error is the tracer RMSE in µm over the predicted steps (the source's tolerance: 20 µm).
+The error estimate (--stride K > 0; jaxbelt.rom.error_estimate.error_rom) needs no reference run: the
 reduced trajectory's full-order residuals, averaged over windows of K steps (step by step where
 the window mean still changes, as on the start-up), are propagated through the full step's
 Jacobian in a residual-enriched subspace (with the quasi-static response of a settled
 residual), and multiplied by a safety
 factor calibrated on the training data (the same fit on the first half of the training window,
-predicting the training runs over the whole window). error_estimate_mm estimates rmse_mm,
-error_estimate_max_mm max_rmse_over_time_mm; effectivity = error_estimate_mm / rmse_mm.
+predicting the training runs over the whole window). error_estimate_um estimates rmse_um,
+error_estimate_max_um max_rmse_over_time_um; effectivity = error_estimate_um / rmse_um.
 
 Times exclude compilation on both sides (as with a warm compilation cache; the first calls,
 compilation included, are reported apart): the full run in the scene's own mode and in the
 reuse mode (frozen factors), offline = snapshot runs (in the fastest full mode) + fit, online =
 the reduced prediction.
 Speedups: "speedup total" = the fastest full mode that reproduces the scene's own mode to
-1e-6 mm / (offline + online) — the honest figure; "vs scene mode" the same against the scene's
+1e-3 µm / (offline + online) — the honest figure; "vs scene mode" the same against the scene's
 own mode; "eq. 7.5" the source's step-count formula n / (n_train + n_predicted / s), s the
 per-step online speedup against the fastest full mode.
 """
@@ -77,7 +81,7 @@ def add_parser(subparsers):
     r = subparsers.add_parser("reduce", help="train a reduced model (pod, dmd, dmdc, pdmd): accuracy and speedup vs the full one",
                               description=REDUCE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("scene", help=f"{SCENE_HELP}: the configuration to predict")
-    r.add_argument("--method", choices=REDUCE_METHODS, required=True)
+    r.add_argument("--method", choices=tuple(REDUCTIONS), required=True)
     r.add_argument("--train", nargs="+", default=None, metavar="SCENE",
                    help="training scenes (pod: default SCENE itself; dmdc/pdmd: required, at least two: the nominal "
                         "configuration plus one run per varied parameter)")
@@ -121,19 +125,19 @@ def run(args):
     if args.method == "dmd" and m_train >= n:
         raise UsageError(f"--train-steps = {m_train} with --steps = {n}: dmd predicts the steps after the "
                          "training window, so --train-steps must be smaller than --steps")
-    config = rom.ReduceConfig(method=args.method, n_steps=n, dt=opts.dt, solver=opts.solver,
-                              every=opts.saveat.every, train_steps=m_train,
-                              modes=trained.modes if trained is not None else args.modes, stride=args.stride,
-                              spectra=bool(args.plot))
+    modes = trained.modes if trained is not None else args.modes
+    method = REDUCTIONS[args.method]() if modes is None else REDUCTIONS[args.method](modes=modes)
+    config = rom.ReduceConfig(method=method, n_steps=n, dt=opts.dt, solver=opts.solver, every=opts.saveat.every,
+                              train_steps=m_train, stride=args.stride, spectra=bool(args.plot))
     try:
-        result = rom.reduce_and_compare(test, train, config, train_solvers, trained=trained)
+        result = reduce_and_time(test, train, config, train_solvers, trained=trained)
     except FullRunDivergedError:
         raise SimulationError(f"the full simulation of {scene.name} diverged; nothing to compare with") from None
     except ReducedRunDivergedError as e:
         raise SimulationError(str(e)) from None
     report = _report(result, scene.name, train_names, args.stride, trained)
     if args.plot:
-        _plot(result, report, args.plot)
+        _plot(result.result, report, args.plot)
 
     def print_text(report):
         print(f"reduced {scene.name} ({scene.kind}, N = {test.n_unknowns}) with {args.method}:")
@@ -242,11 +246,12 @@ def _sized_training(test, box, n_steps, opts, args):
 
     def warm_up():  # compiled on the other core meanwhile: the estimate's full-order programs, the full runs
         rom.warm_error_rom(test, opts.dt, solver)
-        rom.warm_full_runs(test, opts.solver, n_steps, opts.dt, opts.saveat.every)
+        warm_full_runs(test, opts.solver, rom.ReduceConfig(method=rom.DMDc(), n_steps=n_steps, dt=opts.dt,
+                                                           every=opts.saveat.every, train_steps=1))
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         warm = pool.submit(warm_up)
-        trained = rom.train_over_box(test, labels, half_widths, n_steps, opts.dt, solver, tol_mm=args.tol_mm,
+        trained = rom.train_over_box(test, labels, half_widths, RunOptions(solver, n_steps, opts.dt), tol_mm=args.tol_mm,
                                      held_out=args.held_out, stride=max(args.stride, 1), progress=progress)
         warm.result()
     if not trained.converged:
@@ -263,37 +268,35 @@ def _scene_run(name):
     return name, build_model(scene), RunOptions.from_scene(scene)
 
 
-def _report(r: rom.ReductionResult, scene_name: str, train_names, stride: int, trained=None) -> dict:
-    """The command's JSON report of a result (what ``--json`` prints and the table shows)."""
-    extra = dict(offline_first_call_s=r.timings.offline_first_call_s)
+def _report(timed, scene_name: str, train_names, stride: int, trained=None) -> dict:
+    """The command's JSON report of a result (what ``--json`` prints and the table shows): the
+    result's own fields (:meth:`jaxbelt.bench.reduction.TimedReduction.to_dict`) with the scene,
+    the training runs' names and the error estimate's summary."""
+    r = timed.result
+    report = timed.to_dict()
+    for key in ("estimate", "cost", "spectra", "t", "error_um", "sizing", "modes_discarded", "training_starts_at_step"):
+        report.pop(key)
+    extra = {}
     if trained is not None:
         extra["sizing"] = dict(target_mm=trained.target_mm, converged=trained.converged, stop=trained.stop,
-                               chosen_level=trained.chosen,
-                               held_out=len(trained.held_out), seconds=trained.seconds,
-                               levels=[dataclasses.asdict(lv) for lv in trained.levels])
+                               chosen_level=trained.chosen, held_out=len(trained.held_out), seconds=trained.seconds,
+                               levels=to_json(trained.levels))
     if r.modes_discarded is not None:
         extra["modes_discarded"] = r.modes_discarded
     if r.training_starts_at_step is not None:
         extra["training_starts_at_step"] = r.training_starts_at_step
     e = r.estimate
     if e is not None:
+        estimate = to_json(e)
+        for key in ("error_um", "rmse_um", "max_um", "full_steps_predicted"):
+            estimate.pop(key)
+        estimate["cost"]["full_steps_predicted"] = e.full_steps_predicted
         extra["error_estimate"] = dict(
             method="error ROM (windowed full-order residuals through the step's Jacobian in a residual-enriched "
-                   "subspace) x safety factor", raw_rmse_mm=e.raw_rmse_mm, safety_factor=e.safety_factor,
-            calibration=[dataclasses.asdict(c) for c in e.calibration], subspace_dim=e.subspace_dim,
-            projected_spectral_radius=e.projected_spectral_radius,
-            cost=dict(dataclasses.asdict(e.cost), full_steps_predicted=e.full_steps_predicted), test_s=e.test_s,
-            total_s=e.total_s)
-    timings = dataclasses.asdict(r.timings)
-    return dict(
-        scene=scene_name, method=r.method, train=list(train_names), modes=r.modes, **extra, train_steps=r.train_steps,
-        steps=r.n_steps, predict_from_step=r.predict_from_step, predict_steps=r.predict_steps, compared=r.compared,
-        n_unknowns=r.n_unknowns, n_tracers=r.n_tracers, rmse_mm=finite_or_none(r.rmse_mm), rrmse=finite_or_none(r.rrmse),
-        max_rmse_over_time_mm=_optional(r.max_rmse_over_time_mm),
-        error_estimate_mm=None if e is None else _optional(e.rmse_mm),
-        error_estimate_max_mm=None if e is None else _optional(e.max_mm),
-        effectivity=_optional(r.effectivity), stride=stride, n_test_configs=1,
-        timings=timings)
+                   "subspace) x safety factor", **estimate)
+    return dict(scene=scene_name, train=list(train_names), **extra, **report,
+                error_estimate_um=None if e is None else _optional(e.rmse_um),
+                error_estimate_max_um=None if e is None else _optional(e.max_um), stride=stride, n_test_configs=1)
 
 
 def _optional(v):
@@ -304,10 +307,10 @@ def _plot(r: rom.ReductionResult, report: dict, path):
     """The --plot figure: singular values (modes marked), DMD eigenvalues, the error over time with
     the estimate."""
     s = r.spectra
-    est = {} if r.estimate is None else dict(estimate_t=r.t, estimate_mm=r.estimate.error_mm)
+    est = {} if r.estimate is None else dict(estimate_t=r.t, estimate_mm=r.estimate.error_um / 1e3)
     eigs = {} if s.eigs is None else dict(eigs=s.eigs, eig_weights=s.eig_weights)
-    plot.plot_reduction(dict(report, modes=r.modes if s.marked is None else s.marked), r.t, r.error_mm, path,
-                        singular_values=s.singular_values, **eigs, **est)
+    plot.plot_reduction(dict(report, modes=r.modes if s.marked is None else s.marked, rmse_mm=r.rmse_um / 1e3), r.t,
+                        r.error_um / 1e3, path, singular_values=s.singular_values, **eigs, **est)
     report["plot"] = str(path)
 
 
@@ -318,11 +321,11 @@ def print_reduce(r):
         ("modes", str(r["modes"])
          + (f" ({r['modes_discarded']} unstable discarded)" if r.get("modes_discarded") else "")),
         ("predicted", f"{r['predict_steps']} steps from step {r['predict_from_step']} ({r['compared']})"),
-        ("RMSE", fmt(r["rmse_mm"], " mm")), ("RRMSE", fmt(r["rrmse"])),
-        ("max RMSE over time", fmt(r["max_rmse_over_time_mm"], " mm")),
-        ("error estimate", (fmt(r["error_estimate_mm"], " mm") + f" (max over time {fmt(r['error_estimate_max_mm'], ' mm')}; "
+        ("RMSE", fmt(r["rmse_um"], " µm")), ("RRMSE", fmt(r["rrmse"])),
+        ("max RMSE over time", fmt(r["max_rmse_over_time_um"], " µm")),
+        ("error estimate", (fmt(r["error_estimate_um"], " µm") + f" (max over time {fmt(r['error_estimate_max_um'], ' µm')}; "
                             f"effectivity {fmt(r['effectivity'])}, safety factor "
-                            f"{fmt(r['error_estimate']['safety_factor'])})") if r.get("error_estimate_mm") is not None
+                            f"{fmt(r['error_estimate']['safety_factor'])})") if r.get("error_estimate_um") is not None
          else "-" if r["stride"] == 0 else "nan"),
     ]
     if "sizing" in r:
@@ -332,7 +335,7 @@ def print_reduce(r):
                               f"{fmt(max(last['estimate_mm']), ' mm')} on {len(last['estimate_mm'])}/{sz['held_out']} "
                               f"({'meets' if sz['converged'] else 'misses'} {fmt(sz['target_mm'], ' mm')})"))
     tm = r["timings"]
-    modes = ", ".join(f"{k} {v:.4g} s" for k, v in tm["full_runs_s"].items())
+    modes = ", ".join(f"{f['mode']} {f['run_s']:.4g} s" for f in tm["full_runs"])
     rows += [("full run", f"{tm['full_run_s']:.4g} s ({tm['full_mode']}, the fastest; {modes})"),
              ("offline", f"{tm['offline_s']:.4g} s (snapshots + fit; first call with compilation "
                          f"{tm['offline_first_call_s']:.4g} s)"),

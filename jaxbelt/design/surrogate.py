@@ -23,14 +23,14 @@ serial runs).
   ``P`` multiply-adds per tracer value. It is the limit of a reduced model of the map
   ``θ → tracers`` when that map is affine, as the belt's nearly is (docs/tolerance.md), and what it leaves out — the mixed second-order terms of the 2D lever
   arms — is what the validation measures.
-* ``method="pod"``: the fully reduced POD step of :mod:`jaxbelt.rom.reduced`. The scaled
+* ``method="pod"``: the fully reduced POD step of :mod:`jaxbelt.rom.pod_step`. The scaled
   first-order snapshots before and after each transport
   (:func:`~jaxbelt.rom.snapshots.collect_first_order`) of all training runs, side by side, give
   the POD basis (:func:`~jaxbelt.rom.pod.pod_basis`); it keeps every mode with
   ``σ_i / σ_1 > sv_tol`` (1e-9), at most ``max_modes`` (the energy rule of eq. 5.11 cannot reach
   this depth: its tail fractions, ~1e-17, are below the round-off of the cumulative sum), and
   the operators are projected at the nominal configuration
-  (:func:`~jaxbelt.rom.reduced.reduced_operators`). Online: per ``theta`` one O(N) static solve
+  (:func:`~jaxbelt.rom.pod_step.reduced_operators`). Online: per ``theta`` one O(N) static solve
   for the initial state, then O(r²) per step; the nominal offset (full minus reduced tracers at
   ``theta = 0``) is added, so it is exact at the nominal configuration.
 
@@ -70,7 +70,7 @@ the difference between the ``r``-mode model and its leading ``r/2`` modes (with 
 sub-basis operators are the leading blocks) — was calibrated the same way and did not follow the
 error: with this many modes the remaining error is scattered with little dependence on the
 configuration, while the constant bound held on every fresh sample and was the tighter one. The
-full residual indicator (:mod:`jaxbelt.rom.indicator`) needs full steps for every sample, the work
+full residual indicator (:mod:`jaxbelt.rom.error_estimate`) needs full steps for every sample, the work
 the surrogate is meant to avoid. A dozen samples give a statistical statement, not a proof; the
 safety factor covers that. The measured errors, bounds and speed-ups are on the benchmarks page
 (the yield-with-ROM benchmark).
@@ -99,9 +99,9 @@ import numpy as np
 
 from ..infra.programs import stored_jit
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
-from ..rom.reduced import reduced_operators
+from ..rom.pod_step import reduced_operators
 from ..state import initial_state
-from ..timeloop import simulate
+from ..timeloop import RunOptions, simulate
 from .metrics import METRICS, M_TO_UM, RAD_TO_MRAD, aggregate, response_from_deviation, saturation
 from .study import Study, with_linearisation
 from .sampling import STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, standard_normal_samples
@@ -339,8 +339,8 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     """Fully reduced POD step from the training runs' snapshots, and its nominal anchor."""
     snaps = []
     for theta in train:
-        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)), study.n_steps, study.dt,
-                                               study.solver)
+        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)),
+                                               RunOptions(study.solver, study.n_steps, study.dt))
         snaps += [z_pre, z_post]
     Z = jnp.concatenate(snaps, axis=1)
     x_nominal = snaps[1][:study.model.n_unknowns, 1:]  # the nominal run after each transport

@@ -17,7 +17,7 @@ each level it:
    randomized range finder with subspace iterations
    (:func:`~jaxbelt.rom.dmd.randomized_svd`; ``O(N m k)`` against the thin SVD's ``O(N m²)``);
 3. estimates the tracer RMSE of ``held_out`` configurations drawn uniformly from the box, each
-   over the whole horizon (:func:`~jaxbelt.rom.indicator.error_rom` × a safety factor). No
+   over the whole horizon (:func:`~jaxbelt.rom.error_estimate.error_rom` × a safety factor). No
    full-order run of them is made;
 4. where they all pass, calibrates the safety factor on the training data
    (:func:`~jaxbelt.rom.calibration.calibrate`: the same fit on the first half of the window
@@ -55,15 +55,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..integrators import AbstractIntegrator
 from ..misalignment import aligned, apply
 from ..state import initial_state
+from ..timeloop import RunOptions
 from .calibration import SAFETY_MARGIN, Calibration, calibrate
 from .dmd import randomized_svd
-from .dmdc import DMDcModel, belt_inputs, fit_dmdc_in_basis, stack_controlled
-from .indicator import BasisTrajectory, ErrorRomOptions, error_rom
-from .reduced import parameters
-from .results import CALIBRATION_RUNS
+from .dmdc import DMDcModel, belt_inputs, calibration_cases, fit_dmdc_in_basis, prediction_trajectory, stack_controlled
+from .error_estimate import ErrorRomOptions, error_rom
+from .pod_step import parameters
+from .reduced_model import CALIBRATION_RUNS
 from .snapshots import collect_first_order, state_to_z, tracer_operator
 from .training import axial_design
 
@@ -151,28 +151,19 @@ def fit_over_trajectories(trajectories, inputs, modes: int) -> DMDcModel:
     return fit_dmdc_in_basis(U[:, : min(int(modes), k)], X, Y, Ui)
 
 
-@functools.partial(jax.jit, static_argnums=3)
-def prediction_trajectory(fit: DMDcModel, z0, u, n_steps: int) -> BasisTrajectory:
-    """A DMDc prediction of ``n_steps`` steps from ``z0`` under the input ``u`` as
-    :func:`~jaxbelt.rom.indicator.error_rom` reads it (the start projected, the full ``z0`` as
-    the true start)."""
-    coords = jnp.concatenate([(fit.basis.T @ z0)[None], fit.predict(z0, u, n_steps, observe=fit.basis.T)])
-    return BasisTrajectory(fit.basis, coords, z0)
-
-
-def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrator: AbstractIntegrator, *,
+def train_over_box(nominal, components, half_widths, options: RunOptions, *,
                    tol_mm: float = 0.02, target_fraction: float = 0.1, held_out: int = 10, seed: int = 0,
-                   stride: int = 10, schedule=SCHEDULE, options: ErrorRomOptions = ErrorRomOptions(),
+                   stride: int = 10, schedule=SCHEDULE, estimate: ErrorRomOptions = ErrorRomOptions(),
                    progress=None) -> BoxTraining:
     """Train DMDc over the box ``|θ_k| ≤ h_k`` around the aligned ``nominal`` until the error
     estimate on held-out configurations is below ``target_fraction × tol_mm`` (module
     docstring).
 
     **Arguments:** ``components`` labels ``"roller:component"``; ``half_widths`` (P,) mm / mrad;
-    ``n_steps`` the horizon the model must predict; ``dt`` the time step, s; ``integrator`` the
-    full model's (training runs and estimates); ``held_out`` how many configurations the
+    ``options`` the full model's run: ``n_steps`` the horizon the model must predict, ``dt`` the
+    time step (s) and the ``solver`` (training runs and estimates); ``held_out`` how many configurations the
     estimate is checked on (at least 1), drawn with ``seed``; ``stride`` the estimate's residual
-    windows; ``schedule`` the levels ((steps, modes), …, increasing); ``progress`` an optional
+    windows and ``estimate`` its tuning; ``schedule`` the levels ((steps, modes), …, increasing); ``progress`` an optional
     callable given each :class:`SizingLevel`.
     **Returns:** :class:`BoxTraining` (``converged=False`` when no level met the target: the model
     of the level with the lowest estimate, ``chosen``, with its own calibrated factor).
@@ -182,11 +173,12 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
     if not schedule or any(s < 2 or r < 1 for s, r in schedule):
         raise ValueError(f"schedule = {schedule}: need (steps ≥ 2, modes ≥ 1) levels")
     t0 = time.perf_counter()
+    n_steps, solver = int(options.n_steps), options.solver
     target = float(target_fraction) * float(tol_mm)
     models, thetas, space = axial_design(nominal, components, half_widths)
     base = aligned(nominal)
     inputs = [parameters(m) for m in models]
-    dt = jnp.asarray(dt, nominal.ell.dtype)
+    dt = jnp.asarray(options.dt, nominal.ell.dtype)
     states = [initial_state(m) for m in models]
     trajs = [None] * len(models)
     held = held_out_configurations(half_widths, held_out, seed)
@@ -194,6 +186,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
     held_starts = [None] * len(held_models)
     C = tracer_operator(nominal)
     chunk = functools.reduce(math.gcd, [int(s) for s, _ in schedule])
+    chunk_options = RunOptions(solver, chunk, dt)
     levels, fits, done = [], [], 0
     fit = calibration = None
     for steps, modes in schedule:
@@ -201,7 +194,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
         steps = min(int(steps), int(n_steps))
         while done < steps:
             for i, (m, st) in enumerate(zip(models, states)):
-                states[i], _, Z = collect_first_order(m, chunk, dt, integrator, st)
+                states[i], _, Z = collect_first_order(m, chunk_options, st)
                 trajs[i] = Z if trajs[i] is None else jnp.concatenate([trajs[i], Z[:, 1:]], axis=1)
             done += chunk
         steps = done
@@ -214,12 +207,12 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
                 held_starts[j] = (state_to_z(hm, initial_state(hm), dt), belt_inputs(parameters(hm), 1)[:, 0])
             traj = prediction_trajectory(fit, *held_starts[j], n_steps)
             raw.append(error_rom(hm, traj.basis, traj.coords, dt, traj.z_true0, stride=stride, order="post",
-                                 integrator=integrator, options=options).rmse_mm)
+                                 solver=solver, options=estimate).rmse_mm)
             if kappa * raw[-1] >= target:
                 break
         passed = len(raw) == len(held_models) and kappa * max(raw) < target
         if passed:  # with the lower bound: calibrate this level and check again
-            calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C)
+            calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate, C)
             kappa = calibration.safety_factor
             passed = kappa * max(raw) < target
         level = SizingLevel(train_steps=steps, modes=int(fit.A.shape[0]), safety_factor=kappa,
@@ -241,7 +234,7 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
         chosen = int(np.argmin([lv.estimate_mm[0] / lv.safety_factor for lv in levels]))
         fit, steps, modes = fits[chosen]
         trajs = [Z[:, : steps + 1] for Z in trajs]
-        calibration = _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C)
+        calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate, C)
         lv = levels[chosen]
         scale = calibration.safety_factor / lv.safety_factor
         levels[chosen] = dataclasses.replace(lv, safety_factor=calibration.safety_factor,
@@ -252,28 +245,14 @@ def train_over_box(nominal, components, half_widths, n_steps: int, dt, integrato
                        seconds=time.perf_counter() - t0)
 
 
-def calibration_cases(cfit: DMDcModel, runs, steps: int, C):
-    """:func:`~jaxbelt.rom.calibration.calibrate`'s cases for a DMDc fit ``cfit`` predicting
-    training runs it has partly seen: for each ``(model, Z, μ, integrator)`` of ``runs`` (``Z``
-    the run's post-transport snapshots, (2N, steps + 1)), the run's tracers (``C`` (n_tr, N)),
-    the fit's prediction of them from ``Z[:, 0]`` over ``steps`` steps, that prediction as a
-    :class:`~jaxbelt.rom.indicator.BasisTrajectory`, and the integrator."""
-    N = C.shape[1]
-    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
-    for m, Z, mu, integrator in runs:
-        u = belt_inputs(mu, 1)[:, 0]
-        yield (m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], u, steps, observe=Cz),
-               prediction_trajectory(cfit, Z[:, 0], u, steps), integrator)
-
-
-def _calibration(models, trajs, inputs, modes, steps, dt, integrator, stride, options, C) -> Calibration:
+def _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, options, C) -> Calibration:
     """The error estimate's safety factor from the training data: DMDc fitted on the first half
-    of the window predicts the first :data:`~jaxbelt.rom.results.CALIBRATION_RUNS` training runs
+    of the window predicts the first :data:`~jaxbelt.rom.reduced_model.CALIBRATION_RUNS` training runs
     over all of it (:func:`~jaxbelt.rom.calibration.calibrate`)."""
     cfit = fit_over_trajectories([Z[:, : max(1, steps // 2) + 1] for Z in trajs], inputs, modes)
-    runs = [(m, Z, mu, integrator) for m, Z, mu in zip(models, trajs, inputs)][:CALIBRATION_RUNS]
+    runs = [(m, Z, mu, solver) for m, Z, mu in zip(models, trajs, inputs)][:CALIBRATION_RUNS]
     return calibrate(calibration_cases(cfit, runs, steps, C), dt, stride=stride, order="post", options=options)
 
 
 __all__ = ["SCHEDULE", "SizingLevel", "BoxTraining", "train_over_box", "held_out_configurations",
-           "fit_over_trajectories", "prediction_trajectory", "calibration_cases"]
+           "fit_over_trajectories"]

@@ -1,6 +1,6 @@
 """Trusting the error estimate, and choosing how much to train on, from training data alone.
 
-:func:`calibrate` turns :func:`~jaxbelt.rom.indicator.error_rom`'s raw estimate into a bound: it
+:func:`calibrate` turns :func:`~jaxbelt.rom.error_estimate.error_rom`'s raw estimate into a bound: it
 predicts part of the training data with a model fitted on the rest, where the true error is
 known, and scales the estimate by ``SAFETY_MARGIN / min(1, min effectivity)``
 (:func:`safety_factor`). :func:`snapshot_count` decides the number of full-order training
@@ -35,9 +35,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..integrators import AbstractIntegrator, make_solver
 from ..state import initial_state
-from .indicator import error_rom
+from ..timeloop import RunOptions
+from .error_estimate import error_rom
 from .metrics import rmse
 from .snapshots import collect_first_order, tracer_operator
 
@@ -55,12 +55,12 @@ def safety_factor(effectivities, margin: float = SAFETY_MARGIN) -> float:
 
 @dataclasses.dataclass(frozen=True)
 class CalibrationCase:
-    """One case of :func:`calibrate`: ``true_mm`` the true tracer RMSE, ``estimate_mm`` the raw
+    """One case of :func:`calibrate`: ``true_um`` the true tracer RMSE, µm, ``estimate_um`` the raw
     :func:`error_rom` estimate of it, ``effectivity`` their ratio (``nan`` for a case without
     error)."""
 
-    true_mm: float
-    estimate_mm: float
+    true_um: float
+    estimate_um: float
     effectivity: float
 
 
@@ -75,19 +75,19 @@ class Calibration:
 def calibrate(cases, dt, margin: float = SAFETY_MARGIN, **kwargs) -> Calibration:
     """Safety factor of :func:`error_rom` from cases whose true error is known from training data.
 
-    ``cases``: iterable of ``(model, truth, prediction, trajectory, integrator)`` — the observed
+    ``cases``: iterable of ``(model, truth, prediction, trajectory, solver)`` — the observed
     tracers of the full model and of a reduced model fitted on part of the training data (each
-    (n, o), m), that prediction as a :class:`~jaxbelt.rom.indicator.BasisTrajectory`, and the
-    full model's integrator for it (``None``: :func:`error_rom`'s default); ``dt`` the time step;
+    (n, o), m), that prediction as a :class:`~jaxbelt.rom.error_estimate.BasisTrajectory`, and the
+    full model's solver for it (``None``: :func:`error_rom`'s default); ``dt`` the time step;
     ``kwargs``: further :func:`error_rom` arguments (``stride``, ``order``, ``options``, …).
     """
     rows = []
-    for model, truth, pred, traj, integrator in cases:
+    for model, truth, pred, traj, solver in cases:
         true_mm = float(rmse(jnp.asarray(truth), jnp.asarray(pred))) * 1e3
-        est_mm = error_rom(model, traj.basis, traj.coords, dt, traj.z_true0, integrator=integrator, **kwargs).rmse_mm
+        est_mm = error_rom(model, traj.basis, traj.coords, dt, traj.z_true0, solver=solver, **kwargs).rmse_mm
         # a case without error (the reduced model reproduces its training run) says nothing
         eta = est_mm / true_mm if true_mm > 1e-12 else float("nan")
-        rows.append(CalibrationCase(true_mm=true_mm, estimate_mm=est_mm, effectivity=eta))
+        rows.append(CalibrationCase(true_um=true_mm * 1e3, estimate_um=est_mm * 1e3, effectivity=eta))
     return Calibration(safety_factor=safety_factor([r.effectivity for r in rows], margin), cases=tuple(rows))
 
 
@@ -103,24 +103,25 @@ class SnapshotCount:
     Z: jax.Array
 
 
-def snapshot_count(model, fit_predict, dt, tol_mm: float = 0.02, chunk: int = 50, safety: float = 0.1,
-                   max_steps: int = 2000, min_chunks: int = 2,
-                   integrator: AbstractIntegrator | None = None) -> SnapshotCount:
-    """Number of full-order steps (of size ``dt``) worth training on, decided from the data.
+def snapshot_count(model, fit_predict, options: RunOptions, tol_mm: float = 0.02, chunk: int = 50,
+                   safety: float = 0.1, min_chunks: int = 2) -> SnapshotCount:
+    """Number of full-order steps worth training on, decided from the data, at most
+    ``options.n_steps`` (steps of ``options.dt`` with ``options.solver``).
 
     Runs the full model ``chunk`` steps at a time. After each chunk ``k ≥ min_chunks`` it calls
     ``fit_predict(Z_train, n) -> tracer_u (n, n_tr)`` with the post-transport snapshots up to
     the previous chunk (2N, m) and compares the prediction of the newest ``chunk`` steps with the
     full model's tracers. Stops at the first chunk predicted within ``safety × tol_mm``.
     """
-    integrator = make_solver() if integrator is None else integrator
+    chunk_options = options.replace(n_steps=int(chunk))
+    max_steps = int(options.n_steps)
     C = tracer_operator(model)
     N = model.n_unknowns
     state = initial_state(model)
     Z = None
     history = []
     while True:
-        state, _, Zc = collect_first_order(model, chunk, dt, integrator, state)
+        state, _, Zc = collect_first_order(model, chunk_options, state)
         Zc = Zc if Z is None else Zc[:, 1:]  # the start state is the previous chunk's end
         if Z is not None and Z.shape[1] >= min_chunks * chunk:
             truth = (C @ Zc[:N]).T

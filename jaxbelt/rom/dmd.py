@@ -14,14 +14,17 @@ fit and the prediction (eigenvector derivatives assume distinct eigenvalues).
 from __future__ import annotations
 
 import functools
+from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .indicator import BasisTrajectory
-from .snapshots import collect_first_order
+from ..timeloop import RunOptions
+from .error_estimate import BasisTrajectory
+from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns
+from .snapshots import collect_first_order, tracer_operator
 
 
 class DMDModel(eqx.Module):
@@ -163,11 +166,11 @@ class DMDForecast(eqx.Module):
     sketch_full: jax.Array
 
 
-@eqx.filter_jit
-def dmd_forecast(model, integrator, dt, n_train: int, n_predict: int, observe, tol: float = 1e-5) -> DMDForecast:
+def dmd_forecast(model, options: RunOptions, n_predict: int, observe, tol: float = 1e-5) -> DMDForecast:
     """Snapshots, fit and forecast of single-configuration DMD as one compiled program.
 
-    Runs ``n_train`` full steps of ``integrator`` from ``model``'s initial state, fits exact DMD
+    Runs ``options.n_steps`` full steps (``n_train``) of ``options.solver`` with ``options.dt``
+    from ``model``'s initial state, fits exact DMD
     to the pre-transport first-order snapshots with the randomized range finder (a sketch of
     :data:`SKETCH` columns, :func:`randomized_svd`), keeps the modes with ``|λ| ≤ 1 + tol``
     (:meth:`DMDModel.stable`) and forecasts ``n_predict`` steps after the last snapshot,
@@ -176,9 +179,14 @@ def dmd_forecast(model, integrator, dt, n_train: int, n_predict: int, observe, t
     ``Ã`` vanish, their eigenvalues are 0 and their modes zero; the other eigenpairs and modes are
     those of the rank-``r`` fit, and the least-squares amplitudes of the kept modes are unchanged.
     The forecast equals ``fit_dmd(Z).stable().predict(...)`` to round-off (where ``sketch_full``
-    is false). ``n_train`` and ``n_predict`` are static (scan lengths).
+    is false). ``n_train`` and ``n_predict`` are static (scan lengths); ``dt`` is traced.
     """
-    _, Z, _ = collect_first_order(model, n_train, dt, integrator)
+    return _dmd_forecast(model, options.solver, options.dt, int(options.n_steps), int(n_predict), observe, tol)
+
+
+@eqx.filter_jit
+def _dmd_forecast(model, solver, dt, n_train: int, n_predict: int, observe, tol: float) -> DMDForecast:
+    _, Z, _ = collect_first_order(model, RunOptions(solver, n_train, dt))
     X, Y = Z[:, :-1], Z[:, 1:]
     k = min(SKETCH, *X.shape)
     U, s, Vh = randomized_svd(X, k)
@@ -209,13 +217,102 @@ def stack_trajectories(trajectories):
 
 
 def dmd_coordinates(Z, fit, x_start, k: int) -> BasisTrajectory:
-    """An exact-DMD prediction (:class:`~jaxbelt.rom.DMDModel`), as :func:`~jaxbelt.rom.indicator.error_rom` reads it,
+    """An exact-DMD prediction (:class:`~jaxbelt.rom.DMDModel`), as :func:`~jaxbelt.rom.error_estimate.error_rom` reads it,
     from ``x_start`` over ``k`` steps: ``x_start`` and ``Re(Φ Λʲ b)``, j = 1 … k, as coordinates in
     an orthonormal basis of the training snapshots ``Z`` (exact DMD modes lie in their span), so
     the full states are never formed. ``x_start`` is a full-order state: no initial error."""
+    return coordinates_in(snapshot_basis(Z), fit, x_start, k)
+
+
+def snapshot_basis(Z):
+    """An orthonormal basis (2N, r) of the snapshots ``Z`` (their left singular vectors above
+    round-off, :func:`numerical_rank`)."""
     U, s, _ = jnp.linalg.svd(jnp.asarray(Z), full_matrices=False)
-    Q = U[:, : numerical_rank(s, Z.shape)]
+    return U[:, : numerical_rank(s, Z.shape)]
+
+
+def coordinates_in(Q, fit, x_start, k: int) -> BasisTrajectory:
+    """:func:`dmd_coordinates` in a given orthonormal basis ``Q`` of the training snapshots."""
     b = fit.amplitudes(x_start)
     powers = fit.eigs[None, :] ** jnp.arange(1, k + 1)[:, None]
     coords = jnp.real((powers * b[None, :]) @ (Q.T.astype(fit.modes.dtype) @ fit.modes).T)
     return BasisTrajectory(basis=Q, coords=jnp.concatenate([(Q.T @ x_start)[None], coords]), z_true0=x_start)
+
+
+class DMDReducedModel(AbstractReducedModel):
+    """Exact DMD of one run fitted by :class:`DMD`: ``fit`` every mode, ``stable`` the modes with
+    ``|λ| ≤ 1 + 1e-5`` (:meth:`DMDModel.stable`, the ones that predict), ``snapshots`` the
+    pre-transport training snapshots (2N, m), ``basis`` an orthonormal basis of them
+    (:func:`snapshot_basis`), ``observe`` (n_tr, 2N) the tracer operator on scaled first-order
+    states."""
+
+    fit: DMDModel
+    stable: DMDModel
+    snapshots: jax.Array
+    basis: jax.Array
+    observe: jax.Array
+
+    @property
+    def n_modes(self) -> int:
+        return int(self.stable.eigs.shape[0])
+
+    @property
+    def modes_discarded(self) -> int:
+        return int(self.fit.eigs.shape[0]) - self.n_modes
+
+    def start(self, model, dt):
+        """The run's own last training snapshot, after ``m`` steps: DMD continues its training run."""
+        return int(self.snapshots.shape[1]), self.snapshots[:, -1]
+
+    def predict(self, z0, mu, n_steps: int) -> Prediction:
+        """``mu`` is not read: the fit is of one configuration."""
+        tracers = self.stable.predict(z0, n_steps, observe=self.observe)
+        traj = coordinates_in(self.basis, self.stable, z0, int(n_steps))
+        return Prediction(tracer_u=tracers, basis=traj.basis, coords=traj.coords, z_start=z0, order="pre")
+
+    def spectra(self, z0) -> Spectra:
+        return Spectra(singular_values=np.asarray(jnp.linalg.svd(self.snapshots[:, :-1], compute_uv=False)),
+                       marked=int(self.fit.eigs.shape[0]), eigs=np.asarray(self.stable.eigs),
+                       eig_weights=np.asarray(self.stable.scaled_mode_norms(z0)))
+
+
+class DMD(AbstractReduction):
+    """Exact DMD (module docstring) of the predicted configuration's own first steps, before
+    transport, with ``modes`` modes (``None``: every non-negligible one); it continues that run
+    from its last training snapshot. Its one training run is the predicted configuration."""
+
+    modes: int | None = None
+    name: ClassVar[str] = "dmd"
+
+    def fit(self, training: TrainingRuns) -> DMDReducedModel:
+        Zpre = collect_first_order(training.models[0], training.options(0))[1]
+        full = fit_dmd(Zpre, rank=self.modes)
+        return DMDReducedModel(fit=full, stable=full.stable(), snapshots=Zpre, basis=snapshot_basis(Zpre),
+                               observe=training.observe)
+
+    def calibration_cases(self, fitted: DMDReducedModel, training: TrainingRuns, half: int):
+        """The last third of the training window predicted by a fit on the first two thirds
+        (``half`` is not read)."""
+        Zpre, Cz = fitted.snapshots, fitted.observe
+        m_train = int(Zpre.shape[1])
+        C, N = tracer_operator(training.models[0]), training.models[0].n_unknowns
+        k2 = max(2, (2 * m_train) // 3)
+        if m_train - k2 < 1 or training.calibration_runs < 1:
+            return
+        cfit = fit_dmd(Zpre[:, :k2], rank=self.modes).stable()
+        xs = Zpre[:, k2 - 1]
+        yield training.models[0], (C @ Zpre[:N, k2:]).T, cfit.predict(xs, m_train - k2, observe=Cz), \
+            dmd_coordinates(Zpre[:, :k2], cfit, xs, m_train - k2), training.solvers[0]
+
+    def check(self, n_steps: int, train_steps: int):
+        if train_steps < 2:
+            raise ValueError(f"n_steps = {n_steps}, train_steps = {train_steps}: too few steps to train on "
+                             "(at least 2)")
+        if train_steps >= n_steps:
+            raise ValueError(f"train_steps = {train_steps} with n_steps = {n_steps}: dmd predicts the steps after the "
+                             "training window, so train_steps must be smaller than n_steps")
+
+    def check_training(self, model, train, solvers):
+        if any(m is not model for m in train):
+            raise ValueError("dmd fits one configuration: the predicted model's own first train_steps steps")
+        super().check_training(model, train, solvers)

@@ -6,7 +6,7 @@ and found it could not predict a new configuration (§6.4.2, §7.4): a single li
 that information.
 
 **DMD with control** (Proctor, Brunton & Kutz 2016, unknown ``B``): ``x_{k+1} ≈ A x_k + B u_k``
-with the static misalignments as input, ``u = [μ; 1]`` (:func:`jaxbelt.rom.reduced.parameters`
+with the static misalignments as input, ``u = [μ; 1]`` (:func:`jaxbelt.rom.pod_step.parameters`
 plus a constant for the parameter-free forcing), fitted in POD coordinates (see
 :func:`fit_dmdc`); the prediction runs in the reduced coordinates ``ξ_{k+1} = Ã ξ_k + B̃ u_k``,
 ``x = V ξ``. The belt's step is affine in the misalignments (the fully reduced step's docstring
@@ -46,13 +46,20 @@ returning tracers only when given an observation matrix.
 
 from __future__ import annotations
 
+import functools
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .dmd import DMDModel, fit_dmd, numerical_rank
+from .error_estimate import BasisTrajectory
 from .pod import choose_modes
+from .pod_step import parameters
+from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns
+from .snapshots import collect_first_order, tracer_operator
 
 
 def _rank(s, shape, rank):
@@ -187,7 +194,7 @@ def interpolation_weights(P, mu):
     return (jnp.linalg.pinv(Aff / rs) @ rhs)[:, 0]
 
 
-class ParametricDMD(eqx.Module):
+class ParametricDMDModel(eqx.Module):
     """Partitioned parametric DMD: ``basis`` (N, r), per training configuration a reduced DMD
     (``eigs`` (J, k), ``modes`` (J, r, k) padded with zeros), amplitudes ``b`` (J, k) from each
     configuration's first snapshot, and the training parameters ``params`` (J, d)."""
@@ -214,7 +221,7 @@ class ParametricDMD(eqx.Module):
 
 def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: int | None = None,
                        energy_tol: float | None = None, discard_unstable: bool = True,
-                       unstable_tol: float = 1e-5, basis=None) -> ParametricDMD:
+                       unstable_tol: float = 1e-5, basis=None) -> ParametricDMDModel:
     """Parametric DMD from training ``trajectories`` (list of (N, m_j) snapshot sequences, all on
     one time axis: each starting at the same step of its configuration — in 2D one or a few
     steps after the initial state, see the module docstring) with parameters ``params`` (J, d).
@@ -228,7 +235,7 @@ def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: 
     spurious growing mode of one configuration, multiplied by its interpolation weight, ruins the
     prediction. The tolerance is not round-off: the mode that carries the static offset sits at
     ``λ ≈ 1`` with ``|λ| - 1`` up to ~1e-6 from the fit, and dropping it costs far more than it
-    saves (1D held-out test: 0.65 mm with 1e-8, 0.013 mm with 1e-5; ``(1 + 1e-5)^5000 = 1.05``). Check the error indicator (:mod:`jaxbelt.rom.indicator`) on long horizons.
+    saves (1D held-out test: 0.65 mm with 1e-8, 0.013 mm with 1e-5; ``(1 + 1e-5)^5000 = 1.05``). Check the error indicator (:mod:`jaxbelt.rom.error_estimate`) on long horizons.
     """
     if basis is not None:
         V = jnp.asarray(basis)[:, :rank]
@@ -248,7 +255,7 @@ def fit_parametric_dmd(trajectories, params, rank: int | None = None, dmd_rank: 
     amps = jnp.stack([jnp.pad(f.amplitudes(xi[:, 0]), (0, k - f.eigs.shape[0])) for f, xi in zip(fits, reduced)])
     if discard_unstable:
         amps = jnp.where(jnp.abs(eigs) > 1 + unstable_tol, 0.0, amps)
-    return ParametricDMD(V, eigs, modes, amps, jnp.asarray(params))
+    return ParametricDMDModel(V, eigs, modes, amps, jnp.asarray(params))
 
 
 def stack_controlled(trajectories, inputs):
@@ -259,5 +266,190 @@ def stack_controlled(trajectories, inputs):
     return X, Y, jnp.concatenate(list(inputs), axis=1)
 
 
-__all__ = ["DMDcModel", "fit_dmdc", "fit_dmdc_in_basis", "ParametricDMD", "fit_parametric_dmd", "interpolation_weights",
-           "belt_inputs", "stack_controlled", "DMDModel"]
+@functools.partial(jax.jit, static_argnums=3)
+def prediction_trajectory(fit: DMDcModel, z0, u, n_steps: int) -> BasisTrajectory:
+    """A DMDc prediction of ``n_steps`` steps from ``z0`` under the input ``u`` as
+    :func:`~jaxbelt.rom.error_estimate.error_rom` reads it (the start projected, the full ``z0`` as
+    the true start)."""
+    coords = jnp.concatenate([(fit.basis.T @ z0)[None], fit.predict(z0, u, n_steps, observe=fit.basis.T)])
+    return BasisTrajectory(fit.basis, coords, z0)
+
+
+def calibration_cases(cfit: DMDcModel, runs, steps: int, C):
+    """:func:`~jaxbelt.rom.calibration.calibrate`'s cases for a DMDc fit ``cfit`` predicting
+    training runs it has partly seen: for each ``(model, Z, μ, solver)`` of ``runs`` (``Z``
+    the run's post-transport snapshots, (2N, steps + 1)), the run's tracers (``C`` (n_tr, N)),
+    the fit's prediction of them from ``Z[:, 0]`` over ``steps`` steps, that prediction as a
+    :class:`~jaxbelt.rom.error_estimate.BasisTrajectory`, and the solver."""
+    N = C.shape[1]
+    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
+    for m, Z, mu, solver in runs:
+        u = belt_inputs(mu, 1)[:, 0]
+        yield (m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], u, steps, observe=Cz),
+               prediction_trajectory(cfit, Z[:, 0], u, steps), solver)
+
+
+
+def _post_transport_runs(training: TrainingRuns) -> tuple:
+    """The post-transport snapshots ``Z_post`` (2N, n_steps + 1) of every training run."""
+    return tuple(collect_first_order(m, training.options(i))[2] for i, m in enumerate(training.models))
+
+
+def _controlled_pairs(trajectories, params):
+    """:func:`stack_controlled` of the runs ``trajectories`` under their constant inputs ``[μ; 1]``."""
+    return stack_controlled(trajectories, [belt_inputs(p, Z.shape[1] - 1) for p, Z in zip(params, trajectories)])
+
+
+@functools.partial(jax.jit, static_argnums=3)
+def _dmdc_tracers(fit: DMDcModel, z0, u, n_steps: int, observe):
+    return fit.predict(z0, u, n_steps, observe=observe)
+
+
+class DMDcReducedModel(AbstractReducedModel):
+    """DMD with control fitted by :class:`DMDc`: ``fit`` (:class:`DMDcModel`), the training runs'
+    post-transport ``trajectories`` and parameters ``params``, ``observe`` (n_tr, 2N) the tracer
+    operator on scaled first-order states."""
+
+    fit: DMDcModel
+    trajectories: tuple
+    params: tuple
+    observe: jax.Array
+
+    @property
+    def n_modes(self) -> int:
+        return int(self.fit.A.shape[0])
+
+    def predict(self, z0, mu, n_steps: int) -> Prediction:
+        u = belt_inputs(mu, 1)[:, 0]
+        tracers = _dmdc_tracers(self.fit, z0, u, int(n_steps), self.observe)
+        traj = prediction_trajectory(self.fit, z0, u, int(n_steps))
+        return Prediction(tracer_u=tracers, basis=traj.basis, coords=traj.coords, z_start=z0, order="post")
+
+    def spectra(self, z0) -> Spectra:
+        X, Y, _ = _controlled_pairs(self.trajectories, self.params)
+        return Spectra(singular_values=np.asarray(jnp.linalg.svd(jnp.concatenate([X, Y], axis=1), compute_uv=False)),
+                       eigs=np.asarray(self.fit.eigs), eig_weights=np.asarray(self.fit.scaled_mode_norms(z0)))
+
+
+class DMDc(AbstractReduction):
+    """DMD with control (module docstring) of ``modes`` modes, trained on the post-transport
+    snapshots of every training run with their parameters as inputs; it predicts any
+    configuration from its initial state (at the drive speeds it was trained at)."""
+
+    modes: int = 30
+    name: ClassVar[str] = "dmdc"
+
+    def fit(self, training: TrainingRuns) -> DMDcReducedModel:
+        trajs = _post_transport_runs(training)
+        return self.fitted(trajs, training)
+
+    def fitted(self, trajectories, training: TrainingRuns, fit: DMDcModel | None = None) -> DMDcReducedModel:
+        """The reduced model of the training runs' post-transport ``trajectories``: ``fit`` where
+        given (a sized training's, :func:`~jaxbelt.rom.box.train_over_box`), else fitted here."""
+        params = tuple(parameters(m) for m in training.models)
+        if fit is None:
+            fit = fit_dmdc(*_controlled_pairs(trajectories, params), rank=self.modes)
+        return DMDcReducedModel(fit=fit, trajectories=tuple(trajectories), params=params, observe=training.observe)
+
+    def calibration_cases(self, fitted: DMDcReducedModel, training: TrainingRuns, half: int):
+        cfit = fit_dmdc(*_controlled_pairs([Z[:, :half + 1] for Z in fitted.trajectories], fitted.params),
+                        rank=self.modes)
+        runs = training.calibration_subset(zip(training.models, fitted.trajectories, fitted.params, training.solvers))
+        return calibration_cases(cfit, runs, int(training.n_steps), tracer_operator(training.models[0]))
+
+    def check_training(self, model, train, solvers):
+        if len(train) < 2:
+            raise ValueError("dmdc needs at least two training models (the nominal configuration plus one run per "
+                             "varied parameter)")
+        super().check_training(model, train, solvers)
+
+
+class ParametricDMDReducedModel(AbstractReducedModel):
+    """Parametric DMD fitted by :class:`ParametricDMD`: ``fit`` (:class:`ParametricDMDModel`)
+    of the training runs' post-transport ``trajectories`` from step ``skip`` on, their
+    parameters ``params``, ``observe`` (n_tr, 2N) the tracer operator on scaled first-order
+    states."""
+
+    fit: ParametricDMDModel
+    trajectories: tuple
+    params: tuple
+    observe: jax.Array
+    skip: int = eqx.field(static=True)
+
+    @property
+    def n_modes(self) -> int:
+        return int(self.fit.basis.shape[1])
+
+    @property
+    def training_starts_at_step(self) -> int:
+        return self.skip
+
+    def predict(self, z0, mu, n_steps: int) -> Prediction:
+        """The states of configuration ``mu`` (interpolated between the training runs' forecasts,
+        which start from their own states: ``z0`` is the start of the coordinates only)."""
+        n = int(n_steps)
+        tracers = _pdmd_forecast(self.fit, mu, n, self.observe, self.skip)
+        coords = _pdmd_coordinates(self.fit, mu, n, z0, self.skip)
+        return Prediction(tracer_u=tracers, basis=self.fit.basis, coords=coords, z_start=z0, order="post")
+
+    def spectra(self, z0) -> Spectra:
+        w = (np.abs(np.asarray(self.fit.amplitudes)) * np.linalg.norm(np.asarray(self.fit.modes), axis=1)).reshape(-1)
+        keep = w > 0  # not the padding of the per-configuration DMDs
+        return Spectra(singular_values=np.asarray(jnp.linalg.svd(jnp.concatenate(self.trajectories, axis=1),
+                                                                 compute_uv=False)),
+                       eigs=np.asarray(self.fit.eigs).reshape(-1)[keep], eig_weights=w[keep])
+
+
+def _pdmd_forecast_eager(fit, p, steps: int, observe, skip: int):
+    """States 1 … steps of the configuration ``p`` observed by ``observe``."""
+    return fit.predict(p, steps + 1 - skip, observe=observe)[1 - skip:]
+
+
+_pdmd_forecast = jax.jit(_pdmd_forecast_eager, static_argnums=(2, 4))
+
+
+def _pdmd_coordinates(fit, p, steps: int, z_start, skip: int):
+    """Reduced coordinates of steps 0 … steps (step 0: the start state projected)."""
+    if not skip:  # the forecast starts at step 0 itself
+        return fit.predict(p, steps + 1, observe=fit.basis.T)
+    return jnp.concatenate([(fit.basis.T @ z_start)[None], _pdmd_forecast_eager(fit, p, steps, fit.basis.T, skip)])
+
+
+class ParametricDMD(AbstractReduction):
+    """Parametric DMD (module docstring) with a common basis of ``modes`` modes, trained on the
+    post-transport snapshots of every training run — in 2D from step 1 on (the start-up step
+    from the static state is no linear recurrence of the later states: with it the 2D forecasts
+    are off by ~0.1 mm, from step 1 on by < 1 µm, ``benchmarks/pdmd_2d.py``); it predicts any
+    configuration (drive speeds included) from the training runs' forecasts."""
+
+    modes: int = 30
+    name: ClassVar[str] = "pdmd"
+
+    def fit(self, training: TrainingRuns) -> ParametricDMDReducedModel:
+        skip = 1 if training.models[0].kind == "2d" else 0
+        trajs = _post_transport_runs(training)
+        params = tuple(parameters(m) for m in training.models)
+        fit = fit_parametric_dmd([Z[:, skip:] for Z in trajs], jnp.stack(params), rank=self.modes)
+        return ParametricDMDReducedModel(fit=fit, trajectories=trajs, params=params, observe=training.observe,
+                                         skip=skip)
+
+    def calibration_cases(self, fitted: ParametricDMDReducedModel, training: TrainingRuns, half: int):
+        skip, Cz, m_train = fitted.skip, fitted.observe, int(training.n_steps)
+        C, N = tracer_operator(training.models[0]), training.models[0].n_unknowns
+        cfit = fit_parametric_dmd([Z[:, skip:half + 1] for Z in fitted.trajectories], jnp.stack(fitted.params),
+                                  rank=self.modes)
+        for m, s, p, Z in training.calibration_subset(zip(training.models, training.solvers, fitted.params,
+                                                          fitted.trajectories)):
+            yield m, (C @ Z[:N, 1:]).T, _pdmd_forecast_eager(cfit, p, m_train, Cz, skip), BasisTrajectory(
+                cfit.basis, _pdmd_coordinates(cfit, p, m_train, Z[:, 0], skip), Z[:, 0]), s
+
+    def check_training(self, model, train, solvers):
+        if len(train) < 2:
+            raise ValueError("pdmd needs at least two training models (the nominal configuration plus one run per "
+                             "varied parameter)")
+        super().check_training(model, train, solvers)
+
+
+__all__ = ["DMDcModel", "fit_dmdc", "fit_dmdc_in_basis", "ParametricDMDModel", "fit_parametric_dmd", "interpolation_weights",
+           "belt_inputs", "stack_controlled", "DMDModel", "prediction_trajectory", "calibration_cases", "DMDc",
+           "DMDcReducedModel", "ParametricDMD", "ParametricDMDReducedModel"]

@@ -1,7 +1,7 @@
 """The full-order step as a map on scaled first-order states, as the error estimates evaluate it:
-one step (or several) of a model's integrator, batched over states, and its Jacobian-vector
+one step (or several) of a model's solver, batched over states, and its Jacobian-vector
 products, each a compiled program reused by every configuration of the same mesh
-(:mod:`jaxbelt.rom.indicator` is its user)."""
+(:mod:`jaxbelt.rom.error_estimate` is its user)."""
 
 from __future__ import annotations
 
@@ -17,26 +17,26 @@ from ..transport import transport_step
 from .snapshots import state_to_z, z_to_state
 
 
-def full_step_map(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post", run_data=None):
-    """``z -> F(z)``: one full-order step of size ``dt`` (``integrator``, default
+def full_step_map(model, dt, solver: AbstractIntegrator | None = None, order: str = "post", run_data=None):
+    """``z -> F(z)``: one full-order step of size ``dt`` (``solver``, default
     :func:`jaxbelt.make_solver`'s, and its transport rule) on scaled first-order states.
     ``order="post"``: states after transport (solve, then transport); ``"pre"``: states before
     transport (transport, then solve), as for DMD on pre-transport snapshots. ``run_data``: what
-    ``integrator.init`` gives at the model's initial state (computed here when ``None``; a
+    ``solver.init`` gives at the model's initial state (computed here when ``None``; a
     caller that applies ``F`` many times passes it once, see :func:`run_data_at_start`)."""
     if order not in ("post", "pre"):
         raise ValueError("order must be 'post' or 'pre'")
-    integrator = make_solver() if integrator is None else integrator
+    solver = make_solver() if solver is None else solver
     if run_data is None:
-        run_data = run_data_at_start(model, integrator, dt)
-    step = make_step(model, integrator, dt, run_data, SaveAt(solved=True))
+        run_data = run_data_at_start(model, solver, dt)
+    step = make_step(model, solver, dt, run_data, SaveAt(solved=True))
 
     def post(z):
         return state_to_z(model, step(z_to_state(model, z, dt))[0], dt)
 
     def pre(z):
         st = z_to_state(model, z, dt)
-        u, ud, chi, m_e = transport_step(model, st.u, st.u_dot, st.chi, st.m_e, rule=integrator.transport)
+        u, ud, chi, m_e = transport_step(model, st.u, st.u_dot, st.chi, st.m_e, rule=solver.transport)
         moved = st.__class__(u=u, u_dot=ud, chi=chi, chi_dot=st.chi_dot, m_e=m_e, step=st.step)
         _, rec = step(moved)
         return jnp.concatenate([rec["x_solved"], dt * rec["v_solved"]])
@@ -45,17 +45,17 @@ def full_step_map(model, dt, integrator: AbstractIntegrator | None = None, order
 
 
 @eqx.filter_jit
-def run_data_at_start(model, integrator, dt):
-    """``integrator.init`` at ``model``'s initial state (the static solve and, for the reuse
+def run_data_at_start(model, solver, dt):
+    """``solver.init`` at ``model``'s initial state (the static solve and, for the reuse
     solver, its factors): computed once per estimate and passed to every batch of full steps,
     instead of again inside each compiled batch."""
-    return integrator.init(model, initial_state(model), dt)
+    return solver.init(model, initial_state(model), dt)
 
 
-def step_map(model, dt, integrator, order: str, steps: int, run_data=None):
+def step_map(model, dt, solver, order: str, steps: int, run_data=None):
     """``z -> F^steps(z)``: ``steps`` full-order steps (a reduced model whose one step spans
     several full ones, e.g. DMDc fitted on every 4th snapshot)."""
-    F = full_step_map(model, dt, integrator, order, run_data)
+    F = full_step_map(model, dt, solver, order, run_data)
 
     def Fs(z):
         for _ in range(steps):
@@ -66,22 +66,22 @@ def step_map(model, dt, integrator, order: str, steps: int, run_data=None):
 
 
 @eqx.filter_jit
-def apply_steps(model, dt, integrator, order, steps, Z, run_data=None):
+def apply_steps(model, dt, solver, order, steps, Z, run_data=None):
     """``F`` on each row of ``Z`` (b, 2N), one compiled program per batch shape."""
-    return jax.vmap(step_map(model, dt, integrator, order, steps, run_data))(Z)
+    return jax.vmap(step_map(model, dt, solver, order, steps, run_data))(Z)
 
 
 @eqx.filter_jit
-def jvp_columns(model, dt, integrator, order, steps, z_ref, V, run_data=None):
+def jvp_columns(model, dt, solver, order, steps, z_ref, V, run_data=None):
     """``J V``: the step's Jacobian at ``z_ref`` on each column of ``V`` (2N, b)."""
-    F = step_map(model, dt, integrator, order, steps, run_data)
+    F = step_map(model, dt, solver, order, steps, run_data)
     return jax.vmap(lambda v: jax.jvp(F, (z_ref,), (v,))[1], in_axes=1, out_axes=1)(V)
 
 
 @eqx.filter_jit
-def jvp_one(model, dt, integrator, order, steps, z_ref, v, run_data=None):
+def jvp_one(model, dt, solver, order, steps, z_ref, v, run_data=None):
     """``J v`` for one vector (the quasi-static solve's iterations, one after the other)."""
-    return jax.jvp(step_map(model, dt, integrator, order, steps, run_data), (z_ref,), (v,))[1]
+    return jax.jvp(step_map(model, dt, solver, order, steps, run_data), (z_ref,), (v,))[1]
 
 
 def in_chunks(fn, X, chunk, axis):

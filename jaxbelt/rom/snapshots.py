@@ -5,9 +5,10 @@ which still carries the mean displacement that the transport removes. :func:`col
 runs the full model (one ``lax.scan``) and records ``x̃_k = [u; χ]`` and ``x̃̇_k`` at every step;
 :func:`first_order` stacks them into DMD's first-order state ``[x; ẋ]`` (§6.4).
 
-Every function that runs the model takes the time step ``dt`` (s, a traced value: another
-``dt`` reuses the compiled program) and an integrator (:mod:`jaxbelt.integrators`, default
-:func:`jaxbelt.make_solver`'s).
+Every function that runs the model takes its run settings as one
+:class:`~jaxbelt.timeloop.RunOptions`: the ``solver`` (:mod:`jaxbelt.integrators`), ``n_steps``
+and the time step ``dt`` (s, a traced value: another ``dt`` reuses the compiled program); the
+options' ``saveat`` is not read (every step is recorded).
 """
 
 from __future__ import annotations
@@ -17,37 +18,32 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from ..integrators import AbstractIntegrator, make_solver
 from ..linalg import join, split
 from ..state import BeltState, initial_state
-from ..timeloop import SaveAt, make_step
+from ..timeloop import RunOptions, SaveAt, make_step
 
 
-def collect_snapshots(model, n_steps: int, dt, integrator: AbstractIntegrator | None = None,
-                      state: BeltState | None = None):
-    """Run ``n_steps`` steps of size ``dt`` and return ``(final_state, X, Xdot)``, each snapshot
-    matrix (N, n_steps) with columns ``x̃_1 … x̃_n`` (pre-transport, flat ``[belt; rollers]``
-    order)."""
+def collect_snapshots(model, options: RunOptions, state: BeltState | None = None):
+    """Run ``options.n_steps`` steps of size ``options.dt`` with ``options.solver`` from ``state``
+    (default the initial state) and return ``(final_state, X, Xdot)``, each snapshot matrix
+    (N, n_steps) with columns ``x̃_1 … x̃_n`` (pre-transport, flat ``[belt; rollers]`` order)."""
     state = initial_state(model) if state is None else state
-    final, rec = _scan_recorded(model, _solver(integrator), state, jnp.asarray(dt, model.ell.dtype), int(n_steps))
+    final, rec = _scan_recorded(model, options.solver, state, jnp.asarray(options.dt, model.ell.dtype),
+                                int(options.n_steps))
     return final, rec["x_solved"].T, rec["v_solved"].T
 
 
-def collect_first_order(model, n_steps: int, dt, integrator: AbstractIntegrator | None = None,
-                        state: BeltState | None = None):
-    """Run ``n_steps`` steps of size ``dt`` and return ``(final_state, Z_pre, Z_post)``: the
+def collect_first_order(model, options: RunOptions, state: BeltState | None = None):
+    """Run ``options.n_steps`` steps of size ``options.dt`` with ``options.solver`` from ``state``
+    (default the initial state) and return ``(final_state, Z_pre, Z_post)``: the
     scaled first-order states ``z = [x; Δt ẋ]`` before each step's transport (2N, n_steps) and
     after it, the start state first (2N, n_steps + 1). The velocity is scaled by ``Δt`` so both
     halves are lengths (a POD of mixed m and m/s would weigh them by the unit system). These are
-    the snapshots of the fully reduced step (:mod:`jaxbelt.rom.reduced`)."""
+    the snapshots of the fully reduced step (:mod:`jaxbelt.rom.pod_step`)."""
     state = initial_state(model) if state is None else state
-    dt = jnp.asarray(dt, model.ell.dtype)
-    final, rec = _scan_recorded(model, _solver(integrator), state, dt, int(n_steps))
+    dt = jnp.asarray(options.dt, model.ell.dtype)
+    final, rec = _scan_recorded(model, options.solver, state, dt, int(options.n_steps))
     return (final,) + _first_order_snapshots(model, rec, state, dt)
-
-
-def _solver(integrator):
-    return make_solver() if integrator is None else integrator
 
 
 @eqx.filter_jit
@@ -59,8 +55,8 @@ def _first_order_snapshots(model, rec, state, dt):
 
 
 @eqx.filter_jit
-def _scan_recorded(model, integrator, state, dt, n_steps: int):
-    step = make_step(model, integrator, dt, integrator.init(model, state, dt), SaveAt(solved=True))
+def _scan_recorded(model, solver, state, dt, n_steps: int):
+    step = make_step(model, solver, dt, solver.init(model, state, dt), SaveAt(solved=True))
     return lax.scan(lambda c, _: step(c), state, None, length=n_steps)
 
 

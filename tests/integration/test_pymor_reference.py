@@ -1,6 +1,6 @@
 """POD and POD-Galerkin against pyMOR (an independent MOR library, test-only dependency) on the 1D
 model: the same snapshots give the same singular values and basis, and jaxbelt's reduced
-operators (assembled by Jacobian-vector products along the basis, ``jaxbelt.rom.reduced``) equal
+operators (assembled by Jacobian-vector products along the basis, ``jaxbelt.rom.pod_step``) equal
 pyMOR's Galerkin projection of the same full-order maps, to round-off."""
 
 import jax
@@ -17,7 +17,7 @@ from pymor.vectorarrays.numpy import NumpyVectorSpace  # noqa: E402
 import jaxbelt as jb  # noqa: E402
 from helpers import load  # noqa: E402
 from jaxbelt.rom import collect_first_order, fit_reduced_pod, parameters, pod_basis, state_to_z  # noqa: E402
-from jaxbelt.rom.reduced import solve_map  # noqa: E402
+from jaxbelt.rom.pod_step import solve_map  # noqa: E402
 
 R = 12
 
@@ -25,7 +25,7 @@ R = 12
 @pytest.fixture(scope="module")
 def setup():
     m, opts = load("two-roller-1d-train1")
-    _, Zp, Zq = collect_first_order(m, 150, opts.dt)  # the training run of test_rom_dmdc / test_rom_indicator
+    _, Zp, Zq = collect_first_order(m, jb.RunOptions(jb.make_solver(), 150, opts.dt))  # the training run of test_rom_dmdc / test_rom_error_estimate
     Z = np.asarray(jnp.concatenate([Zp, Zq], axis=1))
     return m, opts.dt, Z
 

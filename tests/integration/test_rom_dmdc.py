@@ -84,7 +84,7 @@ def belt():
     runs = {}
     for name in ("two-roller-1d", "two-roller-1d-train1", "two-roller-1d-train2"):
         m = jb.load_model(name)
-        runs[name] = (m, collect_first_order(m, n_train, DT)[2])
+        runs[name] = (m, collect_first_order(m, jb.RunOptions(jb.make_solver(), n_train, DT))[2])
     m0 = runs["two-roller-1d"][0]
     C = tracer_operator(m0)
     return runs, jnp.concatenate([C, jnp.zeros_like(C)], axis=1), n_test
@@ -101,7 +101,7 @@ def test_dmdc_predicts_a_held_out_misalignment(belt):
     X, Y, U = stack_controlled([z for _, z in use], [belt_inputs(parameters(m), z.shape[1] - 1) for m, z in use])
     d = fit_dmdc(X, Y, U, rank=30)
     test = jb.with_misalignment(use[0][0], translation=jnp.array([-6e-3, 0.0]))
-    z0 = collect_first_order(test, 1, DT)[2][:, 0]
+    z0 = collect_first_order(test, jb.RunOptions(jb.make_solver(), 1, DT))[2][:, 0]
     pred = d.predict(z0, belt_inputs(parameters(test), 1)[:, 0], n, observe=Cz)
     assert float(rmse(_truth(test, n), pred)) * 1e3 < 0.02
     # the source's multi-configuration DMD (no inputs) cannot tell the configurations apart

@@ -22,7 +22,7 @@ def test_mode_rules_on_hand_made_singular_values():
 @pytest.fixture(scope="module")
 def train1():
     m, opts = load("two-roller-1d-train1")
-    state, X, _ = collect_snapshots(m, 50, opts.dt)
+    state, X, _ = collect_snapshots(m, jb.RunOptions(jb.make_solver(), 50, opts.dt))
     _, ref = jb.simulate(m, jb.make_solver("eliminated"), y0=state, n_steps=100, dt=opts.dt)
     return m, opts.dt, state, X, ref
 

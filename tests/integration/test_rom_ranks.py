@@ -12,7 +12,7 @@ from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ra
 @pytest.fixture(scope="module")
 def training():
     m, opts = load("two-roller-1d-train1")
-    _, Zp, Zq = collect_first_order(m, 150, opts.dt)  # the training run of test_rom_dmdc / test_rom_indicator
+    _, Zp, Zq = collect_first_order(m, jb.RunOptions(jb.make_solver(), 150, opts.dt))  # the training run of test_rom_dmdc / test_rom_error_estimate
     Z = jnp.concatenate([Zp, Zq], axis=1)
     return m, opts.dt, Z, fit_reduced_pod_ranks(m, Z, (4, 12, 8), opts.dt)
 

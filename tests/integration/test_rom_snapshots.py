@@ -11,7 +11,7 @@ from jaxbelt.rom import collect_snapshots, first_order, fit_dmd, rmse, tracer_op
 
 def test_snapshots_are_the_pre_transport_states():
     m, opts = load("two-roller-1d-train2")
-    _, X, Xd = collect_snapshots(m, 30, opts.dt)
+    _, X, Xd = collect_snapshots(m, jb.RunOptions(jb.make_solver(), 30, opts.dt))
     _, tr = jb.simulate(m, n_steps=30, dt=opts.dt)
     C = tracer_operator(m)
     np.testing.assert_allclose(np.asarray(C @ X).T, np.asarray(tr.tracer_u_solved), rtol=1e-12, atol=1e-15)
@@ -35,7 +35,7 @@ def test_single_configuration_dmd_reaches_the_tolerance_1d():
     """Train on the first 150 steps of Table 6.1 run 1 (first-order pre-transport states, as the
     source), predict the next 200 steps' tracers: RMSE well below 0.02 mm."""
     m, opts = load("two-roller-1d-train1")
-    state, X, Xd = collect_snapshots(m, 150, opts.dt)
+    state, X, Xd = collect_snapshots(m, jb.RunOptions(jb.make_solver(), 150, opts.dt))
     Z = first_order(X, Xd)
     dmd = fit_dmd(Z).stable()
     _, tr = jb.simulate(m, y0=state, n_steps=200, dt=opts.dt)
@@ -58,8 +58,8 @@ def test_dmd_forecast_in_one_program_equals_the_fit_and_prediction_apart():
     m, opts = load("two-roller-1d-train1")
     C = tracer_operator(m)
     C2 = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
-    fc = dmd_forecast(m, opts.solver, opts.dt, 60, 80, C2)
-    Z = collect_first_order(m, 60, opts.dt, opts.solver)[1]
+    fc = dmd_forecast(m, opts.replace(n_steps=60), 80, C2)
+    Z = collect_first_order(m, jb.RunOptions(opts.solver, 60, opts.dt))[1]
     fit = fit_dmd(Z, svd="randomized").stable()  # the same sketch, the rank cut as a shape
     # the masked k × k eigenproblem against the truncated r × r one: round-off, amplified by the
     # conditioning of the non-normal modes, to tens of nanometres on centimetre-sized tracers

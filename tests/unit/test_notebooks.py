@@ -78,7 +78,7 @@ def test_notebook_api_resolves(path):
 @pytest.mark.parametrize("snippet,word", [
     ("import jaxbelt as jb\njb.no_such_function()", "no attribute 'no_such_function'"),
     ("from jaxbelt import design\ndesign.sampling.no_such_sampler", "no attribute 'no_such_sampler'"),
-    ("from jaxbelt.rom.indicator import no_such_name", "has no 'no_such_name'"),
+    ("from jaxbelt.rom.error_estimate import no_such_name", "has no 'no_such_name'"),
     ("import jaxbelt as jb\njb.simulate(m, n_step=10, dt=0.01)", "takes no keyword 'n_step'"),
     ("import jaxbelt as jb\njb.simulate(m, n_steps=10)", "missing its required argument 'dt'"),
     ("import jaxbelt as jb\njb.load_scene('a', 'b', 'c', 'd', 'e', 'f')", "positional arguments"),

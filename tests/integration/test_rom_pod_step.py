@@ -7,9 +7,9 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.rom import collect_first_order, fit_reduced_pod, fit_reduced_pod_ranks, parameters, pod_basis, rmse
-from jaxbelt.rom.reduced import reduced_operators
+from jaxbelt.rom.pod_step import reduced_operators
 
-N_TRAIN, N_TEST = 150, 400  # 150: the training run of test_rom_dmdc / test_rom_indicator (one compiled program)
+N_TRAIN, N_TEST = 150, 400  # 150: the training run of test_rom_dmdc / test_rom_error_estimate (one compiled program)
 DT = jb.load_scene("two-roller-1d").time.dt  # the time step of every two-roller-1d scene
 
 
@@ -18,7 +18,7 @@ def runs():
     out = {}
     for name in ("two-roller-1d", "two-roller-1d-train1", "two-roller-1d-train2"):
         m = jb.load_model(name)
-        _, Zp, Zq = collect_first_order(m, N_TRAIN, DT)
+        _, Zp, Zq = collect_first_order(m, jb.RunOptions(jb.make_solver(), N_TRAIN, DT))
         out[name] = (m, jnp.concatenate([Zp, Zq], axis=1))
     return out
 
@@ -88,7 +88,7 @@ def test_gradient_through_the_whole_chain_wrt_a_misalignment():
 
     def metric(dx):
         mm = jb.with_misalignment(m, translation=jnp.stack([dx, 0.0]))
-        _, Zp, Zq = collect_first_order(mm, 40, DT)
+        _, Zp, Zq = collect_first_order(mm, jb.RunOptions(jb.make_solver(), 40, DT))
         rom = fit_reduced_pod(mm, jnp.concatenate([Zp, Zq], axis=1), DT, n_modes=8)
         out = _predict(rom, mm, 60)
         return jnp.mean(out.tracer_u ** 2) * 1e6

@@ -18,7 +18,7 @@ import jaxbelt as jb
 from jaxbelt.rom import (belt_inputs, collect_first_order, fit_dmd, fit_dmdc, fit_reduced_pod_ranks, parameters,
                          rmse, stack_controlled, tracer_operator)
 from jaxbelt.rom.calibration import calibrate, safety_factor, snapshot_count
-from jaxbelt.rom.indicator import (BasisTrajectory, ErrorRomOptions, _quasi_static_response, _split_changing_windows,
+from jaxbelt.rom.error_estimate import (BasisTrajectory, ErrorRomOptions, _quasi_static_response, _split_changing_windows,
                                   error_rom, residual_indicator, warm_error_rom)
 
 N_TRAIN, N_TEST = 100, 200
@@ -33,12 +33,12 @@ def _rmse_mm(a, b):
 def setup():
     names = ["two-roller-1d", "two-roller-1d-train1"]
     ms = [jb.load_model(n) for n in names]
-    runs = [collect_first_order(m, N_TRAIN, DT) for m in ms]
+    runs = [collect_first_order(m, jb.RunOptions(jb.make_solver(), N_TRAIN, DT)) for m in ms]
     same = jb.with_misalignment(ms[0], translation=jnp.array([-6e-3, 0.0]))
     new = same.replace(omega=0.9 * ms[0].omega)
     truth = {}
     for key, m in (("same", same), ("new", new)):
-        Z = collect_first_order(m, N_TEST, DT)[2]
+        Z = collect_first_order(m, jb.RunOptions(jb.make_solver(), N_TEST, DT))[2]
         truth[key] = (m, Z)
     C = tracer_operator(ms[0])
     return dict(ms=ms, runs=runs, truth=truth, C=C, Cz=jnp.concatenate([C, jnp.zeros_like(C)], axis=1))
@@ -213,7 +213,7 @@ def test_snapshot_rule_stops_when_new_data_are_predicted():
     def fit_predict(Z, n):
         return fit_dmd(Z).predict(Z[:, -1], n, observe=Cz)
 
-    res = snapshot_count(m, fit_predict, DT, chunk=50, max_steps=600)
+    res = snapshot_count(m, fit_predict, jb.RunOptions(jb.make_solver(), 600, DT), chunk=50)
     assert res.converged
     assert res.history[-1][1] < 0.1 * 0.02
     assert all(e >= 0.002 for _, e in res.history[:-1])  # stopped at the first chunk that passed

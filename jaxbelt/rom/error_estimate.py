@@ -90,7 +90,7 @@ class ResidualIndicator:
     estimate_mm: jax.Array
 
 
-def residual_indicator(model, states, dt, stride: int = 10, integrator: AbstractIntegrator | None = None,
+def residual_indicator(model, states, dt, stride: int = 10, solver: AbstractIntegrator | None = None,
                        order: str = "post") -> ResidualIndicator:
     """Residual-based error indicator of a reduced trajectory.
 
@@ -99,7 +99,7 @@ def residual_indicator(model, states, dt, stride: int = 10, integrator: Abstract
     ``stride``: evaluate every ``stride``-th step; ``order``: see :func:`~jaxbelt.rom.full_steps.full_step_map`.
     """
     states = jnp.asarray(states)
-    F = jax.jit(jax.vmap(full_step_map(model, dt, integrator, order)))
+    F = jax.jit(jax.vmap(full_step_map(model, dt, solver, order)))
     idx = np.arange(0, states.shape[0] - 1, stride)
     C = tracer_operator(model)
     N = model.n_unknowns
@@ -111,7 +111,7 @@ def residual_indicator(model, states, dt, stride: int = 10, integrator: Abstract
 # --------------------------------------------------------------------------- the error ROM
 
 
-def warm_error_rom(model, dt, integrator: AbstractIntegrator | None = None, order: str = "post",
+def warm_error_rom(model, dt, solver: AbstractIntegrator | None = None, order: str = "post",
                    options: "ErrorRomOptions | None" = None):
     """Compile, without running them, the full-order programs of :func:`error_rom` for
     ``model``'s shapes: the start data, the batched full steps and the Jacobian-vector products
@@ -119,17 +119,17 @@ def warm_error_rom(model, dt, integrator: AbstractIntegrator | None = None, orde
     Another configuration of the same mesh reuses them. Nothing executes, so a caller with other
     work to do first runs this in a background thread and overlaps the compilation with that work
     (two XLA:CPU executions at once can wedge its thread pool)."""
-    integrator = make_solver() if integrator is None else integrator
+    solver = make_solver() if solver is None else solver
     chunk = (ErrorRomOptions() if options is None else options).chunk
     dt = jnp.asarray(dt, model.ell.dtype)
-    run_data_at_start.lower(model, integrator, dt).compile()
+    run_data_at_start.lower(model, solver, dt).compile()
     run_data = jax.tree.map(lambda x: np.zeros(x.shape, x.dtype) if isinstance(x, jax.ShapeDtypeStruct) else x,
-                            eqx.filter_eval_shape(run_data_at_start, model, integrator, dt))
+                            eqx.filter_eval_shape(run_data_at_start, model, solver, dt))
     n = 2 * model.n_unknowns
     z, dtype = np.zeros(n, model.ell.dtype), model.ell.dtype
-    apply_steps.lower(model, dt, integrator, order, 1, np.zeros((chunk, n), dtype), run_data).compile()
-    jvp_columns.lower(model, dt, integrator, order, 1, z, np.zeros((n, chunk), dtype), run_data).compile()
-    jvp_one.lower(model, dt, integrator, order, 1, z, z, run_data).compile()
+    apply_steps.lower(model, dt, solver, order, 1, np.zeros((chunk, n), dtype), run_data).compile()
+    jvp_columns.lower(model, dt, solver, order, 1, z, np.zeros((n, chunk), dtype), run_data).compile()
+    jvp_one.lower(model, dt, solver, order, 1, z, z, run_data).compile()
 
 
 def _remainder_svd(W, X):
@@ -306,7 +306,7 @@ class ErrorEstimate:
 
 
 def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order: str = "post", steps: int = 1,
-              integrator: AbstractIntegrator | None = None, observe=None,
+              solver: AbstractIntegrator | None = None, observe=None,
               options: ErrorRomOptions = ErrorRomOptions()) -> ErrorEstimate:
     """Error ROM: estimate of the tracer error of a reduced trajectory from its full-order residuals
     propagated through the full step's Jacobian in a residual-enriched subspace.
@@ -316,7 +316,7 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     (s); ``z_true0`` the full model's state at step 0 (its difference from ``z_0`` is the initial
     error; ``None``: zero); ``model`` the configuration predicted; ``order``/``steps``: the
     reduced model's step is ``steps`` full steps in ``order`` (:func:`~jaxbelt.rom.full_steps.full_step_map`) of
-    ``integrator`` (default :func:`jaxbelt.make_solver`'s); ``observe`` (o, N) what the error is
+    ``solver`` (default :func:`jaxbelt.make_solver`'s); ``observe`` (o, N) what the error is
     measured on (default the longitudinal tracers,
     :func:`~jaxbelt.rom.snapshots.tracer_operator`); ``stride``: residual windows of ``stride``
     steps; ``options``: the remaining tuning (:class:`ErrorRomOptions`).
@@ -332,15 +332,15 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     if n < 1:
         raise ValueError("error_rom: need at least one reduced step")
     stride, steps = max(int(stride), 1), max(int(steps), 1)
-    integrator = make_solver() if integrator is None else integrator
+    solver = make_solver() if solver is None else solver
     dt = jnp.asarray(dt, basis.dtype)
     obs = np.asarray(tracer_operator(model) if observe is None else observe)
     obs = np.concatenate([obs, np.zeros_like(obs)], axis=1)
 
-    run_data = run_data_at_start(model, integrator, dt)
+    run_data = run_data_at_start(model, solver, dt)
 
     def F(Z):
-        return in_chunks(lambda X: apply_steps(model, dt, integrator, order, steps, X, run_data), Z, options.chunk, 0)
+        return in_chunks(lambda X: apply_steps(model, dt, solver, order, steps, X, run_data), Z, options.chunk, 0)
 
     starts, D, evaluated = _window_residuals(F, basis, coords, stride, options)
     edges = np.concatenate([starts, [n]])
@@ -349,11 +349,11 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     z0_j = jnp.asarray(z0)
 
     def J(V):
-        return in_chunks(lambda X: jvp_columns(model, dt, integrator, order, steps, z0_j, X, run_data), V,
+        return in_chunks(lambda X: jvp_columns(model, dt, solver, order, steps, z0_j, X, run_data), V,
                         options.chunk, 1)
 
     def Jv(v):
-        return jvp_one(model, dt, integrator, order, steps, z0_j, v, run_data)
+        return jvp_one(model, dt, solver, order, steps, z0_j, v, run_data)
 
     W, JW, qs_iter, settled = _error_subspace(J, Jv, basis, D, e0, edges, options)
     A, rho = _stabilised(W.T @ JW)

@@ -33,6 +33,9 @@ Tracers are read through ``C V`` (n_tr, r): full fields are never formed online.
 
 from __future__ import annotations
 
+import functools
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -43,8 +46,10 @@ from ..assembly import roller_R
 from ..integrators import AbstractIntegrator, make_solver
 from ..state import initial_state
 from ..transport import transport_step_with_weights
+from .error_estimate import BasisTrajectory
 from .pod import pod_basis
-from .snapshots import state_to_z, tracer_operator, z_to_state
+from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns
+from .snapshots import collect_first_order, state_to_z, tracer_operator, z_to_state
 
 
 def parameters(model):
@@ -80,17 +85,17 @@ def with_parameters(model, mu):
     return eqx.tree_at(lambda m: (m.chi_static, m.omega), model, (mu[:q], mu[q:]))
 
 
-def solve_map(model, dt, integrator: AbstractIntegrator | None = None, run_data=None):
+def solve_map(model, dt, solver: AbstractIntegrator | None = None, run_data=None):
     """``(z, μ) -> z̃``: one full-order solve of step ``dt`` (before transport) on scaled
-    first-order states. ``run_data``: the integrator's (``integrator.init``), by default from
+    first-order states. ``run_data``: the solver's (``solver.init``), by default from
     ``model``'s initial state."""
-    integrator = make_solver() if integrator is None else integrator
+    solver = make_solver() if solver is None else solver
     if run_data is None:
-        run_data = integrator.init(model, initial_state(model), dt)
+        run_data = solver.init(model, initial_state(model), dt)
 
     def f(z, mu):
         m = with_parameters(model, mu)
-        return state_to_z(m, integrator.step(m, z_to_state(m, z, dt), dt, run_data), dt)
+        return state_to_z(m, solver.step(m, z_to_state(m, z, dt), dt, run_data), dt)
 
     return f
 
@@ -198,24 +203,24 @@ class ReducedStep(eqx.Module):
                            singular_values=self.singular_values)
 
 
-def reduced_operators(model, V, dt, integrator: AbstractIntegrator | None = None, ref_state=None, mu_ref=None,
+def reduced_operators(model, V, dt, solver: AbstractIntegrator | None = None, ref_state=None, mu_ref=None,
                       singular_values=None) -> ReducedStep:
-    """Project the full step of size ``dt`` (``integrator``'s solve, default
+    """Project the full step of size ``dt`` (``solver``'s solve, default
     :func:`jaxbelt.make_solver`'s, then the shift transport) onto ``V`` (2N, r): the
     :class:`ReducedStep` of basis ``V`` (``singular_values`` stored with it).
 
     Linearisation point: ``ref_state`` (default: the initial state of ``model``) and
     ``mu_ref`` (default :func:`parameters` of ``model``). Costs r + q + 2 Jacobian-vector products.
     """
-    integrator = make_solver() if integrator is None else integrator
-    if integrator.transport != "shift":
+    solver = make_solver() if solver is None else solver
+    if solver.transport != "shift":
         raise ValueError("the fully reduced step needs the 'shift' transport rule (masses constant)")
     ref_state = initial_state(model) if ref_state is None else ref_state
     mu_ref = parameters(model) if mu_ref is None else jnp.asarray(mu_ref)
     V = jnp.asarray(V)
     dt = jnp.asarray(dt, V.dtype)
     c = shift_functional(model)
-    ops = _operators(model, integrator, ref_state, mu_ref, V, c, dt)
+    ops = _operators(model, solver, ref_state, mu_ref, V, c, dt)
 
     def lift(C):
         return jnp.concatenate([C, jnp.zeros_like(C)], axis=1) @ V
@@ -226,9 +231,9 @@ def reduced_operators(model, V, dt, integrator: AbstractIntegrator | None = None
 
 
 @eqx.filter_jit
-def _operators(model, integrator, ref_state, mu_ref, V, c, dt):
+def _operators(model, solver, ref_state, mu_ref, V, c, dt):
     z_ref = state_to_z(model, ref_state, dt)
-    solve = solve_map(model, dt, integrator, integrator.init(model, ref_state, dt))
+    solve = solve_map(model, dt, solver, solver.init(model, ref_state, dt))
     R = roller_R(model, ref_state.u)
     transport = transport_map(model, R, dt)
 
@@ -255,23 +260,83 @@ def _operators(model, integrator, ref_state, mu_ref, V, c, dt):
     return dict(A=V.T @ SV, B=V.T @ T, d=V.T @ c_full, Z=V.T @ ZV, G=V.T @ GV, H=V.T @ Hmu, h=V.T @ h0)
 
 
-def fit_reduced_pod(model, snapshots, dt, integrator: AbstractIntegrator | None = None, ref_state=None,
+def fit_reduced_pod(model, snapshots, dt, solver: AbstractIntegrator | None = None, ref_state=None,
                     mu_ref=None, **choice) -> ReducedStep:
     """Fully reduced POD model from scaled first-order snapshots (2N, m) — e.g. ``Z_pre`` and
     ``Z_post`` of :func:`~jaxbelt.rom.snapshots.collect_first_order`, of one configuration or
-    several side by side, taken with time step ``dt`` (and ``integrator``). ``choice``:
+    several side by side, taken with time step ``dt`` (and ``solver``). ``choice``:
     ``n_modes=`` / ``energy_tol=`` / ``rule="source"`` as :func:`~jaxbelt.rom.pod.pod_basis`.
     ``model``: the configuration to linearise at (use the nominal one for multi-configuration
     training)."""
     V, s = pod_basis(jnp.asarray(snapshots), **choice)
-    return reduced_operators(model, V, dt, integrator, ref_state, mu_ref, singular_values=s)
+    return reduced_operators(model, V, dt, solver, ref_state, mu_ref, singular_values=s)
 
 
-def fit_reduced_pod_ranks(model, snapshots, ranks, dt, integrator: AbstractIntegrator | None = None, ref_state=None,
+def fit_reduced_pod_ranks(model, snapshots, ranks, dt, solver: AbstractIntegrator | None = None, ref_state=None,
                           mu_ref=None) -> dict:
     """``{r: ReducedStep}`` for every ``r`` in ``ranks`` from one SVD and one projection at the
     largest rank (:meth:`ReducedStep.truncate`): the offline cost of a rank study is that of its
     largest model, compiled once."""
     ranks = sorted({int(r) for r in ranks})
-    top = fit_reduced_pod(model, snapshots, dt, integrator, ref_state, mu_ref, n_modes=ranks[-1])
+    top = fit_reduced_pod(model, snapshots, dt, solver, ref_state, mu_ref, n_modes=ranks[-1])
     return {r: top.truncate(r) for r in ranks}
+
+
+@functools.partial(jax.jit, static_argnums=3)
+def _run(step: ReducedStep, xi0, mu, n_steps: int) -> ReducedTrajectory:
+    return step.run(xi0, mu, n_steps)
+
+
+class ReducedPODModel(AbstractReducedModel):
+    """The fully reduced POD step fitted by :class:`ReducedPOD`: ``step`` (:class:`ReducedStep`)
+    and its training ``snapshots``, per run ``(Z_pre, Z_post)``
+    (:func:`~jaxbelt.rom.snapshots.collect_first_order`)."""
+
+    step: ReducedStep
+    snapshots: tuple
+
+    @property
+    def n_modes(self) -> int:
+        return self.step.n_modes
+
+    def predict(self, z0, mu, n_steps: int) -> Prediction:
+        xi0 = self.step.basis.T @ z0
+        out = _run(self.step, xi0, mu, int(n_steps))
+        return Prediction(tracer_u=out.tracer_u, basis=self.step.basis, coords=jnp.concatenate([xi0[None], out.xi]),
+                          z_start=z0, order="post")
+
+    def spectra(self, z0) -> Spectra:
+        return Spectra(singular_values=np.asarray(self.step.singular_values))
+
+
+class ReducedPOD(AbstractReduction):
+    """The fully reduced POD step (module docstring) of ``modes`` modes, trained on the snapshots
+    before and after transport of every training run and linearised at the first (nominal)
+    configuration with its own solver; it predicts any configuration from its initial state."""
+
+    modes: int = 20
+    name: ClassVar[str] = "pod"
+
+    def fit(self, training: TrainingRuns) -> ReducedPODModel:
+        snaps = tuple(collect_first_order(m, training.options(i))[1:] for i, m in enumerate(training.models))
+        Z = jnp.concatenate([z for p in snaps for z in p], axis=1)
+        step = fit_reduced_pod(training.models[0], Z, training.dt, training.own_solvers[0], n_modes=self.modes)
+        return ReducedPODModel(step=step, snapshots=snaps)
+
+    def calibration_cases(self, fitted: ReducedPODModel, training: TrainingRuns, half: int):
+        C = tracer_operator(training.models[0])
+        N, m_train = C.shape[1], int(training.n_steps)
+        first_half = [Z for Zpre, Zpost in fitted.snapshots for Z in (Zpre[:, :half], Zpost[:, :half + 1])]
+        cfit = fit_reduced_pod(training.models[0], jnp.concatenate(first_half, axis=1), training.dt,
+                               training.own_solvers[0], n_modes=self.modes)
+        for m, s, (_, Zpost) in training.calibration_subset(zip(training.models, training.solvers, fitted.snapshots)):
+            x0 = cfit.project(m, initial_state(m))
+            o = cfit.run(x0, parameters(m), m_train)
+            yield m, (C @ Zpost[:N, 1:]).T, o.tracer_u, BasisTrajectory(
+                cfit.basis, jnp.concatenate([x0[None], o.xi]), Zpost[:, 0]), s
+
+    def check_training(self, model, train, solvers):
+        super().check_training(model, train, solvers)
+        for i, s in enumerate(solvers):
+            if s.transport != "shift":
+                raise ValueError(f"pod needs the 'shift' transport rule; training model {i} uses {s.transport!r}")
