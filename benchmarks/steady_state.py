@@ -3,10 +3,13 @@
 On the design scene (the steered three-roller machine), aligned and with misalignments of the size
 the tolerance box allows, noise and edge profile off (:func:`jaxbelt.steady.quiet`): the steady
 solve (:func:`jaxbelt.steady.steady_state`: compile time, best warm time of ``--repeat``, Newton
-steps, residual) beside a time-stepped run of the same machine from its static equilibrium, the
+steps, GMRES iterations, residual; and the same solve without its mass-transport preconditioner)
+beside a time-stepped run of the same machine from its static equilibrium, the
 time it needs until its lateral deviation from the aligned machine stays within 0.5 % of a 20 µm
 limit of the steady one, and the wall time of those steps. Also the steady deviation against the
-run's at its end.
+run's at its end. ``tangents``: the aligned machine's tracer derivatives with respect to all 18
+roller translations and rotations (forward mode, relative residual 1e-6 as a design study asks),
+best warm time with and without the preconditioner.
 
 Run: ``python benchmarks/steady_state.py [--t-end 80] [--repeat 3]``. Writes
 ``results/steady_state.json``.
@@ -20,9 +23,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbelt as jb
-from _common import load, write
+from _common import load, timed, write
 from jaxbelt.misalignment import aligned, with_misalignment
-from jaxbelt.steady import quiet, steady_state
+from jaxbelt.steady import forward_jacobian, period_steps, quiet, steady_state
 from jaxbelt.timeloop import compile_simulation
 
 LIMIT_UM = 20.0
@@ -35,16 +38,32 @@ CASES = {  # roller translations (m) and rotations (rad) per roller
 }
 
 
-def timed_solve(model, solver, dt, repeat):
+def timed_solve(model, solver, dt, repeat, precondition=True):
     t0 = time.perf_counter()
-    s = jax.block_until_ready(steady_state(model, solver, dt=dt))
+    s = jax.block_until_ready(steady_state(model, solver, dt=dt, precondition=precondition))
     first = time.perf_counter() - t0
     times = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        s = jax.block_until_ready(steady_state(model, solver, dt=dt))
+        s = jax.block_until_ready(steady_state(model, solver, dt=dt, precondition=precondition))
         times.append(time.perf_counter() - t0)
     return s, first, min(times)
+
+
+def tangents(model, solver, dt, repeat, precondition):
+    """The aligned machine's tracer derivatives with respect to every roller translation and
+    rotation (the design study's tangents, relative residual 1e-6): best warm seconds."""
+    n_p = period_steps(model, dt)
+
+    def tracers(theta):
+        m = with_misalignment(model, translation=theta[:9].reshape(3, 3), rotation=theta[9:].reshape(3, 3))
+        s = steady_state(m, solver, dt=dt, period_steps=n_p, tangent_rtol=1e-6, precondition=precondition)
+        return s.tracer_v
+
+    fn = jax.jit(lambda th: forward_jacobian(tracers, th))
+    theta = jnp.zeros(18)
+    _, best, J = timed(fn, theta, repeat=repeat)
+    return best, np.asarray(J)
 
 
 def main():
@@ -69,6 +88,7 @@ def main():
         m = model if tr_ is None and rot is None else with_misalignment(
             model, translation=None if tr_ is None else jnp.asarray(tr_), rotation=None if rot is None else jnp.asarray(rot))
         s, first_s, warm_s = timed_solve(m, solver, dt, args.repeat)
+        s_plain, _, warm_plain_s = timed_solve(m, solver, dt, args.repeat, precondition=False)
         _, tr = jax.block_until_ready(run(m, dt))
         dev_run = (np.asarray(tr.tracer_v) - np.asarray(ref_tr.tracer_v)) * 1e6  # (k, n_tr) µm
         dev_steady = (np.asarray(s.tracer_v) - np.asarray(ref_s.tracer_v)) * 1e6
@@ -80,8 +100,12 @@ def main():
         settled = k_settled < len(gap)
         t_settle = float(np.asarray(tr.t)[k_settled]) if settled else None
         rows.append(dict(
-            case=name, newton_steps=int(s.newton_steps), residual_um=float(s.residual), converged=bool(s.converged),
+            case=name, newton_steps=int(s.newton_steps), krylov_iterations=int(s.krylov_iterations),
+            residual_um=float(s.residual), converged=bool(s.converged),
             solve_first_s=first_s, solve_warm_s=warm_s,
+            unpreconditioned=dict(newton_steps=int(s_plain.newton_steps), krylov_iterations=int(s_plain.krylov_iterations),
+                                  solve_warm_s=warm_plain_s,
+                                  lateral_gap_um=float(np.abs(np.asarray(s_plain.tracer_v) - np.asarray(s.tracer_v)).max() * 1e6)),
             lateral_max_steady_um=float(np.abs(dev_steady).max()), lateral_max_run_end_um=float(np.abs(dev_run[-1]).max()),
             longitudinal_max_steady_um=float(np.abs(du_steady).max()),
             longitudinal_max_run_end_um=float(np.abs(du_run).max()),
@@ -90,7 +114,12 @@ def main():
             angle_mrad_steady=float(np.asarray(s.angle)[0] * 1e3),
             angle_mrad_run_end=float(np.asarray(tr.control_u)[-1, 0] * 1e3)))
         print(rows[-1])
-    write("steady_state", dict(
+    tangent_s, J = tangents(model, solver, dt, args.repeat, True)
+    tangent_plain_s, J_plain = tangents(model, solver, dt, args.repeat, False)
+    tangent_rows = dict(parameters=18, preconditioned_s=tangent_s, unpreconditioned_s=tangent_plain_s,
+                        relative_difference=float(np.abs(J - J_plain).max() / np.abs(J).max()))
+    print(tangent_rows)
+    write("steady_state", dict(tangents=tangent_rows,
         scene=args.scene, unknowns=model.n_unknowns, dt_s=dt, period_steps=int(ref_s.period_steps),
         t_end_s=args.t_end, run_s=run_s, aligned_solve_first_s=first, aligned_solve_warm_s=warm,
         limit_um=LIMIT_UM, device=jax.devices()[0].device_kind, cases=rows))

@@ -216,15 +216,19 @@ def mass_transport_preconditioner(model: BeltModel, dt, n: int) -> MassTransport
     shift = lax.stop_gradient(v * dt)
     a, fwd = upwind_weights(jnp.full((ell.shape[0], 1), shift), ell)
     C = transport_masses(jnp.eye(ell.shape[0], dtype=ell.dtype), a, fwd)
-    M = jnp.eye(ell.shape[0], dtype=ell.dtype) - jnp.linalg.matrix_power(C, n) + 1.0 / ell.shape[0]
+    eye = jnp.eye(ell.shape[0], dtype=ell.dtype)
+    M = eye - jnp.linalg.matrix_power(C, n) + 1.0 / ell.shape[0]
+    M = jnp.where(shift == 0, eye, M)  # a belt no drive moves (torque-driven, at rest): no transport to invert
     m0 = model.m_e0 if model.m_e0.ndim == 1 else model.m_e0[:, 0]
     return MassTransportPreconditioner(lu=lax.stop_gradient(jax.scipy.linalg.lu_factor(M)),
                                        scale=lax.stop_gradient(m0))
 
 
-def _preconditioned(pre: MassTransportPreconditioner, y_template, transpose: bool = False):
-    """``z ↦ M⁻¹ z`` on flat vectors shaped like ``y_template`` (the unknowns, or the walk system's
+def _preconditioned(pre: MassTransportPreconditioner | None, y_template, transpose: bool = False):
+    """``None`` without a preconditioner, else ``z ↦ M⁻¹ z`` on flat vectors shaped like ``y_template`` (the unknowns, or the walk system's
     ``(unknowns, c)``): the mass block (``state_fields``' fifth) preconditioned, the rest passed."""
+    if pre is None:
+        return None
     _, unravel = jax.flatten_util.ravel_pytree(y_template)
     walking = isinstance(y_template[0], tuple)
 
@@ -334,7 +338,8 @@ class _Solution(eqx.Module):
     successful: jax.Array
 
 
-def _solve(fn, y0, model, solver, template, dt, n, tol, max_steps, restart, gmres_steps, tangent_rtol) -> _Solution:
+def _solve(fn, y0, model, solver, template, dt, n, tol, max_steps, restart, gmres_steps, tangent_rtol,
+           precondition: bool = True) -> _Solution:
     """Newton on ``fn(y, (model, run_data)) = 0`` from ``y0`` (:func:`newton_krylov`), its derivatives
     by the implicit function theorem (:func:`jax.lax.custom_root`): a tangent ``dy`` solves
     ``(∂F/∂y) dy = −(∂F/∂θ) dθ`` by :func:`krylov_solve` on the linearised map, the transposed solve of
@@ -344,7 +349,7 @@ def _solve(fn, y0, model, solver, template, dt, n, tol, max_steps, restart, gmre
     measured: every process compiled the tangents again, 69 s on the default scene)."""
     run_data = lax.stop_gradient(solver.init(model, template, dt))
     f = lambda y: fn(y, (model, run_data))  # noqa: E731
-    pre = mass_transport_preconditioner(model, dt, n)
+    pre = mass_transport_preconditioner(model, dt, n) if precondition else None
 
     def newton_solve(f, guess):
         y, rms, residual, steps, its = newton_krylov(f, guess, tol, max_steps, restart, gmres_steps,
@@ -390,20 +395,20 @@ def _setup(model, solver, dt, y0, n=None):
 
 
 @stored_jit
-def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol):
+def _steady(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol, precondition):
     q = quiet(model)
     fn = _residual(solver, dt, n, sc, template, walking=False)
     y0 = _pack(template, sc)
-    sol = _solve(fn, y0, q, solver, template, dt, n, tol, max_steps, restart, gmres_steps, tangent_rtol)
+    sol = _solve(fn, y0, q, solver, template, dt, n, tol, max_steps, restart, gmres_steps, tangent_rtol, precondition)
     return _result(q, dt, n, sol.value, sc, template, jnp.zeros((), dt.dtype), sol, tol)
 
 
 @stored_jit
-def _walk(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol):
+def _walk(model, solver, dt, n, template, sc, tol, max_steps, restart, gmres_steps, tangent_rtol, precondition):
     q = quiet(model)
     fn = _residual(solver, dt, n, sc, template, walking=True)
     y0 = (_pack(template, sc), jnp.zeros((), dt.dtype))
-    sol = _solve(fn, y0, q, solver, template, dt, n, tol, max_steps, restart, gmres_steps, tangent_rtol)
+    sol = _solve(fn, y0, q, solver, template, dt, n, tol, max_steps, restart, gmres_steps, tangent_rtol, precondition)
     return _result(q, dt, n, sol.value[0], sc, template, sol.value[1], sol, tol)
 
 
@@ -411,7 +416,7 @@ def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, 
                  period_steps: int | None = None,
                  tol: float = DEFAULT_TOL_UM, max_newton: int = DEFAULT_MAX_NEWTON,
                  restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES,
-                 tangent_rtol: float = ADJOINT_KRYLOV_RTOL) -> SteadyState:
+                 tangent_rtol: float = ADJOINT_KRYLOV_RTOL, precondition: bool = True) -> SteadyState:
     """Steady operation of a machine that is stationary on its grid: a steered machine, or one
     without lateral transport (module docstring). jit-, vmap- and differentiable (implicit
     function theorem) in the model's array fields.
@@ -423,20 +428,23 @@ def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, 
     steps; ``restart`` and ``krylov_cycles`` GMRES's Krylov vectors per cycle and cycles per solve;
     ``tangent_rtol`` GMRES's relative residual in each derivative's solve (forward tangent or
     transposed solve; the default's derivatives equal central differences to 1e-5 and better; a
-    linear model that nonlinear solves verify needs far less: 1e-6 gives 1e-4).
+    linear model that nonlinear solves verify needs far less: 1e-6 gives 1e-4); ``precondition``
+    whether GMRES runs with :class:`MassTransportPreconditioner` (same answer to the tolerances,
+    fewer iterations).
     """
     if model.kind == "2d" and model.control is None and _walks(model):
         raise ValueError("steady_state: this machine walks (lateral transport without a steering loop); "
                          "its steady operation is steady_walk's")
     solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
-    return _steady(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles, tangent_rtol)
+    return _steady(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles, tangent_rtol,
+                   precondition)
 
 
 def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, y0: BeltState | None = None,
                  period_steps: int | None = None,
                 tol: float = DEFAULT_TOL_UM, max_newton: int = DEFAULT_MAX_NEWTON,
                 restart: int = DEFAULT_GMRES_RESTART, krylov_cycles: int = DEFAULT_GMRES_CYCLES,
-                 tangent_rtol: float = ADJOINT_KRYLOV_RTOL) -> SteadyState:
+                 tangent_rtol: float = ADJOINT_KRYLOV_RTOL, precondition: bool = True) -> SteadyState:
     """The open-loop walking machine's steady walk: stationary up to a uniform lateral drift whose
     rate (``walk_rate``, m/s) is an unknown (module docstring). Arguments as :func:`steady_state`;
     a steering loop, if the model has one, is removed (the loop held open at zero angle)."""
@@ -444,7 +452,8 @@ def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, d
         raise ValueError("steady_walk: a 1D belt has no lateral motion")
     model = model.replace(control=None)
     solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
-    return _walk(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles, tangent_rtol)
+    return _walk(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles, tangent_rtol,
+                 precondition)
 
 
 def map_configurations(fn, xs):
