@@ -64,7 +64,7 @@ from .dmdc import DMDcModel, belt_inputs, calibration_cases, fit_dmdc_in_basis, 
 from .error_estimate import ErrorRomOptions, error_rom
 from .pod_step import parameters
 from .reduced_model import CALIBRATION_RUNS
-from .snapshots import collect_first_order, state_to_z, tracer_operator
+from .snapshots import collect_first_order, state_to_z
 from .training import axial_design
 
 SCHEDULE = ((50, 20), (100, 30), (200, 40), (400, 60), (800, 80))  # (training steps per run, modes)
@@ -184,7 +184,6 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
     held = held_out_configurations(half_widths, held_out, seed)
     held_models = [apply(base, space, th, base=base.chi_static) for th in held]
     held_starts = [None] * len(held_models)
-    C = tracer_operator(nominal)
     chunk = functools.reduce(math.gcd, [int(s) for s, _ in schedule])
     chunk_options = RunOptions(solver, chunk, dt)
     levels, fits, done = [], [], 0
@@ -212,7 +211,7 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
                 break
         passed = len(raw) == len(held_models) and kappa * max(raw) < target
         if passed:  # with the lower bound: calibrate this level and check again
-            calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate, C)
+            calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate)
             kappa = calibration.safety_factor
             passed = kappa * max(raw) < target
         level = SizingLevel(train_steps=steps, modes=int(fit.A.shape[0]), safety_factor=kappa,
@@ -234,7 +233,7 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
         chosen = int(np.argmin([lv.estimate_um[0] / lv.safety_factor for lv in levels]))
         fit, steps, modes = fits[chosen]
         trajs = [Z[:, : steps + 1] for Z in trajs]
-        calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate, C)
+        calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate)
         lv = levels[chosen]
         scale = calibration.safety_factor / lv.safety_factor
         levels[chosen] = dataclasses.replace(lv, safety_factor=calibration.safety_factor,
@@ -245,13 +244,13 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
                        seconds=time.perf_counter() - t0)
 
 
-def _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, options, C) -> Calibration:
+def _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, options) -> Calibration:
     """The error estimate's safety factor from the training data: DMDc fitted on the first half
     of the window predicts the first :data:`~jaxbelt.rom.reduced_model.CALIBRATION_RUNS` training runs
     over all of it (:func:`~jaxbelt.rom.calibration.calibrate`)."""
     cfit = fit_over_trajectories([Z[:, : max(1, steps // 2) + 1] for Z in trajs], inputs, modes)
     runs = [(m, Z, mu, solver) for m, Z, mu in zip(models, trajs, inputs)][:CALIBRATION_RUNS]
-    return calibrate(calibration_cases(cfit, runs, steps, C), dt, stride=stride, order="post", options=options)
+    return calibrate(calibration_cases(cfit, runs, steps), dt, stride=stride, order="post", options=options)
 
 
 __all__ = ["SCHEDULE", "SizingLevel", "BoxTraining", "train_over_box", "held_out_configurations",

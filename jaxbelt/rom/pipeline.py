@@ -11,7 +11,8 @@ snapshots, predicting the steps after the training window from its last snapshot
 DMD with control and :class:`~jaxbelt.rom.ParametricDMD` parametric DMD
 (:mod:`jaxbelt.rom.dmdc`), trained on several configurations, predicting a new one from its
 initial state. The error is the tracer RMSE over the predicted steps, at the full run's recorded
-steps, in µm.
+steps, in µm; every method observes its prediction at the predicted configuration's tracers
+(:func:`~jaxbelt.rom.reduced_model.observation`).
 
 **Error estimate** (``stride > 0``): the error ROM
 (:func:`~jaxbelt.rom.error_estimate.error_rom`) of the prediction times a safety factor
@@ -43,7 +44,7 @@ from .dmdc import DMDc
 from .error_estimate import error_rom
 from .metrics import rmse, rrmse
 from .pod_step import parameters
-from .reduced_model import AbstractReducedModel, Prediction, TrainingRuns
+from .reduced_model import AbstractReducedModel, Prediction, TrainingRuns, observation
 
 
 
@@ -125,8 +126,8 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     else:
         fitted, offline_s, first_s = clock(lambda: method.fit(training), repeat=1)
     start, z0 = fitted.start(model, dt)
-    mu = parameters(model)
-    prediction, online_s, _ = clock(lambda: fitted.predict(z0, mu, n - start), repeat=5, budget_s=0.5)
+    mu, observe = parameters(model), observation(model)  # the predicted configuration's tracers
+    prediction, online_s, _ = clock(lambda: fitted.predict(z0, mu, n - start, observe), repeat=5, budget_s=0.5)
 
     pred = np.asarray(prediction.tracer_u)
     if not np.all(np.isfinite(pred)):
