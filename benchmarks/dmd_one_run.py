@@ -49,7 +49,7 @@ def main():
         t = dataclasses.asdict(best.timings)
         row = dict(offline_s=t["offline_s"], online_s=t["online_s"], full_run_s=t["full_run_s"],
                    full_mode=t["full_mode"], speedup_total=t["full_run_s"] / (t["offline_s"] + t["online_s"]),
-                   offline_over_snapshot_steps=t["offline_s"] / snap_s, rmse_mm=best.result.rmse_um / 1e3, modes=best.result.modes)
+                   offline_over_snapshot_steps=t["offline_s"] / snap_s, rmse_um=best.result.rmse_um, modes=best.result.modes)
         out["variants"][name] = row
         print(name, row, flush=True)
     # snapshots, fit and forecast as one compiled program (rom.dmd.dmd_forecast), the same fastest full run
@@ -70,7 +70,7 @@ def main():
     full_s = out["variants"]["randomized"]["full_run_s"]
     out["variants"]["one_program"] = dict(
         total_s=one_s, full_run_s=full_s, speedup_total=full_s / one_s, total_over_snapshot_steps=one_s / snap_s,
-        rmse_mm=float(rom.rmse(truth, pred)) * 1e3, modes=int(fc.rank), sketch_full=bool(fc.sketch_full))
+        rmse_um=float(rom.rmse(truth, pred)) * 1e6, modes=int(fc.rank), sketch_full=bool(fc.sketch_full))
     print("one program", out["variants"]["one_program"], flush=True)
     write("dmd_one_run", out)
 

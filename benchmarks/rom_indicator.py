@@ -3,9 +3,9 @@ the safety factor calibrated on the training data) against the true error, on co
 fit has seen — every number from ``jaxbelt reduce --json`` itself (in this process, so compiled
 programs are shared between cases).
 
-Effectivity = estimate / true error, for the tracer RMSE over the predicted steps (``rmse_mm``,
-estimated by ``error_estimate_mm``) and for its maximum over time (``max_rmse_over_time_mm``,
-``error_estimate_max_mm``). Target: between 1 and 3.
+Effectivity = estimate / true error, for the tracer RMSE over the predicted steps (``rmse_um``,
+estimated by ``error_estimate_um``) and for its maximum over time (``max_rmse_over_time_um``,
+``error_estimate_max_um``), all in µm. Target: between 1 and 3.
 
 Cases:
 1. 1D (``two-roller-1d``, N = 224; training runs of 150 steps, 400 predicted): the drive moved
@@ -128,12 +128,13 @@ def run_case(argv):
     e = r["error_estimate"]
     return dict(
         scene=r["scene"], method=r["method"], modes=r["modes"], predict_steps=r["predict_steps"], compared=r["compared"],
-        rmse_mm=r["rmse_um"] / 1e3, error_estimate_mm=r["error_estimate_um"] / 1e3, effectivity=r["effectivity"],
-        max_rmse_over_time_mm=r["max_rmse_over_time_um"] / 1e3, error_estimate_max_mm=r["error_estimate_max_um"] / 1e3,
+        rmse_um=r["rmse_um"], error_estimate_um=r["error_estimate_um"], effectivity=r["effectivity"],
+        max_rmse_over_time_um=r["max_rmse_over_time_um"], error_estimate_max_um=r["error_estimate_max_um"],
         effectivity_max=r["error_estimate_max_um"] / r["max_rmse_over_time_um"],
         raw_effectivity=e["raw_rmse_um"] / r["rmse_um"], safety_factor=e["safety_factor"],
         calibration_effectivities=[c["effectivity"] for c in e["calibration"]], cost=e["cost"],
-        subspace_dim=e["subspace_dim"], estimate_s=e["total_s"], estimate_test_s=e["test_s"],
+        subspace_dim=e["subspace_dim"], estimate_s=r["timings"]["error_estimate_total_s"],
+        estimate_test_s=r["timings"]["error_estimate_s"],
         full_run_s=r["timings"]["full_run_s"], full_mode=r["timings"]["full_mode"], wall_s=wall)
 
 
@@ -180,14 +181,14 @@ def ablation(paths):
                 "every step + quasi-static response": (1, dict(dense=0))}
     out = {}
     for label, m, basis, coords, Z, pred in tests:
-        true = float(rmse((Cz @ Z[:, 1:]).T, pred)) * 1e3
-        row = dict(true_rmse_mm=true)
+        true = float(rmse((Cz @ Z[:, 1:]).T, pred)) * 1e6
+        row = dict(true_rmse_um=true)
         # the triangle-inequality indicator: the accumulated one-step residual at the last step
-        tri = residual_indicator(m, coords @ basis.T, dt, stride=10).estimate_mm[-1]
+        tri = residual_indicator(m, coords @ basis.T, dt, stride=10).estimate_um[-1]
         row["triangle inequality, stride 10"] = float(tri) / true
         for name, (stride, kw) in variants.items():
             est = error_rom(m, basis, coords, dt, z_true0=Z[:, 0], stride=stride, options=ErrorRomOptions(**kw))
-            row[name] = est.rmse_mm / true
+            row[name] = est.rmse_um / true
         out[label] = row
         print(label, {k: round(v, 3) for k, v in row.items()}, flush=True)
     return out
@@ -203,8 +204,8 @@ def plot(rows, path):
     groups = sorted({r["group"] for r in rows})
     markers = dict(zip(groups, "os^Dv<>"))
     colors = {"pod": "tab:blue", "dmd": "tab:orange", "dmdc": "tab:green", "pdmd": "tab:red"}
-    for ax, (tk, ek, title) in zip(axes, (("rmse_mm", "error_estimate_mm", "tracer RMSE over the predicted steps"),
-                                          ("max_rmse_over_time_mm", "error_estimate_max_mm", "max over time of the RMSE"))):
+    for ax, (tk, ek, title) in zip(axes, (("rmse_um", "error_estimate_um", "tracer RMSE over the predicted steps"),
+                                          ("max_rmse_over_time_um", "error_estimate_max_um", "max over time of the RMSE"))):
         t = np.array([r[tk] for r in rows])
         e = np.array([r[ek] for r in rows])
         lo, hi = t.min() / 3, t.max() * 10
@@ -217,7 +218,7 @@ def plot(rows, path):
             ax.plot([], [], markers[g], color="gray", label=g)
         for mth, c in colors.items():
             ax.plot([], [], "s", color=c, label=mth)
-        ax.set(xlabel="true error (mm)", ylabel="estimate (mm)", title=title, xlim=(lo, hi), ylim=(lo, hi))
+        ax.set(xlabel="true error (µm)", ylabel="estimate (µm)", title=title, xlim=(lo, hi), ylim=(lo, hi))
         ax.grid(alpha=0.3, which="both")
     axes[0].legend(fontsize=8, loc="upper left")
     fig.suptitle("jaxbelt reduce: error estimate vs true error on held-out configurations")
@@ -242,7 +243,7 @@ def main_():
             row = dict(group=group, label=label, command="jaxbelt reduce " + " ".join(shown) + " --json", **res)
             rows.append(row)
             if "effectivity" in res:
-                print(f"{label:45s} true {res['rmse_mm']:.3e} est {res['error_estimate_mm']:.3e} eff {res['effectivity']:.2f} "
+                print(f"{label:45s} true {res['rmse_um']:.4g} µm est {res['error_estimate_um']:.4g} µm eff {res['effectivity']:.2f} "
                       f"(max {res['effectivity_max']:.2f}; raw {res['raw_effectivity']:.2f}, x{res['safety_factor']:.2f}) "
                       f"cost {res['cost']['full_step_equivalents']} / {res['predict_steps']} steps, {res['wall_s']:.0f} s",
                       flush=True)

@@ -277,7 +277,7 @@ print(f"total speedup ×{t_full / (offline + t_online):.2f} for these {len(test_
 # Without the full runs, how would one know which predictions to trust? Two estimates from the
 # full-order one-step residuals of the reduced trajectory (lifted to full states), neither needing
 # a reference run. The **error ROM** (`jaxbelt.rom.error_estimate.error_rom`, what `jaxbelt reduce`
-# reports as `error_estimate_mm`) propagates window means of the residuals through the full
+# reports as `error_estimate_um`) propagates window means of the residuals through the full
 # step's Jacobian in a small residual-enriched subspace; the simpler **triangle-inequality
 # indicator** (`residual_indicator`) only accumulates the tracer residual of every `stride`-th
 # step. Here both, raw (no safety factor), for POD on held-out runs:
@@ -297,17 +297,18 @@ for ax, i in zip(axs, picks):
     est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, solver=reuse)
     ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, solver=reuse)
     e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out.tracer_u)) ** 2, 1)) * 1e3
-    plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est.error_mm), ax=ax,
+    plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est.error_um) / 1e3, ax=ax,
                              estimate_label="error ROM estimate")
-    ax.semilogy((np.asarray(ind.step) + 1) * DT, np.asarray(ind.estimate_mm), "x:", ms=3, lw=1,
+    ax.semilogy((np.asarray(ind.step) + 1) * DT, np.asarray(ind.estimate_um) / 1e3, "x:", ms=3, lw=1,
                 color="tab:gray", label="triangle-inequality indicator")
     ax.legend(fontsize=8)
     ax.set_title(f"POD, {labels[i]}", fontsize=9)
     true_rmse = float(np.sqrt(np.mean(e_t**2)))
+    est_mm, est_max_mm, ind_end_mm = est.rmse_um / 1e3, est.max_um / 1e3, float(ind.estimate_um[-1]) / 1e3
     print(f"{labels[i]:11s}: true RMSE {true_rmse:.2e} mm (max over time {e_t.max():.2e}); error ROM "
-          f"{est.rmse_mm:.2e} mm (×{est.rmse_mm / true_rmse:.2f}, max ×{est.max_mm / e_t.max():.2f}, "
+          f"{est_mm:.2e} mm (×{est_mm / true_rmse:.2f}, max ×{est_max_mm / e_t.max():.2f}, "
           f"{est.cost.full_step_equivalents} full-step equivalents for {TEST} steps); triangle inequality "
-          f"{float(ind.estimate_mm[-1]):.2e} mm at the end (×{float(ind.estimate_mm[-1]) / e_t[-1]:.0f})")
+          f"{ind_end_mm:.2e} mm at the end (×{ind_end_mm / e_t[-1]:.0f})")
 show(fig)
 
 # %% [markdown]

@@ -40,7 +40,9 @@ class FullModeTime(Result):
 class ReductionTimings(Result):
     """Seconds, compilation excluded (``offline_first_call_s`` includes it), and the speedups
     (module docstring). ``full_runs``: every full mode timed; ``full_mode`` the fastest one that
-    reproduces the given solver's; ``scene_mode_run_s`` the given solver's."""
+    reproduces the given solver's; ``scene_mode_run_s`` the given solver's; ``error_estimate_s``
+    the error estimate of the prediction, ``error_estimate_total_s`` with the calibration of its
+    safety factor, one call each, compilation included (``None`` without an estimate)."""
 
     full_run_s: float
     full_mode: str
@@ -54,6 +56,8 @@ class ReductionTimings(Result):
     speedup_total_vs_scene_mode: float
     speedup_per_step_online: float
     speedup_eq_7_5: float
+    error_estimate_s: float | None = None
+    error_estimate_total_s: float | None = None
     note: str = ("compilation excluded on both sides; speedups against the fastest full mode reproducing the "
                  "scene's own to 1e-3 µm; eq. 7.5 is the source's step-count formula")
 
@@ -123,5 +127,7 @@ def reduce_and_time(model, train, config: ReduceConfig, train_solvers=None, trai
         offline_s=cost.offline_s, offline_first_call_s=cost.offline_first_call_s, online_s=cost.online_s,
         speedup_online=fastest.run_s / cost.online_s, speedup_total=fastest.run_s / total,
         speedup_total_vs_scene_mode=scene_s / total, speedup_per_step_online=per_step,
-        speedup_eq_7_5=n / (result.train_steps * result.n_train_runs + (n - start) / per_step))
+        speedup_eq_7_5=n / (result.train_steps * result.n_train_runs + (n - start) / per_step),
+        error_estimate_s=cost.estimate_s,
+        error_estimate_total_s=None if cost.estimate_s is None else cost.estimate_s + cost.calibration_s)
     return TimedReduction(result=result, timings=timings)

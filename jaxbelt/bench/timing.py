@@ -129,8 +129,11 @@ def warm_best(f, *, repeat: int = 5, budget_s: float = 0.5):
     """``(result, seconds, first seconds)`` of ``f()`` with its outputs ready: the first call
     timed apart (compilation included), then the fastest of up to ``repeat`` calls, fewer once
     ``budget_s`` is spent (a long run is timed once; short ones are not at the mercy of one
-    scheduler hiccup)."""
+    scheduler hiccup). ``repeat=0``: the first call alone (work done once, such as an error
+    estimate), its seconds returned as both."""
     first, out = clock(f)
+    if repeat < 1:
+        return out, first, first
     times = []
     while len(times) < repeat and sum(times) < budget_s:
         t, out = clock(f)

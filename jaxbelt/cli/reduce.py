@@ -48,7 +48,7 @@ aligned machine and each component at ± its half-width (jaxbelt.rom.axial_desig
 misalignment is the configuration predicted (a warning if it lies outside the box). With dmdc
 (and neither --train-steps nor --modes given) the training is sized to the question: training
 steps and modes grow in levels until the calibrated error estimate on --held-out configurations
-drawn from the box is below a tenth of --tol-mm (jaxbelt.rom.train_over_box); the levels are
+drawn from the box is below a tenth of --tol-um (jaxbelt.rom.train_over_box); the levels are
 reported on stderr and in the JSON (sizing).
 
 dmdc and pdmd predict a configuration they have not seen: --train needs at least two scenes,
@@ -88,9 +88,9 @@ def add_parser(subparsers):
     r.add_argument("--train-ranges", default=None, metavar="FILE.toml",
                    help="train over a box of misalignments around SCENE's aligned machine (the sweep's --dist "
                         "format; uniform half-widths give the box, normal laws ±3σ): the axial design, 2P + 1 runs")
-    r.add_argument("--tol-mm", type=float, default=None, metavar="MM",
-                   help="with --train-ranges and dmdc: train until the error estimate on held-out configurations "
-                        "is below a tenth of this tolerance (default 0.02 mm, the source's)")
+    r.add_argument("--tol-um", type=float, default=None, metavar="UM",
+                   help="with --train-ranges and dmdc: train until the error estimate (tracer RMSE, µm) on held-out "
+                        "configurations is below a tenth of this tolerance (default 20 µm, the source's)")
     r.add_argument("--held-out", type=int, default=None, metavar="K",
                    help="with --train-ranges and dmdc: configurations drawn from the box the estimate is checked "
                         "on (default 10)")
@@ -118,7 +118,7 @@ def run(args):
     trained = None
     if _sized(args):
         trained = _sized_training(test, box, n, opts, args)
-        train_names = [train_names[0] + f", sized to {args.tol_mm:g} mm on {args.held_out} held-out configurations"]
+        train_names = [train_names[0] + f", sized to {args.tol_um:g} µm on {args.held_out} held-out configurations"]
     m_train = trained.train_steps if trained is not None else int(args.train_steps or min(200, n // 2))
     if m_train < (2 if args.method == "dmd" else 1):
         raise UsageError(f"--steps = {n}: too few steps to train on (--train-steps = {m_train})")
@@ -155,13 +155,13 @@ def _check_args(args):
     check_at_least("--train-steps", args.train_steps, 2 if method == "dmd" else 1)
     check_at_least("--stride", args.stride, 0)
     check_at_least("--held-out", args.held_out)
-    if args.tol_mm is not None and not (np.isfinite(args.tol_mm) and args.tol_mm > 0):
-        raise UsageError(f"--tol-mm {args.tol_mm}: must be a positive number of millimetres")
-    for name, v in (("--tol-mm", args.tol_mm), ("--held-out", args.held_out)):
+    if args.tol_um is not None and not (np.isfinite(args.tol_um) and args.tol_um > 0):
+        raise UsageError(f"--tol-um {args.tol_um}: must be a positive number of micrometres")
+    for name, v in (("--tol-um", args.tol_um), ("--held-out", args.held_out)):
         if v is not None and not _sized(args):
             raise UsageError(f"{name} sizes the training of --method dmdc --train-ranges (without --train-steps or "
                              "--modes); it has no effect here")
-    args.tol_mm = 0.02 if args.tol_mm is None else args.tol_mm
+    args.tol_um = 20.0 if args.tol_um is None else args.tol_um
     args.held_out = 10 if args.held_out is None else args.held_out
     train = list(args.train or [])
     if args.train_ranges is not None:
@@ -238,10 +238,10 @@ def _sized_training(test, box, n_steps, opts, args):
         solver = DirectBackwardEuler(Reuse(), transport=solver.transport)
 
     def progress(level):
-        worst = max(level.estimate_mm)
+        worst = max(level.estimate_um)
         print(f"  sizing: {level.train_steps} steps × {len(labels) * 2 + 1} runs, {level.modes} modes: "
-              f"estimate {worst:.3g} mm on held-out {len(level.estimate_mm)}/{args.held_out} "
-              f"({'meets' if level.passed else 'misses'} {args.tol_mm / 10:g} mm; {level.seconds:.1f} s)",
+              f"estimate {worst:.3g} µm on held-out {len(level.estimate_um)}/{args.held_out} "
+              f"({'meets' if level.passed else 'misses'} {args.tol_um / 10:g} µm; {level.seconds:.1f} s)",
               file=sys.stderr, flush=True)
 
     def warm_up():  # compiled on the other core meanwhile: the estimate's full-order programs, the full runs
@@ -251,15 +251,15 @@ def _sized_training(test, box, n_steps, opts, args):
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         warm = pool.submit(warm_up)
-        trained = rom.train_over_box(test, labels, half_widths, RunOptions(solver, n_steps, opts.dt), tol_mm=args.tol_mm,
+        trained = rom.train_over_box(test, labels, half_widths, RunOptions(solver, n_steps, opts.dt), tol_um=args.tol_um,
                                      held_out=args.held_out, stride=max(args.stride, 1), progress=progress)
         warm.result()
     if not trained.converged:
         why = {"stalled": "more training stopped lowering the estimate", "horizon": "its window reached the horizon",
                "schedule": "at its largest level"}[trained.stop]
         warnings.warn(f"the sized training stopped ({why}: {trained.train_steps} steps, {trained.modes} modes) with a "
-                      f"held-out estimate of {max(trained.levels[trained.chosen].estimate_mm):.3g} mm, above the target "
-                      f"{trained.target_mm:g} mm")
+                      f"held-out estimate of {max(trained.levels[trained.chosen].estimate_um):.3g} µm, above the target "
+                      f"{trained.target_um:g} µm")
     return trained
 
 
@@ -278,7 +278,7 @@ def _report(timed, scene_name: str, train_names, stride: int, trained=None) -> d
         report.pop(key)
     extra = {}
     if trained is not None:
-        extra["sizing"] = dict(target_mm=trained.target_mm, converged=trained.converged, stop=trained.stop,
+        extra["sizing"] = dict(target_um=trained.target_um, converged=trained.converged, stop=trained.stop,
                                chosen_level=trained.chosen, held_out=len(trained.held_out), seconds=trained.seconds,
                                levels=to_json(trained.levels))
     if r.modes_discarded is not None:
@@ -332,8 +332,8 @@ def print_reduce(r):
         sz = r["sizing"]
         last = sz["levels"][sz["chosen_level"]]
         rows.append(("sized", f"{len(sz['levels'])} level(s) in {sz['seconds']:.3g} s; held-out estimate "
-                              f"{fmt(max(last['estimate_mm']), ' mm')} on {len(last['estimate_mm'])}/{sz['held_out']} "
-                              f"({'meets' if sz['converged'] else 'misses'} {fmt(sz['target_mm'], ' mm')})"))
+                              f"{fmt(max(last['estimate_um']), ' µm')} on {len(last['estimate_um'])}/{sz['held_out']} "
+                              f"({'meets' if sz['converged'] else 'misses'} {fmt(sz['target_um'], ' µm')})"))
     tm = r["timings"]
     modes = ", ".join(f"{f['mode']} {f['run_s']:.4g} s" for f in tm["full_runs"])
     rows += [("full run", f"{tm['full_run_s']:.4g} s ({tm['full_mode']}, the fastest; {modes})"),

@@ -62,8 +62,9 @@ def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, esti
                         estimate_label="error estimate"):
     """Tracer RMSE of a reduced model against the full one at every time step (mm, semilog), the
     tolerance ``tol_mm`` and, optionally, an error estimate ``estimate_mm``
-    (:func:`jaxbelt.rom.error_estimate.error_rom`'s ``error_mm``, or the older
-    :func:`~jaxbelt.rom.error_estimate.residual_indicator`'s ``estimate_mm``) at times ``estimate_t``
+    in mm (:func:`jaxbelt.rom.error_estimate.error_rom`'s ``error_um / 1e3``, or the
+    triangle-inequality :func:`~jaxbelt.rom.error_estimate.residual_indicator`'s ``estimate_um / 1e3``)
+    at times ``estimate_t``
     (default ``t``), labelled ``estimate_label``. Returns the axes."""
     _, ax = axes_or_new(ax)
     t = np.asarray(t, float)

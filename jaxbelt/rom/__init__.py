@@ -9,6 +9,7 @@ from .reduced_model import AbstractReducedModel as AbstractReducedModel
 from .reduced_model import AbstractReduction as AbstractReduction
 from .reduced_model import Prediction as Prediction
 from .reduced_model import TrainingRuns as TrainingRuns
+from .reduced_model import observation as observation
 from .pod_step import ReducedPOD as ReducedPOD
 from .dmd import DMD as DMD
 from .dmdc import DMDc as DMDc

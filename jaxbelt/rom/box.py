@@ -2,7 +2,7 @@
 needs (``jaxbelt reduce --method dmdc --train-ranges``).
 
 **The question.** A designer asks for a reduced model whose tracer error stays below a tolerance
-``tol`` (the source's 0.02 mm by default) for *any* configuration in the box, over the horizon
+``tol`` (the source's 20 µm by default) for *any* configuration in the box, over the horizon
 they will predict. Training more than that costs full-order runs and a larger fit for accuracy
 nobody asked for.
 
@@ -64,7 +64,7 @@ from .dmdc import DMDcModel, belt_inputs, calibration_cases, fit_dmdc_in_basis, 
 from .error_estimate import ErrorRomOptions, error_rom
 from .pod_step import parameters
 from .reduced_model import CALIBRATION_RUNS
-from .snapshots import collect_first_order, state_to_z, tracer_operator
+from .snapshots import collect_first_order, state_to_z
 from .training import axial_design
 
 SCHEDULE = ((50, 20), (100, 30), (200, 40), (400, 60), (800, 80))  # (training steps per run, modes)
@@ -76,14 +76,14 @@ POWER_ITERATIONS = 2  # subspace iterations of the range finder
 @dataclasses.dataclass(frozen=True)
 class SizingLevel:
     """One level of the sizing loop: ``train_steps`` per training run, ``modes``, the
-    ``safety_factor`` applied (module docstring, step 3), the held-out estimates ``estimate_mm``
-    (tracer RMSE over the horizon times that factor, mm; only those evaluated before the level
+    ``safety_factor`` applied (module docstring, step 3), the held-out estimates ``estimate_um``
+    (tracer RMSE over the horizon times that factor, µm; only those evaluated before the level
     failed), whether it ``passed``, and the loop's cumulative ``seconds`` at its end."""
 
     train_steps: int
     modes: int
     safety_factor: float
-    estimate_mm: tuple[float, ...]
+    estimate_um: tuple[float, ...]
     passed: bool
     seconds: float
 
@@ -100,7 +100,7 @@ class BoxTraining:
     ``held_out`` (K, P) the held-out deviations; ``levels`` (:class:`SizingLevel`);
     ``converged`` whether a level met the target; ``stop`` why the loop stopped (``"met"``,
     ``"stalled"``: a level did not lower the estimate enough, ``"horizon"``: the window reached
-    the horizon, ``"schedule"``: no larger level); ``target_mm`` the target; ``seconds`` the whole
+    the horizon, ``"schedule"``: no larger level); ``target_um`` the target tracer RMSE, µm; ``seconds`` the whole
     loop (compilation included); ``calibration`` the error estimate's safety factor and its
     cases for the returned model (:func:`~jaxbelt.rom.calibration.calibrate`).
     """
@@ -115,7 +115,7 @@ class BoxTraining:
     chosen: int
     converged: bool
     stop: str
-    target_mm: float
+    target_um: float
     calibration: Calibration
     seconds: float
 
@@ -152,12 +152,12 @@ def fit_over_trajectories(trajectories, inputs, modes: int) -> DMDcModel:
 
 
 def train_over_box(nominal, components, half_widths, options: RunOptions, *,
-                   tol_mm: float = 0.02, target_fraction: float = 0.1, held_out: int = 10, seed: int = 0,
+                   tol_um: float = 20.0, target_fraction: float = 0.1, held_out: int = 10, seed: int = 0,
                    stride: int = 10, schedule=SCHEDULE, estimate: ErrorRomOptions = ErrorRomOptions(),
                    progress=None) -> BoxTraining:
     """Train DMDc over the box ``|θ_k| ≤ h_k`` around the aligned ``nominal`` until the error
-    estimate on held-out configurations is below ``target_fraction × tol_mm`` (module
-    docstring).
+    estimate on held-out configurations is below ``target_fraction × tol_um`` (tracer
+    RMSE, µm; module docstring).
 
     **Arguments:** ``components`` labels ``"roller:component"``; ``half_widths`` (P,) mm / mrad;
     ``options`` the full model's run: ``n_steps`` the horizon the model must predict, ``dt`` the
@@ -174,7 +174,7 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
         raise ValueError(f"schedule = {schedule}: need (steps ≥ 2, modes ≥ 1) levels")
     t0 = time.perf_counter()
     n_steps, solver = int(options.n_steps), options.solver
-    target = float(target_fraction) * float(tol_mm)
+    target = float(target_fraction) * float(tol_um)
     models, thetas, space = axial_design(nominal, components, half_widths)
     base = aligned(nominal)
     inputs = [parameters(m) for m in models]
@@ -184,7 +184,6 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
     held = held_out_configurations(half_widths, held_out, seed)
     held_models = [apply(base, space, th, base=base.chi_static) for th in held]
     held_starts = [None] * len(held_models)
-    C = tracer_operator(nominal)
     chunk = functools.reduce(math.gcd, [int(s) for s, _ in schedule])
     chunk_options = RunOptions(solver, chunk, dt)
     levels, fits, done = [], [], 0
@@ -207,21 +206,21 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
                 held_starts[j] = (state_to_z(hm, initial_state(hm), dt), belt_inputs(parameters(hm), 1)[:, 0])
             traj = prediction_trajectory(fit, *held_starts[j], n_steps)
             raw.append(error_rom(hm, traj.basis, traj.coords, dt, traj.z_true0, stride=stride, order="post",
-                                 solver=solver, options=estimate).rmse_mm)
+                                 solver=solver, options=estimate).rmse_um)
             if kappa * raw[-1] >= target:
                 break
         passed = len(raw) == len(held_models) and kappa * max(raw) < target
         if passed:  # with the lower bound: calibrate this level and check again
-            calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate, C)
+            calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate)
             kappa = calibration.safety_factor
             passed = kappa * max(raw) < target
         level = SizingLevel(train_steps=steps, modes=int(fit.A.shape[0]), safety_factor=kappa,
-                            estimate_mm=tuple(float(kappa * e) for e in raw), passed=passed,
+                            estimate_um=tuple(float(kappa * e) for e in raw), passed=passed,
                             seconds=time.perf_counter() - t0)
         levels.append(level)
         if progress is not None:
             progress(level)
-        stalled = len(levels) > 1 and raw[0] > STALL * levels[-2].estimate_mm[0] / levels[-2].safety_factor
+        stalled = len(levels) > 1 and raw[0] > STALL * levels[-2].estimate_um[0] / levels[-2].safety_factor
         stop = "met" if passed else "stalled" if stalled else "horizon" if steps >= n_steps else None
         if stop:
             break
@@ -231,27 +230,27 @@ def train_over_box(nominal, components, half_widths, options: RunOptions, *,
     if not levels[-1].passed:
         # the level whose estimate of the first held-out configuration (estimated at every level) is
         # the lowest, with its own window of the runs and its own calibrated factor
-        chosen = int(np.argmin([lv.estimate_mm[0] / lv.safety_factor for lv in levels]))
+        chosen = int(np.argmin([lv.estimate_um[0] / lv.safety_factor for lv in levels]))
         fit, steps, modes = fits[chosen]
         trajs = [Z[:, : steps + 1] for Z in trajs]
-        calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate, C)
+        calibration = _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, estimate)
         lv = levels[chosen]
         scale = calibration.safety_factor / lv.safety_factor
         levels[chosen] = dataclasses.replace(lv, safety_factor=calibration.safety_factor,
-                                             estimate_mm=tuple(e * scale for e in lv.estimate_mm))
+                                             estimate_um=tuple(e * scale for e in lv.estimate_um))
     return BoxTraining(fit=fit, models=tuple(models), trajectories=tuple(trajs), thetas=thetas,
                        labels=tuple(space.labels()), held_out=held, levels=tuple(levels), chosen=chosen,
-                       converged=levels[chosen].passed, stop=stop, target_mm=target, calibration=calibration,
+                       converged=levels[chosen].passed, stop=stop, target_um=target, calibration=calibration,
                        seconds=time.perf_counter() - t0)
 
 
-def _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, options, C) -> Calibration:
+def _calibration(models, trajs, inputs, modes, steps, dt, solver, stride, options) -> Calibration:
     """The error estimate's safety factor from the training data: DMDc fitted on the first half
     of the window predicts the first :data:`~jaxbelt.rom.reduced_model.CALIBRATION_RUNS` training runs
     over all of it (:func:`~jaxbelt.rom.calibration.calibrate`)."""
     cfit = fit_over_trajectories([Z[:, : max(1, steps // 2) + 1] for Z in trajs], inputs, modes)
     runs = [(m, Z, mu, solver) for m, Z, mu in zip(models, trajs, inputs)][:CALIBRATION_RUNS]
-    return calibrate(calibration_cases(cfit, runs, steps, C), dt, stride=stride, order="post", options=options)
+    return calibrate(calibration_cases(cfit, runs, steps), dt, stride=stride, order="post", options=options)
 
 
 __all__ = ["SCHEDULE", "SizingLevel", "BoxTraining", "train_over_box", "held_out_configurations",

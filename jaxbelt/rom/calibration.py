@@ -83,18 +83,19 @@ def calibrate(cases, dt, margin: float = SAFETY_MARGIN, **kwargs) -> Calibration
     """
     rows = []
     for model, truth, pred, traj, solver in cases:
-        true_mm = float(rmse(jnp.asarray(truth), jnp.asarray(pred))) * 1e3
-        est_mm = error_rom(model, traj.basis, traj.coords, dt, traj.z_true0, solver=solver, **kwargs).rmse_mm
+        true_um = float(rmse(jnp.asarray(truth), jnp.asarray(pred))) * 1e6
+        est_um = error_rom(model, traj.basis, traj.coords, dt, traj.z_true0, solver=solver, **kwargs).rmse_um
         # a case without error (the reduced model reproduces its training run) says nothing
-        eta = est_mm / true_mm if true_mm > 1e-12 else float("nan")
-        rows.append(CalibrationCase(true_um=true_mm * 1e3, estimate_um=est_mm * 1e3, effectivity=eta))
+        eta = est_um / true_um if true_um > 1e-9 else float("nan")
+        rows.append(CalibrationCase(true_um=true_um, estimate_um=est_um, effectivity=eta))
     return Calibration(safety_factor=safety_factor([r.effectivity for r in rows], margin), cases=tuple(rows))
 
 
 @dataclasses.dataclass(frozen=True)
 class SnapshotCount:
     """:func:`snapshot_count`'s result: ``n_steps`` the chosen count; ``converged`` whether the
-    rule fired before ``max_steps``; ``history`` the validation errors ``[(m, rmse_mm), …]``;
+    rule fired before ``max_steps``; ``history`` the validation errors ``[(m, rmse_um), …]``
+    (training steps, tracer RMSE of the newest chunk's prediction in µm);
     ``Z`` the post-transport snapshots (2N, n_steps + 1)."""
 
     n_steps: int
@@ -103,7 +104,7 @@ class SnapshotCount:
     Z: jax.Array
 
 
-def snapshot_count(model, fit_predict, options: RunOptions, tol_mm: float = 0.02, chunk: int = 50,
+def snapshot_count(model, fit_predict, options: RunOptions, tol_um: float = 20.0, chunk: int = 50,
                    safety: float = 0.1, min_chunks: int = 2) -> SnapshotCount:
     """Number of full-order steps worth training on, decided from the data, at most
     ``options.n_steps`` (steps of ``options.dt`` with ``options.solver``).
@@ -111,7 +112,8 @@ def snapshot_count(model, fit_predict, options: RunOptions, tol_mm: float = 0.02
     Runs the full model ``chunk`` steps at a time. After each chunk ``k ≥ min_chunks`` it calls
     ``fit_predict(Z_train, n) -> tracer_u (n, n_tr)`` with the post-transport snapshots up to
     the previous chunk (2N, m) and compares the prediction of the newest ``chunk`` steps with the
-    full model's tracers. Stops at the first chunk predicted within ``safety × tol_mm``.
+    full model's tracers. Stops at the first chunk predicted within ``safety × tol_um`` (tracer
+    RMSE, µm).
     """
     chunk_options = options.replace(n_steps=int(chunk))
     max_steps = int(options.n_steps)
@@ -125,9 +127,9 @@ def snapshot_count(model, fit_predict, options: RunOptions, tol_mm: float = 0.02
         Zc = Zc if Z is None else Zc[:, 1:]  # the start state is the previous chunk's end
         if Z is not None and Z.shape[1] >= min_chunks * chunk:
             truth = (C @ Zc[:N]).T
-            err = float(rmse(truth, fit_predict(Z, Zc.shape[1]))) * 1e3
+            err = float(rmse(truth, fit_predict(Z, Zc.shape[1]))) * 1e6
             history.append((int(Z.shape[1] - 1), err))
-            if err < safety * tol_mm:
+            if err < safety * tol_um:
                 return SnapshotCount(n_steps=int(Z.shape[1] - 1), converged=True, history=history, Z=Z)
         Z = Zc if Z is None else jnp.concatenate([Z, Zc], axis=1)
         if Z.shape[1] - 1 >= max_steps:

@@ -24,11 +24,16 @@ class ReducedRunDivergedError(FloatingPointError):
 @dataclasses.dataclass(frozen=True)
 class ReductionCost(Result):
     """What the reduced model cost, s, compilation excluded (``offline_first_call_s`` includes
-    it): ``offline_s`` the training runs and the fit, ``online_s`` the prediction."""
+    it): ``offline_s`` the training runs and the fit, ``online_s`` the prediction;
+    ``estimate_s`` the error estimate of the prediction and ``calibration_s`` the calibration of
+    its safety factor (0 where a sized training's is taken), each one call, compilation included
+    (``None`` without an estimate)."""
 
     offline_s: float
     offline_first_call_s: float
     online_s: float
+    estimate_s: float | None = None
+    calibration_s: float | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,8 +44,8 @@ class ReductionEstimate(Result):
     ``rmse_um`` / ``max_um`` its rms and maximum over them (``None`` without compared steps);
     ``raw_rmse_um`` the same before the safety factor; ``safety_factor`` and the
     ``calibration`` cases it came from; ``subspace_dim``, ``projected_spectral_radius`` and
-    ``cost`` of the error ROM; ``full_steps_predicted`` the full steps the estimate replaces;
-    ``test_s`` the estimate's seconds, ``total_s`` with the calibration.
+    ``cost`` of the error ROM; ``full_steps_predicted`` the full steps the estimate replaces
+    (its seconds: :class:`ReductionCost`).
     """
 
     error_um: np.ndarray
@@ -53,8 +58,6 @@ class ReductionEstimate(Result):
     projected_spectral_radius: float
     cost: EstimateCost
     full_steps_predicted: int
-    test_s: float
-    total_s: float
 
 
 @dataclasses.dataclass(frozen=True)

@@ -264,9 +264,10 @@ class DMDReducedModel(AbstractReducedModel):
         """The run's own last training snapshot, after ``m`` steps: DMD continues its training run."""
         return int(self.snapshots.shape[1]), self.snapshots[:, -1]
 
-    def predict(self, z0, mu, n_steps: int) -> Prediction:
-        """``mu`` is not read: the fit is of one configuration."""
-        tracers = self.stable.predict(z0, n_steps, observe=self.observe)
+    def predict(self, z0, mu, n_steps: int, observe=None) -> Prediction:
+        """``mu`` is not read: the fit is of one configuration (``observe``, where given, is its
+        own tracer operator)."""
+        tracers = self.stable.predict(z0, n_steps, observe=self.observe if observe is None else observe)
         traj = coordinates_in(self.basis, self.stable, z0, int(n_steps))
         return Prediction(tracer_u=tracers, basis=traj.basis, coords=traj.coords, z_start=z0, order="pre")
 

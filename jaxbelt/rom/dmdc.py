@@ -58,7 +58,7 @@ from .dmd import DMDModel, fit_dmd, numerical_rank
 from .error_estimate import BasisTrajectory
 from .pod import choose_modes
 from .pod_step import parameters
-from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns
+from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns, observation
 from .snapshots import collect_first_order, tracer_operator
 
 
@@ -275,15 +275,15 @@ def prediction_trajectory(fit: DMDcModel, z0, u, n_steps: int) -> BasisTrajector
     return BasisTrajectory(fit.basis, coords, z0)
 
 
-def calibration_cases(cfit: DMDcModel, runs, steps: int, C):
+def calibration_cases(cfit: DMDcModel, runs, steps: int):
     """:func:`~jaxbelt.rom.calibration.calibrate`'s cases for a DMDc fit ``cfit`` predicting
     training runs it has partly seen: for each ``(model, Z, μ, solver)`` of ``runs`` (``Z``
-    the run's post-transport snapshots, (2N, steps + 1)), the run's tracers (``C`` (n_tr, N)),
-    the fit's prediction of them from ``Z[:, 0]`` over ``steps`` steps, that prediction as a
-    :class:`~jaxbelt.rom.error_estimate.BasisTrajectory`, and the solver."""
-    N = C.shape[1]
-    Cz = jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
+    the run's post-transport snapshots, (2N, steps + 1)), the run's tracers (at ``model``'s
+    tracer positions), the fit's prediction of them from ``Z[:, 0]`` over ``steps`` steps, that
+    prediction as a :class:`~jaxbelt.rom.error_estimate.BasisTrajectory`, and the solver."""
     for m, Z, mu, solver in runs:
+        C = tracer_operator(m)
+        N, Cz = C.shape[1], observation(m)
         u = belt_inputs(mu, 1)[:, 0]
         yield (m, (C @ Z[:N, 1:]).T, cfit.predict(Z[:, 0], u, steps, observe=Cz),
                prediction_trajectory(cfit, Z[:, 0], u, steps), solver)
@@ -307,8 +307,9 @@ def _dmdc_tracers(fit: DMDcModel, z0, u, n_steps: int, observe):
 
 class DMDcReducedModel(AbstractReducedModel):
     """DMD with control fitted by :class:`DMDc`: ``fit`` (:class:`DMDcModel`), the training runs'
-    post-transport ``trajectories`` and parameters ``params``, ``observe`` (n_tr, 2N) the tracer
-    operator on scaled first-order states."""
+    post-transport ``trajectories`` and parameters ``params``, ``observe`` (n_tr, 2N) the nominal
+    training configuration's tracer operator on scaled first-order states (a prediction takes the
+    predicted configuration's)."""
 
     fit: DMDcModel
     trajectories: tuple
@@ -319,9 +320,9 @@ class DMDcReducedModel(AbstractReducedModel):
     def n_modes(self) -> int:
         return int(self.fit.A.shape[0])
 
-    def predict(self, z0, mu, n_steps: int) -> Prediction:
+    def predict(self, z0, mu, n_steps: int, observe=None) -> Prediction:
         u = belt_inputs(mu, 1)[:, 0]
-        tracers = _dmdc_tracers(self.fit, z0, u, int(n_steps), self.observe)
+        tracers = _dmdc_tracers(self.fit, z0, u, int(n_steps), self.observe if observe is None else observe)
         traj = prediction_trajectory(self.fit, z0, u, int(n_steps))
         return Prediction(tracer_u=tracers, basis=traj.basis, coords=traj.coords, z_start=z0, order="post")
 
@@ -355,7 +356,7 @@ class DMDc(AbstractReduction):
         cfit = fit_dmdc(*_controlled_pairs([Z[:, :half + 1] for Z in fitted.trajectories], fitted.params),
                         rank=self.modes)
         runs = training.calibration_subset(zip(training.models, fitted.trajectories, fitted.params, training.solvers))
-        return calibration_cases(cfit, runs, int(training.n_steps), tracer_operator(training.models[0]))
+        return calibration_cases(cfit, runs, int(training.n_steps))
 
     def check_training(self, model, train, solvers):
         if len(train) < 2:
@@ -367,8 +368,8 @@ class DMDc(AbstractReduction):
 class ParametricDMDReducedModel(AbstractReducedModel):
     """Parametric DMD fitted by :class:`ParametricDMD`: ``fit`` (:class:`ParametricDMDModel`)
     of the training runs' post-transport ``trajectories`` from step ``skip`` on, their
-    parameters ``params``, ``observe`` (n_tr, 2N) the tracer operator on scaled first-order
-    states."""
+    parameters ``params``, ``observe`` (n_tr, 2N) the nominal training configuration's tracer
+    operator on scaled first-order states (a prediction takes the predicted configuration's)."""
 
     fit: ParametricDMDModel
     trajectories: tuple
@@ -384,11 +385,12 @@ class ParametricDMDReducedModel(AbstractReducedModel):
     def training_starts_at_step(self) -> int:
         return self.skip
 
-    def predict(self, z0, mu, n_steps: int) -> Prediction:
+    def predict(self, z0, mu, n_steps: int, observe=None) -> Prediction:
         """The states of configuration ``mu`` (interpolated between the training runs' forecasts,
-        which start from their own states: ``z0`` is the start of the coordinates only)."""
+        which start from their own states: ``z0`` is the start of the coordinates only), observed
+        by ``observe``."""
         n = int(n_steps)
-        tracers = _pdmd_forecast(self.fit, mu, n, self.observe, self.skip)
+        tracers = _pdmd_forecast(self.fit, mu, n, self.observe if observe is None else observe, self.skip)
         coords = _pdmd_coordinates(self.fit, mu, n, z0, self.skip)
         return Prediction(tracer_u=tracers, basis=self.fit.basis, coords=coords, z_start=z0, order="post")
 
@@ -434,12 +436,12 @@ class ParametricDMD(AbstractReduction):
                                          skip=skip)
 
     def calibration_cases(self, fitted: ParametricDMDReducedModel, training: TrainingRuns, half: int):
-        skip, Cz, m_train = fitted.skip, fitted.observe, int(training.n_steps)
-        C, N = tracer_operator(training.models[0]), training.models[0].n_unknowns
+        skip, m_train = fitted.skip, int(training.n_steps)
         cfit = fit_parametric_dmd([Z[:, skip:half + 1] for Z in fitted.trajectories], jnp.stack(fitted.params),
                                   rank=self.modes)
         for m, s, p, Z in training.calibration_subset(zip(training.models, training.solvers, fitted.params,
                                                           fitted.trajectories)):
+            C, N, Cz = tracer_operator(m), m.n_unknowns, observation(m)  # each run at its own tracers
             yield m, (C @ Z[:N, 1:]).T, _pdmd_forecast_eager(cfit, p, m_train, Cz, skip), BasisTrajectory(
                 cfit.basis, _pdmd_coordinates(cfit, p, m_train, Z[:, 0], skip), Z[:, 0]), s
 

@@ -3,10 +3,10 @@
 **What is estimated.** A reduced model produces states ``z_0 … z_n`` (scaled first-order states,
 lifted from its coordinates: ``z_k = V ξ_k``); the full model from the same start would produce
 ``z*_k``. The estimate is of the quantity ``jaxbelt reduce`` reports as the error: the tracer RMSE
-over the predicted steps and tracers — ``rmse_mm = (mean over steps k and tracers i of
+over the predicted steps and tracers — ``rmse_um = (mean over steps k and tracers i of
 (C(z*_k - z_k))_i²)^½`` with ``C`` the longitudinal tracer operator (for DMD on pre-transport
-snapshots, the pre-transport tracers ``tracer_u_solved``, as ``reduce`` compares), in mm — and its
-maximum over time, ``max_rmse_over_time_mm``. :func:`error_rom` returns the estimated signed
+snapshots, the pre-transport tracers ``tracer_u_solved``, as ``reduce`` compares), in µm — and its
+maximum over time, ``max_rmse_over_time_um``. :func:`error_rom` returns the estimated signed
 tracer error at every step, so any norm of it can be taken.
 
 **Error ROM** (:func:`error_rom`). The one-step residual ``δ_k = F(z_k) - z_{k+1}`` (``F`` one
@@ -81,13 +81,13 @@ from .snapshots import tracer_operator
 
 @dataclasses.dataclass(frozen=True)
 class ResidualIndicator:
-    """:func:`residual_indicator`'s result: ``step`` (k,) the sampled steps; ``residual_mm`` (k,)
-    the rms over tracers of ``C δ_k`` there, mm; ``estimate_mm`` (k,) the accumulated estimate
-    of the tracer error ``Σ stride·|C δ|`` up to each sampled step, mm."""
+    """:func:`residual_indicator`'s result: ``step`` (k,) the sampled steps; ``residual_um`` (k,)
+    the rms over tracers of ``C δ_k`` there, µm; ``estimate_um`` (k,) the accumulated estimate
+    of the tracer error ``Σ stride·|C δ|`` up to each sampled step, µm."""
 
     step: np.ndarray
-    residual_mm: jax.Array
-    estimate_mm: jax.Array
+    residual_um: jax.Array
+    estimate_um: jax.Array
 
 
 def residual_indicator(model, states, dt, stride: int = 10, solver: AbstractIntegrator | None = None,
@@ -104,8 +104,8 @@ def residual_indicator(model, states, dt, stride: int = 10, solver: AbstractInte
     C = tracer_operator(model)
     N = model.n_unknowns
     delta = F(states[idx]) - states[idx + 1]
-    res = jnp.sqrt(jnp.mean((delta[:, :N] @ C.T) ** 2, axis=1)) * 1e3
-    return ResidualIndicator(step=idx, residual_mm=res, estimate_mm=jnp.cumsum(res) * stride)
+    res = jnp.sqrt(jnp.mean((delta[:, :N] @ C.T) ** 2, axis=1)) * 1e6
+    return ResidualIndicator(step=idx, residual_um=res, estimate_um=jnp.cumsum(res) * stride)
 
 
 # --------------------------------------------------------------------------- the error ROM
@@ -289,16 +289,16 @@ class ErrorEstimate:
     """:func:`error_rom`'s estimate of a reduced trajectory's observation error.
 
     **Fields:** ``error`` (n, o) the estimated signed observation error after each step 1 … n, m;
-    ``error_mm`` (n,) its rms over the observed tracers, mm; ``rmse_mm`` its rms over the steps
-    too; ``max_mm`` its maximum over the steps; ``cost`` (:class:`EstimateCost`); ``dim`` the
+    ``error_um`` (n,) its rms over the observed tracers, µm; ``rmse_um`` its rms over the steps
+    too, µm; ``max_um`` its maximum over the steps, µm; ``cost`` (:class:`EstimateCost`); ``dim`` the
     subspace size; ``rho`` the largest |λ| of the projected Jacobian before stabilisation;
     ``settled`` whether the late residual had settled (the quasi-static response was used).
     """
 
     error: jax.Array
-    error_mm: jax.Array
-    rmse_mm: float
-    max_mm: float
+    error_um: jax.Array
+    rmse_um: float
+    max_um: float
     cost: EstimateCost
     dim: int
     rho: float
@@ -359,12 +359,12 @@ def error_rom(model, basis, coords, dt, z_true0=None, *, stride: int = 10, order
     A, rho = _stabilised(W.T @ JW)
     window = np.repeat(np.arange(len(starts)), np.diff(edges))
     err = np.asarray(_propagate(A, D @ W, window, obs @ W, W.T @ e0))
-    err_mm = np.sqrt(np.mean(err**2, axis=1)) * 1e3
+    err_um = np.sqrt(np.mean(err**2, axis=1)) * 1e6
     full_steps, jvps = int((evaluated + 1) * steps), int((W.shape[1] + qs_iter) * steps)
     cost = EstimateCost(full_steps=full_steps, jvps=jvps, windows=int(len(starts)),
                         quasi_static_iterations=int(qs_iter), full_step_equivalents=full_steps + jvps)
-    return ErrorEstimate(error=jnp.asarray(err), error_mm=jnp.asarray(err_mm),
-                         rmse_mm=float(np.sqrt(np.mean(err_mm**2))), max_mm=float(np.max(err_mm)), cost=cost,
+    return ErrorEstimate(error=jnp.asarray(err), error_um=jnp.asarray(err_um),
+                         rmse_um=float(np.sqrt(np.mean(err_um**2))), max_um=float(np.max(err_um)), cost=cost,
                          dim=int(W.shape[1]), rho=rho, settled=settled)
 
 

@@ -14,6 +14,20 @@ same :class:`~jaxbelt.rom.pod.PODGalerkin` step as POD, with the modes in place 
 (orthonormalised by a QR factorisation: the span is the modes', the coordinates orthonormal, as the
 step's projection ``ξ = Vᵀ x`` requires). ``benchmarks/modal_vs_pod.py`` measures its error
 against the number of modes beside POD.
+
+**Not a reduction of** :func:`~jaxbelt.rom.reduce_and_compare`. The modal model is a full-order
+integrator in modal coordinates, not a reduced model of the kind
+:class:`~jaxbelt.rom.reduced_model.AbstractReduction` fits: every step it assembles and
+eliminates the full system at the current state, recovers the algebraic unknowns from the
+constraints and transports the full state — only the solve is projected — so a step costs what
+a full step costs and :func:`jaxbelt.simulate` runs it like any solver. Its states are therefore
+no coordinates in one fixed basis of scaled first-order states (the algebraic unknowns,
+recovered from the constraints, and the transported state leave the span of the modes), the form a
+:class:`~jaxbelt.rom.reduced_model.Prediction` and the error estimate read; and it is built from
+one configuration's operators at one state, not fitted to training runs, so a configuration
+predicted with it needs its own modes. The pipeline's projection method is the fully reduced POD
+step (:class:`~jaxbelt.rom.ReducedPOD`), whose online step is ``r``-dimensional; the modal basis
+is a question of which basis, compared with POD in the same integrator.
 """
 
 from __future__ import annotations

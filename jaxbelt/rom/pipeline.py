@@ -11,7 +11,8 @@ snapshots, predicting the steps after the training window from its last snapshot
 DMD with control and :class:`~jaxbelt.rom.ParametricDMD` parametric DMD
 (:mod:`jaxbelt.rom.dmdc`), trained on several configurations, predicting a new one from its
 initial state. The error is the tracer RMSE over the predicted steps, at the full run's recorded
-steps, in µm.
+steps, in µm; every method observes its prediction at the predicted configuration's tracers
+(:func:`~jaxbelt.rom.reduced_model.observation`).
 
 **Error estimate** (``stride > 0``): the error ROM
 (:func:`~jaxbelt.rom.error_estimate.error_rom`) of the prediction times a safety factor
@@ -21,7 +22,8 @@ training runs (at most :data:`~jaxbelt.rom.reduced_model.CALIBRATION_RUNS`) over
 window.
 
 **Cost**: where a ``clock`` is given (:func:`jaxbelt.bench.timing.warm_best`), the training runs
-with the fit (offline) and the prediction (online) are timed by it; the full runs and the
+with the fit (offline), the prediction (online), the error estimate of the prediction and the
+calibration of its safety factor (each timed once) are timed by it; the full runs and the
 choice of the solver mode the training runs use are measured in :mod:`jaxbelt.bench.reduction`
 (``jaxbelt reduce``), which passes that choice here (``reuse_factors``).
 """
@@ -29,7 +31,6 @@ choice of the solver mode the training runs use are measured in :mod:`jaxbelt.be
 from __future__ import annotations
 
 import dataclasses
-import time
 from typing import Callable
 
 import numpy as np
@@ -43,7 +44,7 @@ from .dmdc import DMDc
 from .error_estimate import error_rom
 from .metrics import rmse, rrmse
 from .pod_step import parameters
-from .reduced_model import AbstractReducedModel, Prediction, TrainingRuns
+from .reduced_model import AbstractReducedModel, Prediction, TrainingRuns, observation
 
 
 
@@ -89,7 +90,8 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     ``None``); ``reuse_factors`` whether the training runs (and the error estimate's full steps)
     use each solver's reuse mode (:func:`reuse_mode`) instead of the solver itself; ``clock``
     ``clock(f, repeat=…, budget_s=…) -> (f(), seconds, first-call seconds)`` timing the
-    training with the fit and the prediction (``None``: not timed, ``cost`` is ``None``).
+    training with the fit, the prediction and, called once (``repeat=0``: the first call's
+    seconds), the error estimate and its calibration (``None``: not timed, ``cost`` is ``None``).
 
     **Raises:** ``ValueError`` on an unusable training set, :class:`FullRunDivergedError`,
     :class:`ReducedRunDivergedError`.
@@ -124,8 +126,8 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     else:
         fitted, offline_s, first_s = clock(lambda: method.fit(training), repeat=1)
     start, z0 = fitted.start(model, dt)
-    mu = parameters(model)
-    prediction, online_s, _ = clock(lambda: fitted.predict(z0, mu, n - start), repeat=5, budget_s=0.5)
+    mu, observe = parameters(model), observation(model)  # the predicted configuration's tracers
+    prediction, online_s, _ = clock(lambda: fitted.predict(z0, mu, n - start, observe), repeat=5, budget_s=0.5)
 
     pred = np.asarray(prediction.tracer_u)
     if not np.all(np.isfinite(pred)):
@@ -140,12 +142,13 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     at = steps_full[rows] - start - 1
     truth, pred = np.asarray(prediction.full_tracer_u(traj))[rows], pred[at]
     err_t = np.sqrt(np.mean((truth - pred) ** 2, axis=1)) * 1e6
-    estimate = None
+    estimate, estimate_s, calibration_s = None, None, None
     if config.stride > 0:
-        estimate = _estimate(model, method, fitted, training, prediction, config, test_solver, at, n - start,
-                             trained)
+        estimate, estimate_s, calibration_s = _estimate(model, method, fitted, training, prediction, config,
+                                                        test_solver, at, n - start, trained, clock)
     cost = None if online_s is None else ReductionCost(offline_s=offline_s, offline_first_call_s=first_s,
-                                                      online_s=max(online_s, 1e-12))
+                                                      online_s=max(online_s, 1e-12), estimate_s=estimate_s,
+                                                      calibration_s=calibration_s)
     return ReductionResult(
         method=method, modes=fitted.n_modes, modes_discarded=fitted.modes_discarded,
         training_starts_at_step=fitted.training_starts_at_step, train_steps=config.train_window,
@@ -157,25 +160,26 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
 
 
 def _estimate(model, method, fitted: AbstractReducedModel, training: TrainingRuns, prediction: Prediction,
-              config: ReduceConfig, solver, at, predicted_steps: int, trained) -> ReductionEstimate:
-    """The error ROM of the prediction, calibrated on the training data (module docstring);
-    ``at`` the prediction's rows at the compared steps."""
-    t0 = time.perf_counter()
+              config: ReduceConfig, solver, at, predicted_steps: int, trained, clock: Callable):
+    """``(estimate, seconds, calibration seconds)``: the error ROM of the prediction, calibrated on
+    the training data (module docstring), each timed once by ``clock`` (the calibration of a sized
+    training is its own: 0 s here); ``at`` the prediction's rows at the compared steps."""
     traj = prediction.trajectory
-    est = error_rom(model, traj.basis, traj.coords, config.dt, traj.z_true0, stride=config.stride,
-                    order=prediction.order, solver=solver, options=config.estimate)
-    test_s = time.perf_counter() - t0
+    est, estimate_s, _ = clock(lambda: error_rom(model, traj.basis, traj.coords, config.dt, traj.z_true0,
+                                                 stride=config.stride, order=prediction.order, solver=solver,
+                                                 options=config.estimate), repeat=0)
     if trained is not None:  # calibrated on the same fit and training runs already
-        cal = trained.calibration
+        cal, calibration_s = trained.calibration, None if estimate_s is None else 0.0
     else:
-        cal = calibrate(method.calibration_cases(fitted, training, max(1, config.train_window // 2)), config.dt,
-                        stride=config.stride, order=prediction.order, options=config.estimate)
+        cal, calibration_s, _ = clock(lambda: calibrate(
+            method.calibration_cases(fitted, training, max(1, config.train_window // 2)), config.dt,
+            stride=config.stride, order=prediction.order, options=config.estimate), repeat=0)
     kappa = cal.safety_factor
-    est_t = kappa * np.asarray(est.error_mm)[at] * 1e3
+    est_t = kappa * np.asarray(est.error_um)[at]
     some = bool(est_t.size)
     return ReductionEstimate(
         error_um=est_t, rmse_um=float(np.sqrt(np.mean(est_t**2))) if some else None,
         max_um=float(np.max(est_t)) if some else None,
         raw_rmse_um=float(np.sqrt(np.mean((est_t / kappa) ** 2))) if some else None, safety_factor=kappa,
         calibration=cal.cases, subspace_dim=est.dim, projected_spectral_radius=est.rho, cost=est.cost,
-        full_steps_predicted=predicted_steps, test_s=test_s, total_s=time.perf_counter() - t0)
+        full_steps_predicted=predicted_steps), estimate_s, calibration_s

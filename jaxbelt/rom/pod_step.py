@@ -48,7 +48,7 @@ from ..state import initial_state
 from ..transport import transport_step_with_weights
 from .error_estimate import BasisTrajectory
 from .pod import pod_basis
-from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns
+from .reduced_model import AbstractReducedModel, AbstractReduction, Prediction, Spectra, TrainingRuns, observation
 from .snapshots import collect_first_order, state_to_z, tracer_operator, z_to_state
 
 
@@ -299,9 +299,13 @@ class ReducedPODModel(AbstractReducedModel):
     def n_modes(self) -> int:
         return self.step.n_modes
 
-    def predict(self, z0, mu, n_steps: int) -> Prediction:
-        xi0 = self.step.basis.T @ z0
-        out = _run(self.step, xi0, mu, int(n_steps))
+    def predict(self, z0, mu, n_steps: int, observe=None) -> Prediction:
+        """The step linearised at the nominal configuration, run with the parameters ``mu``; the
+        tracers observed by ``observe`` where given (the predicted configuration's tracer
+        operator), else by the nominal configuration's (:attr:`ReducedStep.C_tracer`)."""
+        step = self.step if observe is None else eqx.tree_at(lambda s: s.C_tracer, self.step, observe @ self.step.basis)
+        xi0 = step.basis.T @ z0
+        out = _run(step, xi0, mu, int(n_steps))
         return Prediction(tracer_u=out.tracer_u, basis=self.step.basis, coords=jnp.concatenate([xi0[None], out.xi]),
                           z_start=z0, order="post")
 
@@ -324,14 +328,14 @@ class ReducedPOD(AbstractReduction):
         return ReducedPODModel(step=step, snapshots=snaps)
 
     def calibration_cases(self, fitted: ReducedPODModel, training: TrainingRuns, half: int):
-        C = tracer_operator(training.models[0])
-        N, m_train = C.shape[1], int(training.n_steps)
+        m_train = int(training.n_steps)
         first_half = [Z for Zpre, Zpost in fitted.snapshots for Z in (Zpre[:, :half], Zpost[:, :half + 1])]
         cfit = fit_reduced_pod(training.models[0], jnp.concatenate(first_half, axis=1), training.dt,
                                training.own_solvers[0], n_modes=self.modes)
         for m, s, (_, Zpost) in training.calibration_subset(zip(training.models, training.solvers, fitted.snapshots)):
+            C, N = tracer_operator(m), m.n_unknowns  # each run at its own tracers
             x0 = cfit.project(m, initial_state(m))
-            o = cfit.run(x0, parameters(m), m_train)
+            o = eqx.tree_at(lambda s: s.C_tracer, cfit, observation(m) @ cfit.basis).run(x0, parameters(m), m_train)
             yield m, (C @ Zpost[:N, 1:]).T, o.tracer_u, BasisTrajectory(
                 cfit.basis, jnp.concatenate([x0[None], o.xi]), Zpost[:, 0]), s
 

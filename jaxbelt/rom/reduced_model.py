@@ -7,9 +7,15 @@ DMD with control (:class:`~jaxbelt.rom.dmdc.DMDc`), parametric DMD
 model on the training configurations (:class:`TrainingRuns`) and returns a reduced model
 (:class:`AbstractReducedModel`), whose :meth:`~AbstractReducedModel.predict` takes a start state
 ``z0`` (the scaled first-order state ``[x; Δt ẋ]``, m), the configuration parameters ``μ``
-(:func:`~jaxbelt.rom.pod_step.parameters`) and a step count, and returns a :class:`Prediction`:
-the tracer displacements and the predicted states in a basis, as the error estimate
+(:func:`~jaxbelt.rom.pod_step.parameters`), a step count and the predicted configuration's
+tracer operator (:func:`observation`), and returns a :class:`Prediction`: the tracer
+displacements and the predicted states in a basis, as the error estimate
 (:func:`~jaxbelt.rom.error_estimate.error_rom`) reads them.
+
+The tracers are where the configuration's own sensors sit on the belt (``model.tracer_col``,
+``tracer_xi``, …), not a property of the dynamics the reduced model learnt: configurations of one
+mesh may place them differently, so a prediction observes its states with the predicted
+configuration's operator, not the training runs'.
 """
 
 from __future__ import annotations
@@ -29,6 +35,13 @@ from .error_estimate import BasisTrajectory
 from .snapshots import state_to_z, tracer_operator
 
 CALIBRATION_RUNS = 3  # training runs the error estimate's safety factor is calibrated on
+
+
+def observation(model) -> jax.Array:
+    """``[C 0]`` (n_tr, 2N): the longitudinal tracer displacements (m) of a scaled first-order
+    state of ``model`` (:func:`~jaxbelt.rom.snapshots.tracer_operator` at its tracers)."""
+    C = tracer_operator(model)
+    return jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
 
 
 class Prediction(eqx.Module):
@@ -104,19 +117,19 @@ class TrainingRuns:
 
     @property
     def observe(self):
-        """``[C 0]`` (n_tr, 2N): the longitudinal tracer displacements of a scaled first-order
-        state (:func:`~jaxbelt.rom.snapshots.tracer_operator` of the nominal configuration)."""
-        C = tracer_operator(self.models[0])
-        return jnp.concatenate([C, jnp.zeros_like(C)], axis=1)
+        """:func:`observation` of the nominal configuration (the first)."""
+        return observation(self.models[0])
 
 
 class AbstractReducedModel(eqx.Module):
     """A reduced model fitted to training runs (:meth:`AbstractReduction.fit`)."""
 
     @abc.abstractmethod
-    def predict(self, z0, mu, n_steps: int) -> Prediction:
+    def predict(self, z0, mu, n_steps: int, observe=None) -> Prediction:
         """``n_steps`` steps from the scaled first-order state ``z0`` (2N,) of the configuration
-        with parameters ``mu`` (2q,)."""
+        with parameters ``mu`` (2q,), its tracers observed by ``observe`` (n_tr, 2N), the predicted
+        configuration's :func:`observation` (``None``: the nominal training configuration's, the
+        same where the configurations share their tracer positions)."""
 
     @property
     @abc.abstractmethod

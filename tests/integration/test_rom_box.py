@@ -33,7 +33,7 @@ def setup():
 def sized(setup):
     model, opts = setup
     levels = []
-    trained = train_over_box(model, COMPONENTS, HALF_WIDTHS, opts.replace(n_steps=STEPS), tol_mm=0.002, held_out=3,
+    trained = train_over_box(model, COMPONENTS, HALF_WIDTHS, opts.replace(n_steps=STEPS), tol_um=2.0, held_out=3,
                              schedule=SCHEDULE, progress=levels.append)
     return trained, levels
 
@@ -45,18 +45,18 @@ def test_levels_grow_until_the_held_out_estimate_meets_the_target_or_stops_payin
     assert [trained.levels[i] for i in same] == [levels[i] for i in same]
     assert [lv.train_steps for lv in levels] == [s for s, _ in SCHEDULE[: len(levels)]]
     assert len(trained.models) == 5 and all(Z.shape[1] == trained.train_steps + 1 for Z in trained.trajectories)
-    assert trained.target_mm == pytest.approx(0.0002) and trained.held_out.shape == (3, 2)
+    assert trained.target_um == pytest.approx(0.2) and trained.held_out.shape == (3, 2)
     assert np.all(np.abs(trained.held_out) <= np.asarray(HALF_WIDTHS))
     for lv in levels[:-1]:  # every level before the last failed on some held-out configuration
-        assert not lv.passed and max(lv.estimate_mm) >= trained.target_mm
+        assert not lv.passed and max(lv.estimate_um) >= trained.target_um
     last = trained.levels[trained.chosen]
     assert trained.stop in ("met", "stalled", "horizon", "schedule")
     assert trained.converged == (trained.stop == "met") == last.passed
     if last.passed:
         assert trained.chosen == len(levels) - 1
-        assert len(last.estimate_mm) == 3 and max(last.estimate_mm) < trained.target_mm
+        assert len(last.estimate_um) == 3 and max(last.estimate_um) < trained.target_um
     else:  # unconverged: the level with the lowest estimate of the first held-out configuration
-        first = [lv.estimate_mm[0] / lv.safety_factor for lv in trained.levels]
+        first = [lv.estimate_um[0] / lv.safety_factor for lv in trained.levels]
         assert trained.chosen == int(np.argmin(first))
     assert trained.train_steps == last.train_steps and trained.modes == last.modes
     # the returned model's factor is its own calibrated one, at least the margin
@@ -77,14 +77,14 @@ def test_estimate_bounds_the_error_of_a_configuration_it_has_not_seen(setup, siz
     pred = trained.fit.predict(z0, u, STEPS, observe=jnp.concatenate([C, jnp.zeros_like(C)], axis=1))
     steps = np.rint(np.asarray(ref.t) / opts.dt).astype(int)
     keep = steps >= 1
-    true_mm = float(rmse(np.asarray(ref.tracer_u)[keep], np.asarray(pred)[steps[keep] - 1])) * 1e3
+    true_um = float(rmse(np.asarray(ref.tracer_u)[keep], np.asarray(pred)[steps[keep] - 1])) * 1e6
     traj = prediction_trajectory(trained.fit, z0, u, STEPS)
     est = error_rom(m, traj.basis, traj.coords, opts.dt, traj.z_true0, stride=10, order="post",
                     solver=opts.solver)
-    est_t = trained.safety_factor * np.asarray(est.error_mm)[steps[keep] - 1]
-    estimate_mm = float(np.sqrt(np.mean(est_t**2)))
-    assert true_mm < 0.02  # the source's tolerance
-    assert 1.0 <= estimate_mm / true_mm <= 3.0
+    est_t = trained.safety_factor * np.asarray(est.error_um)[steps[keep] - 1]
+    estimate_um = float(np.sqrt(np.mean(est_t**2)))
+    assert true_um < 20  # the source's tolerance
+    assert 1.0 <= estimate_um / true_um <= 3.0
 
 
 def test_fit_in_a_basis_is_the_pod_method_after_its_svd():
@@ -112,17 +112,17 @@ def test_cli_sizes_the_training_to_the_tolerance(tmp_path, capsys):
     box.write_text(TWO_ROLLER_BOX)
     argv = ["reduce", "two-roller-1d-train1", "--method", "dmdc", "--train-ranges", str(box), "--steps", str(STEPS),
             "--held-out", "2", "--json"]
-    assert main(argv + ["--tol-mm", "1.0"]) == 0  # a loose tolerance: met within the horizon
+    assert main(argv + ["--tol-um", "1000"]) == 0  # a loose tolerance: met within the horizon
     r = json.loads(capsys.readouterr().out)
     sz = r["sizing"]
     last = sz["levels"][-1]
-    assert sz["converged"] and sz["stop"] == "met" and last["passed"] and sz["target_mm"] == pytest.approx(0.1)
-    assert not any(lv["passed"] for lv in sz["levels"][:-1]) and max(last["estimate_mm"]) < 0.1
+    assert sz["converged"] and sz["stop"] == "met" and last["passed"] and sz["target_um"] == pytest.approx(100)
+    assert not any(lv["passed"] for lv in sz["levels"][:-1]) and max(last["estimate_um"]) < 100
     assert r["train_steps"] == last["train_steps"] and r["modes"] == last["modes"]
-    assert "sized to 1 mm on 2 held-out" in r["train"][0]
+    assert "sized to 1000 µm on 2 held-out" in r["train"][0]
     assert r["rmse_um"] < 100 and r["error_estimate"]["safety_factor"] == pytest.approx(last["safety_factor"])
     assert r["timings"]["offline_s"] == pytest.approx(sz["seconds"])
-    for bad, word in ((["--held-out", "0"], "--held-out"), (["--tol-mm", "-1"], "--tol-mm"),
-                      (["--tol-mm", "0.1", "--modes", "8"], "no effect")):
+    for bad, word in ((["--held-out", "0"], "--held-out"), (["--tol-um", "-1"], "--tol-um"),
+                      (["--tol-um", "100", "--modes", "8"], "no effect")):
         assert main(argv + bad) == 2
         assert word in capsys.readouterr().err
