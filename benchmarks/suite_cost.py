@@ -13,8 +13,10 @@ listens to JAX's compile events (``jax.monitoring``) per test:
 
 ``wall_s_if_split_perfectly`` is the one-process test seconds halved: the wall time two workers
 could reach at best, before start-up and their competition for memory bandwidth. Writes
-``results/suite_cost.json``, and ``tests/module_seconds.json``: the one-process seconds of every
-test module, which ``tests/conftest.py`` schedules the workers by (heaviest module first). Takes eight to ten minutes on two cores.
+``results/suite_cost.json``, ``tests/module_seconds.json``: the one-process seconds of every
+test module, which ``tests/conftest.py`` schedules the workers by (heaviest module first), and
+``tests/test_seconds.json``: the one-process seconds of every test, by which ``tests/conftest.py``
+marks a test slow (over ``SLOW_TEST_S``). Takes eight to ten minutes on two cores.
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/suite_cost.py``.
 """
 
@@ -33,6 +35,7 @@ from _common import write
 
 ROOT = Path(__file__).resolve().parent.parent
 MODULE_SECONDS = ROOT / "tests" / "module_seconds.json"
+TEST_SECONDS = ROOT / "tests" / "test_seconds.json"
 
 PLUGIN = r'''
 import collections, json, os, time
@@ -78,7 +81,8 @@ PHASES = {"jaxpr_trace_duration": "trace_s", "jaxpr_to_mlir_module_duration": "l
 
 def _run(extra_args, plugin_dir, out_dir):
     path = os.pathsep.join(p for p in (str(plugin_dir), os.environ.get("PYTHONPATH", "")) if p)
-    env = dict(os.environ, SUITE_COST_OUT=str(out_dir), OPENBLAS_NUM_THREADS="1", PYTHONPATH=path)
+    env = dict(os.environ, SUITE_COST_OUT=str(out_dir), OPENBLAS_NUM_THREADS="1", PYTHONPATH=path,
+               JAXBELT_MEASURED_SPLIT="0")  # every test of the default run measured, the measured split off
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "suite_cost_plugin", *extra_args], cwd=ROOT,
                        env=env, capture_output=True, text=True)
@@ -108,6 +112,7 @@ def _totals(workers):
     out["programs_over_half_a_second"] = big
     out["slowest_modules_s"] = dict(by_module.most_common(10))
     out["module_s"] = dict(by_module)
+    out["per_test_s"] = {test: c.get("wall", 0.0) for w in workers.values() for test, c in w["tests"].items()}
     out["test_s_by_process"] = {k: sum(c.get("wall", 0.0) for c in w["tests"].values())
                                 for k, w in sorted(workers.items())}
     return out
@@ -130,11 +135,15 @@ def main():
     results["duplicated_or_contended_s"] = results["two_workers"]["test_s"] - one["test_s"]
     module_s = results["one_process"].pop("module_s")
     results["two_workers"].pop("module_s")
+    per_test = results["one_process"].pop("per_test_s")
+    results["two_workers"].pop("per_test_s")
     write("suite_cost", results)
     # the scheduling table tests/conftest.py reads: seconds per test module, one process, measured
     table = {m.removesuffix(".py"): max(1, round(v)) for m, v in sorted(module_s.items(), key=lambda kv: -kv[1])}
     MODULE_SECONDS.write_text(json.dumps(table, indent=1) + "\n")
-    print(f"wrote {MODULE_SECONDS}", file=sys.stderr)
+    # the measured half of the slow/fast split (tests/conftest.py: SLOW_TEST_S): seconds per test
+    TEST_SECONDS.write_text(json.dumps({t: round(v, 2) for t, v in sorted(per_test.items())}, indent=1) + "\n")
+    print(f"wrote {MODULE_SECONDS} and {TEST_SECONDS}", file=sys.stderr)
     print(json.dumps({k: v for k, v in one.items() if k != "slowest_modules_s"}, indent=1))
 
 

@@ -70,9 +70,24 @@ def pytest_addoption(parser):
 # measured them (a module not in the table, default 5, only costs balance).
 MODULE_SECONDS = json.loads((Path(__file__).parent / "module_seconds.json").read_text())
 
+# The measured half of the slow/fast split: a test of the default run whose one-process seconds,
+# as benchmarks/suite_cost.py measured them (tests/test_seconds.json), exceed SLOW_TEST_S is
+# slow; the hand-placed ``@pytest.mark.slow`` marks are the other half (coverage: a test whose
+# code cheaper tests already reach).
+TEST_SECONDS_FILE = Path(__file__).parent / "test_seconds.json"
+TEST_SECONDS = json.loads(TEST_SECONDS_FILE.read_text()) if TEST_SECONDS_FILE.exists() else {}
+if os.environ.get("JAXBELT_MEASURED_SPLIT", "1") == "0":  # suite_cost.py measures every test
+    TEST_SECONDS = {}
+SLOW_TEST_S = 30.0
 
+
+@pytest.hookimpl(tryfirst=True)  # before the mark plugin deselects by ``-m``
 def pytest_collection_modifyitems(config, items):
-    """Modules in decreasing ``MODULE_SECONDS`` (a stable sort: each module's own order stays)."""
+    """Tests over :data:`SLOW_TEST_S` marked slow; modules in decreasing ``MODULE_SECONDS`` (a
+    stable sort: each module's own order stays)."""
+    for item in items:
+        if TEST_SECONDS.get(item.nodeid, 0.0) > SLOW_TEST_S:
+            item.add_marker(pytest.mark.slow)
     items.sort(key=lambda item: -MODULE_SECONDS.get(item.path.stem, 5))
 
 
