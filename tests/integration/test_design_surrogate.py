@@ -64,7 +64,7 @@ def test_validation_record(which, request):
     assert v.effectivity_min >= v.safety * (1 - 1e-9)
     assert v.max_true_error_um <= sur.bound_um == v.max_bound_um < 0.1 * LIMIT
     assert 0 < v.metric_range_um[0] < LIMIT < v.metric_range_um[1]  # the limit is in play
-    json.dumps(v)
+    json.dumps(v.to_dict())
 
 
 @pytest.mark.slow
