@@ -66,7 +66,7 @@ def box_record(box, study, wall):
     print(f"  verified worst {box.worst_case_um:.3f} µm ({box.iterations} iteration(s), {wall:.1f} s), "
           f"binding limit {box.binding_limit}, components {box.binding[:3]}")
     for x in box.limits:
-        print(f"    {x['metric']}: {x['worst_case']:.4g} of {x['limit']:g} {x['unit']}")
+        print(f"    {x.metric}: {x.worst_case:.4g} of {x.limit:g} {x.unit}")
     for lab, h, u in zip(box.labels, box.half_widths, box.units):
         print(f"    {lab:14s} ± {h:.4g} {u}")
     return rec

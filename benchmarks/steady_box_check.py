@@ -48,7 +48,7 @@ def main():
     theta = np.zeros(space.size)
     for k, label in enumerate(space.labels()):
         roller, comp = label.split(":")
-        group = "translation" if comp.startswith("d") else "rotation"
+        group = "translation_mm" if comp.startswith("d") else "rotation_mrad"
         theta[k] = worst["corner"][roller][group]["xyz".index(comp[1])]
     corner = apply(model, space, jnp.asarray(theta))
     n = int(round(BLOCK_S / opts.dt))

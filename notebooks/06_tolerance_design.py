@@ -147,8 +147,8 @@ report = design.sensitivity_report(study, repeat=1)
 print(f"N = {dmodel.n_unknowns}, {study.n_steps} steps; study + sensitivities in {time.perf_counter() - t0:.1f} s "
       f"(forward {report.forward_s:.2f} s, gradient {report.gradient_s:.2f} s, at the kink: {report.at_kink})")
 for p in report.parameters:
-    print(f"  {p['component']:12s} {p['gradient']:9.3f} µm/{p['unit']}")
-print("structurally zero:", ", ".join(z["component"] for z in report.structural_zero))
+    print(f"  {p.component:12s} {p.gradient:9.3f} µm/{p.unit}")
+print("structurally zero:", ", ".join(z.component for z in report.structural_zero))
 show_png("sensitivity.png", plot.plot_sensitivity, report)
 
 # %% [markdown]

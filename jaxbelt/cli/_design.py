@@ -4,7 +4,6 @@ bad input into one line and exit code 2 before anything is computed or written."
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 import tomllib
@@ -149,7 +148,7 @@ def finer_model(args):
     scene = args.design_scene
     fine = refine(scene, n_xi=2.0, n_eta=2.0, dt=2.0)
     _, _, model, options = rebuild(fine)
-    grid, grid_fine = (dataclasses.asdict(scene_grid(s)) for s in (scene, fine))
+    grid, grid_fine = (scene_grid(s) for s in (scene, fine))
     return model, options, grid, grid_fine
 
 
@@ -166,8 +165,9 @@ def metric_quantities(metric: str, scene) -> tuple[str, ...]:
 
 def make_design_study(args, model, options, components=None, jacobian: bool = False):
     """:func:`jaxbelt.design.make_study` at ``--at`` (default the scene's end) with the scene's
-    time step and solver (``jacobian``: its linearisation too, for a tolerance box), its
-    ``ValueError``s as usage errors."""
+    time step and solver, its ``ValueError``s as usage errors. **Returns:** ``(study, linear)``:
+    with ``jacobian`` ``linear`` is its :class:`~jaxbelt.design.LinearDeviation` (for a tolerance
+    box, FORM), else ``None``."""
     if args.metric not in METRICS:
         raise UsageError(f"--metric = {args.metric!r}: unknown (one of {', '.join(METRICS)})")
     if args.at is not None and args.at > options.t_end + 1e-12:
@@ -177,11 +177,13 @@ def make_design_study(args, model, options, components=None, jacobian: bool = Fa
     fraction = None if args.window is None else args.window / t_eval
     try:
         if steady:
-            return make_study(model, args.metric, options, components=components, jacobian=jacobian, steady=True)
-        return make_study(model, args.metric, options, t_eval=args.at, components=components, jacobian=jacobian,
-                          window_fraction=fraction)
+            made = make_study(model, args.metric, options, components=components, jacobian=jacobian, steady=True)
+        else:
+            made = make_study(model, args.metric, options, t_eval=args.at, components=components, jacobian=jacobian,
+                              window_fraction=fraction)
     except ValueError as e:  # NoSteadyStateError included: what was found, in one line
         raise UsageError(str(e)) from None
+    return made if jacobian else (made, None)
 
 
 def judges_steady_operation(args, model) -> bool:

@@ -18,7 +18,7 @@ def run(args):
     check_plot(args.plot)
     model, options = load_design_model(args)
     stage(args, f"aligned reference run ({model.n_unknowns} unknowns)")
-    study = make_design_study(args, model, options)
+    study, _ = make_design_study(args, model, options)
     stage(args, "compiling and timing the forward run and the gradient")
     report = sensitivity_report(study)
     return finish(args, report.to_dict(), _print, "plot_sensitivity", report)

@@ -57,7 +57,7 @@ def run(args):
         raise UsageError(f"--out = {args.out!r}: exists and is not a directory")
     # FORM and the RSS stack-up read the linear response at θ = 0: taken with the reference run
     stage(args, f"aligned reference run{'' if args.no_form else ' and its Jacobian'} ({model.n_unknowns} unknowns)")
-    study = make_design_study(args, model, options, list(dist.labels), jacobian=not args.no_form)
+    study, linear = make_design_study(args, model, options, list(dist.labels), jacobian=not args.no_form)
     # the limits tolerance holds on the same machine (on a steered one: both directions and the actuator)
     limit, limits = limits_of(args, study)
     if limits:
@@ -68,7 +68,7 @@ def run(args):
         except ValueError as e:
             raise UsageError(str(e)) from None
     res = run_sweep(study, dist, args.samples, limit, seed=args.seed, chunk=args.chunk, out=args.out,
-                    rom=rom, with_form=not args.no_form, progress=args.progress, scene=args.scene)
+                    rom=rom, with_form=not args.no_form, progress=args.progress, scene=args.scene, linear=linear)
     out = res.to_dict()
     if not args.no_error_bars:
         stage(args, "error bar: the samples nearest the limit on the grid one level finer")

@@ -38,11 +38,11 @@ def run(args):
     except ValueError as e:
         raise UsageError(f"--components/--weights: {e}") from None
     stage(args, f"aligned reference run and its Jacobian ({model.n_unknowns} unknowns)")
-    study = make_design_study(args, model, options, args.components, jacobian=True)
+    study, linear = make_design_study(args, model, options, args.components, jacobian=True)
     limit, limits = limits_of(args, study)
     stage(args, "box optimisation and verification runs")
     try:
-        res = tolerance_box(study, limit, weights, limits=limits)
+        res = tolerance_box(study, limit, weights, limits=limits, linear=linear)
     except ValueError as e:  # the scene's own misalignment already breaks the limit
         raise UsageError(str(e)) from None
     out = res.to_dict()

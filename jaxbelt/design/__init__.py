@@ -9,18 +9,23 @@ from jaxbelt import design
 jb.enable_x64()
 scene = jb.load_scene("three-roller-t72")
 opts = jb.RunOptions.from_scene(scene)
-study = design.make_study(jb.build_model(scene), "lateral_max", opts, t_eval=2.0)
+study, linear = design.make_study(jb.build_model(scene), "lateral_max", opts, t_eval=2.0, jacobian=True)
 design.sensitivity_report(study)                      # value + gradient per roller component
-box = design.tolerance_box(study, limit_um=20.0)      # largest verified tolerance box
+box = design.tolerance_box(study, limit_um=20.0, linear=linear)  # largest verified tolerance box
 dist = design.Distribution(tuple(study.space.labels()), ("normal",) * study.space.size,
                            tuple(box.half_widths / 3))
-design.run_sweep(study, dist, n=1000, limit_um=20.0)   # Monte-Carlo yield, FORM, IS
+design.run_sweep(study, dist, n=1000, limit_um=20.0, linear=linear)  # Monte-Carlo yield, FORM, IS
 ```
+
+The study holds the question and what its runs read; the linear response at the scene's own
+misalignment (:class:`LinearDeviation`, from ``jacobian=True`` or :func:`linearise`) is passed
+beside it to what reads it, and computed by a run where it is not given.
 
 Every result is a frozen dataclass with documented fields (:class:`SweepResult`,
 :class:`ToleranceBox`, :class:`SensitivityReport`, :class:`MonteCarloResult`,
-:class:`FormResult`, :class:`ImportanceSamplingResult`); the command line's JSON is their
-``to_dict()`` (:mod:`jaxbelt.infra.results`). Loop design (the steering plant, its margins and
+:class:`FormResult`, :class:`ImportanceSamplingResult`), made of typed records
+(:mod:`jaxbelt.design.records`); the command line's JSON is their ``to_dict()``
+(:mod:`jaxbelt.infra.results`). Loop design (the steering plant, its margins and
 gains) is :mod:`jaxbelt.steering`.
 """
 
@@ -35,8 +40,15 @@ from .linear_box import worst_case as worst_case
 from .metrics import METRICS as METRICS
 from .metrics import Metric as Metric
 from .metrics import metric_unit as metric_unit
+from .records import ComponentGradient as ComponentGradient
+from .records import MetricLimit as MetricLimit
+from .records import RollerMisalignment as RollerMisalignment
+from .records import RollerSensitivity as RollerSensitivity
+from .records import StructuralZero as StructuralZero
+from .study import LinearDeviation as LinearDeviation
 from .study import Study as Study
 from .study import evaluate as evaluate
+from .study import linearise as linearise
 from .study import make_study as make_study
 from .study import make_study_at as make_study_at
 from .study import metric_value as metric_value
@@ -49,6 +61,7 @@ from .sampling import Distribution as Distribution
 from .sampling import FormResult as FormResult
 from .sampling import ImportanceSamplingResult as ImportanceSamplingResult
 from .sampling import MonteCarloResult as MonteCarloResult
+from .sampling import SampleOutputs as SampleOutputs
 from .sampling import distribution_from_dict as distribution_from_dict
 from .sampling import evaluate_configs as evaluate_configs
 from .sampling import evaluate_metric as evaluate_metric
@@ -63,7 +76,10 @@ from .sensitivity import value_and_gradient as value_and_gradient
 from ..infra.sharding import batched_map as batched_map
 from ..infra.sharding import config_mesh as config_mesh
 from ..infra.sharding import distributed_map as distributed_map
+from .sweep import ReducedModelUse as ReducedModelUse
 from .sweep import SweepResult as SweepResult
 from .sweep import run_sweep as run_sweep
+from .tolerance import LimitCheck as LimitCheck
 from .tolerance import ToleranceBox as ToleranceBox
+from .tolerance import VerificationRun as VerificationRun
 from .tolerance import tolerance_box as tolerance_box

@@ -34,7 +34,7 @@ from jax.scipy.stats import norm
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
 from ..infra.programs import stored_jit
 from ..steady import map_configurations
-from .study import Study, evaluate, for_runs, metric_value
+from .study import LinearDeviation, Study, evaluate, metric_value
 from .sensitivity import response_jacobian
 from ..infra.results import Result
 from ..infra.sharding import batched_map
@@ -152,7 +152,7 @@ def _map(study, thetas, chunk, progress=None):
     n = thetas.shape[0]
     if chunk is not None and n % chunk:
         thetas = np.concatenate([thetas, np.repeat(thetas[-1:], chunk - n % chunk, axis=0)])
-    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=for_runs(study),
+    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=study,
                       batch=map_configurations if study.steady else None)
     return jax.tree.map(lambda a: a[:n], out)
 
@@ -192,12 +192,27 @@ def standard_normal_samples(n: int, P: int, seed: int) -> np.ndarray:
 
 
 @dataclasses.dataclass(frozen=True)
+class SampleOutputs(Result):
+    """What :func:`~jaxbelt.design.study.evaluate` gives for every sample, leading axis n:
+    **Fields:** ``metric`` (n,) in the metric's unit; ``longitudinal_um`` and (2D, else
+    ``None``) ``lateral_um`` (n, n_tr) the tracer deviations at ``t_eval``, µm; on a steered
+    machine (else ``None``) ``steering_mrad`` (n,) the largest actuator angle in the window, mrad,
+    and ``saturated`` (n,) whether the actuator reached its range limit there."""
+
+    metric: np.ndarray
+    longitudinal_um: np.ndarray
+    lateral_um: np.ndarray | None = None
+    steering_mrad: np.ndarray | None = None
+    saturated: np.ndarray | None = None
+
+
+@dataclasses.dataclass(frozen=True)
 class MonteCarloResult(Result):
     """A Monte-Carlo yield (:func:`monte_carlo`). **Fields:** ``yield_`` the fraction of samples
     that pass (:func:`passes`: on a steered machine a saturated actuator fails); ``ci95`` its
     Wilson 95 % interval; ``samples``; ``passed``; ``theta`` (n, P) the configurations, mm / mrad;
     ``metric`` (n,) their metric; ``outputs`` everything :func:`~jaxbelt.design.study.evaluate`
-    returned, per sample."""
+    returned, per sample (:class:`SampleOutputs`)."""
 
     yield_: float
     ci95: tuple
@@ -205,7 +220,7 @@ class MonteCarloResult(Result):
     passed: int
     theta: np.ndarray
     metric: np.ndarray
-    outputs: dict
+    outputs: SampleOutputs
 
 
 def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed: int = 0,
@@ -219,7 +234,8 @@ def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed:
     metric = np.asarray(out["metric"])
     passed = int(np.sum(passes(metric, limit_um, out.get("saturated"))))
     return MonteCarloResult(yield_=passed / n, ci95=wilson_interval(passed, n), samples=n, passed=passed,
-                            theta=thetas, metric=metric, outputs=out)
+                            theta=thetas, metric=metric,
+                            outputs=SampleOutputs(**{k: np.asarray(v) for k, v in out.items()}))
 
 
 @stored_jit
@@ -251,11 +267,12 @@ class FormResult(Result):
 
 
 def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: int = 30,
-         tol: float = 1e-6) -> FormResult:
+         tol: float = 1e-6, linear: LinearDeviation | None = None) -> FormResult:
     """First-order reliability: the design point by HL-RF iterations (module docstring).
 
     The start point ``u0`` defaults to the design point of the linearised response's most
-    critical row (see :func:`linear_design_point`).
+    critical row (see :func:`linear_design_point`); the linear response is read from ``linear``
+    (the study's :class:`~jaxbelt.design.study.LinearDeviation`) where given, else from a run.
 
     **Returns:** a :class:`FormResult`; its ``series_bounds`` (max-type metrics) bound the yield
     over all linearised failure modes, of which FORM's single design point sees only the most
@@ -263,14 +280,13 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
     check_distribution(dist, study)
     scale = jnp.asarray(dist.scale)
     uniform = jnp.asarray([k == "uniform" for k in dist.kind])
-    r0, J = response_jacobian(study)
+    r0, J = response_jacobian(study, linear=linear)
     if u0 is None:
         u0 = linear_design_point(r0, J, dist, limit_um, study.aggregate)
     u = jnp.asarray(u0, float)
-    runs = for_runs(study)
     converged, it = False, 0
     for it in range(1, max_iter + 1):
-        g, dg = _g_and_grad(runs, scale, uniform, u, limit_um)
+        g, dg = _g_and_grad(study, scale, uniform, u, limit_um)
         nd = float(jnp.dot(dg, dg))
         if nd == 0.0:
             break
@@ -280,8 +296,8 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
         if step < tol * max(1.0, float(jnp.linalg.norm(u))) and abs(float(g)) < 1e-6 * limit_um:
             converged = True
             break
-    g, _ = _g_and_grad(runs, scale, uniform, u, limit_um)
-    g0, _ = _g_and_grad(runs, scale, uniform, jnp.zeros_like(u), limit_um)
+    g, _ = _g_and_grad(study, scale, uniform, u, limit_um)
+    g0, _ = _g_and_grad(study, scale, uniform, jnp.zeros_like(u), limit_um)
     beta = float(jnp.linalg.norm(u)) * (1.0 if float(g0) >= 0 else -1.0)  # negative: the nominal fails
     bounds = None
     if study.aggregate == "max":

@@ -20,7 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .metrics import response_from_deviation
-from .study import Study, for_runs, metric_value, response
+from .records import ComponentGradient, RollerSensitivity, StructuralZero, sensitivity_per_roller
+from .study import LinearDeviation, Study, metric_value, response
 from ..infra.programs import stored_jit
 from ..infra.results import Result
 
@@ -52,14 +53,12 @@ def _response_and_jacobian(study, theta, forward: bool):
 
 
 @stored_jit
-def _response_and_jacobian_from_linearisation(study):
-    """``(r, J)`` at ``θ = 0`` from ``study.linearisation`` (the chain rule through the response
-    alone, no run)."""
-    (d0, dJ) = study.linearisation
+def _response_and_jacobian_from_linear(study, linear: LinearDeviation):
+    """``(r, J)`` at ``θ = 0`` from the linear deviations ``linear`` (the chain rule through the
+    response alone, no run)."""
 
     def r(theta):
-        d = [None if a is None else a + b @ theta for a, b in zip(d0, dJ)]
-        out = response_from_deviation(study, *d)
+        out = response_from_deviation(study, *linear.deviation(theta))
         return out, out
 
     J, r0 = jax.jacfwd(r, has_aux=True)(_zeros(study))
@@ -82,16 +81,20 @@ def value_and_gradient(study: Study, theta=None):
     return _value_and_grad(study, theta)
 
 
-def response_jacobian(study: Study, theta=None, mode: str = "auto"):
+def response_jacobian(study: Study, theta=None, mode: str = "auto", linear: LinearDeviation | None = None):
     """``(r0, J)``: the response ``r`` (n_r,) at ``theta`` and ``J = ∂r/∂θ`` (n_r, P), µm per
-    mm / mrad. ``mode``: ``"forward"``, ``"reverse"`` or ``"auto"`` (forward when P ≤ n_r)."""
+    mm / mrad. ``mode``: ``"forward"``, ``"reverse"`` or ``"auto"`` (forward when P ≤ n_r).
+    ``linear``: the study's :class:`~jaxbelt.design.study.LinearDeviation` (from
+    ``make_study(..., jacobian=True)``), read instead of a run; it holds ``θ = 0`` only, so
+    ``theta`` is then not given."""
     if mode not in ("auto", "forward", "reverse"):
         raise ValueError(f"mode = {mode!r}: one of auto, forward, reverse")
-    if theta is None and study.linearisation is not None:  # the study's own derivatives: no run
-        r, J = _response_and_jacobian_from_linearisation(study)
+    if linear is not None:
+        if theta is not None:
+            raise ValueError("theta: the linear deviations hold θ = 0 only; pass theta or linear, not both")
+        r, J = _response_and_jacobian_from_linear(study, linear)
         return np.asarray(r), np.asarray(J)
     theta = _zeros(study) if theta is None else jnp.asarray(theta, study.base.dtype)
-    study = for_runs(study)  # the linearisation is not read here: the plain study's program
     n_r = jax.eval_shape(lambda t: response(study, t), theta).shape[0]
     forward = mode == "forward" or (mode == "auto" and study.space.size <= n_r)
     r, J = _response_and_jacobian(study, theta, forward)
@@ -103,10 +106,10 @@ class SensitivityReport(Result):
     """A metric and its gradient w.r.t. every misalignment component (:func:`sensitivity_report`).
 
     **Fields:** ``metric``; ``value_um`` the metric, µm (µm/s for ``walk_rate``); ``t_eval_s``;
-    ``parameters`` ``[{"component", "unit", "gradient"}]`` per varied component; ``gradient``
-    ``{roller: {"translation_um_per_mm": [x, y, z], "rotation_um_per_mrad": [x, y, z]}}`` (0 for
-    components that are not parameters); ``structural_zero`` ``[{"component", "reason"}]`` the
-    components that cannot vary; ``at_kink`` whether the metric sat at its kink ``r = 0`` (then
+    ``parameters`` one :class:`~jaxbelt.design.records.ComponentGradient` per varied component;
+    ``gradient`` ``{roller: RollerSensitivity}`` (:class:`~jaxbelt.design.records.RollerSensitivity`,
+    0 for components that are not parameters); ``structural_zero`` the components that cannot
+    vary (:class:`~jaxbelt.design.records.StructuralZero`); ``at_kink`` whether the metric sat at its kink ``r = 0`` (then
     the gradients are one-sided slopes); ``forward_s``, ``gradient_s`` the best wall times of a
     forward run and of the gradient, ``compile_s`` their first calls' (compilation included).
     """
@@ -114,9 +117,9 @@ class SensitivityReport(Result):
     metric: str
     value_um: float
     t_eval_s: float
-    parameters: list
-    gradient: dict
-    structural_zero: list
+    parameters: tuple[ComponentGradient, ...]
+    gradient: dict[str, RollerSensitivity]
+    structural_zero: tuple[StructuralZero, ...]
     at_kink: bool
     forward_s: float
     gradient_s: float
@@ -147,14 +150,11 @@ def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> Sensitivity
         _, J = response_jacobian(study, theta)
         grad = np.sqrt(np.mean(J**2, axis=0)) if study.aggregate == "rms" else np.abs(J).max(axis=0)
     sp = study.space
-    per = sp.per_roller(np.asarray(grad))
-    gradient = {name: {"translation_um_per_mm": g["translation"], "rotation_um_per_mrad": g["rotation"]}
-                for name, g in per.items()}
-    structural = [{"component": f"{sp.roller_names[j]}:{c}", "reason": why} for (j, c), why in sp.structural
-                  if not why.startswith("not modelled")]
+    structural = tuple(StructuralZero(f"{sp.roller_names[j]}:{c}", why) for (j, c), why in sp.structural
+                       if not why.startswith("not modelled"))
     return SensitivityReport(
         metric=study.metric, value_um=float(value), t_eval_s=study.t_eval,
-        parameters=[{"component": lab, "unit": unit, "gradient": float(g)}
-                    for lab, unit, g in zip(sp.labels(), sp.units(), np.asarray(grad))],
-        gradient=gradient, structural_zero=structural, at_kink=at_kink,
+        parameters=tuple(ComponentGradient(lab, unit, float(g))
+                         for lab, unit, g in zip(sp.labels(), sp.units(), np.asarray(grad))),
+        gradient=sensitivity_per_roller(sp, np.asarray(grad)), structural_zero=structural, at_kink=at_kink,
         forward_s=forward_s, gradient_s=gradient_s, compile_s=compile_s)

@@ -3,11 +3,11 @@
 the aligned reference — and the runs that answer it at a design vector (:func:`run_deviation`,
 :func:`response`, :func:`metric_value`, :func:`evaluate`). Built by :func:`make_study` (one model),
 :func:`make_study_at` (a model and its batch of configurations at once) or :func:`study_on` (the
-same question on another grid of the scene)."""
+same question on another grid of the scene). The linear response of the runs at ``θ = 0`` is a
+:class:`LinearDeviation` beside the study (:func:`make_study` with ``jacobian=True``,
+:func:`linearise`), passed to what reads it."""
 
 from __future__ import annotations
-
-import dataclasses
 
 import equinox as eqx
 import jax
@@ -40,19 +40,17 @@ class Study(eqx.Module):
     limits at once (module docstring), else ``()``, and ``limit_values`` (n_limits,) their limits
     (an array: studies that differ in the limits only share compiled programs); ``ref_angle``
     (n_steps, n_c) the aligned run's steering actuator angles, mrad (``None`` without a loop);
-    ``linearisation`` ``None``, or (from :func:`make_study` with ``jacobian=True``) the
-    deviations of :func:`run_deviation` at ``θ = 0`` and their derivatives with respect to every
-    component of ``θ``: ``((d_u, d_v, angle), (∂d_u, ∂d_v, ∂angle))``, each derivative with a
-    trailing axis of length P — what :func:`jaxbelt.design.response_jacobian` reads at ``θ = 0``
-    instead of running again; ``steady`` whether the study judges steady operation (module
+    ``steady`` whether the study judges steady operation (module
     docstring, *Steady operation*): then ``n_steps = window = 1`` and every history above has one
     row, the steady state's; ``period_steps`` the steady map's period in steps; ``jitter_mrad``
     (n_c,) the aligned machine's actuator jitter around its steady angle from sensor noise and
     edge profile, mrad (steady studies of a steered machine, else ``None``); ``steady_start``
     the aligned machine's steady state; ``steady_tangents`` its derivatives with respect to ``θ``
-    (:func:`jaxbelt.steady.state_fields`, trailing axis P; a steady study with a Jacobian): every
-    steady solve of the study starts at the linear prediction
-    :func:`jaxbelt.steady.linear_start`, or without them at the aligned steady state.
+    (:func:`jaxbelt.steady.state_fields`, trailing axis P; a steady study made with
+    ``jacobian=True``): every steady solve of the study starts at the linear prediction
+    :func:`jaxbelt.steady.linear_start`, or without them at the aligned steady state. Both are
+    where the study's runs start, so they belong to the study; the linear response of the
+    deviations, which no run reads, is a :class:`LinearDeviation` beside it.
     """
 
     model: BeltModel
@@ -68,7 +66,6 @@ class Study(eqx.Module):
     limit_names: tuple = eqx.field(static=True, default=())
     limit_values: jax.Array | None = None
     ref_angle: jax.Array | None = None
-    linearisation: tuple | None = None
     steady: bool = eqx.field(static=True, default=False)
     period_steps: int = eqx.field(static=True, default=1)
     jitter_mrad: jax.Array | None = None
@@ -126,11 +123,46 @@ def _mrad(angle):
     return None if angle is None else angle * RAD_TO_MRAD
 
 
-def for_runs(study: Study) -> Study:
-    """The study without its linearisation, which no run reads: the programs that run
-    configurations then take the same arguments with and without one, and are compiled once for
-    both (in a process and in the persistent compilation cache)."""
-    return study if study.linearisation is None else dataclasses.replace(study, linearisation=None)
+class LinearDeviation(eqx.Module):
+    """The deviations of a study's runs (:func:`run_deviation`) at ``θ = 0`` and their derivatives
+    with respect to every component of ``θ``: ``d(θ) ≈ d(0) + ∂d θ``, what
+    :func:`jaxbelt.design.response_jacobian` reads at ``θ = 0`` instead of running again (from
+    :func:`make_study` with ``jacobian=True`` or :func:`linearise`). It is a function of the
+    deviations alone, so it serves every metric and every set of limits of the same study
+    (:func:`with_limits`).
+
+    **Fields:** ``d_u_um``, ``d_v_um`` (n_steps, n_tr) the tracer deviations at ``θ = 0``, µm
+    (``d_v_um`` ``None`` in 1D); ``angle_mrad`` (n_steps, n_c) the actuator angles there, mrad
+    (``None`` without a loop); ``d_u_um_per_theta``, ``d_v_um_per_theta``,
+    ``angle_mrad_per_theta`` their derivatives, the same shapes with a trailing axis P, per mm
+    (translations) or mrad (rotations).
+    """
+
+    d_u_um: jax.Array
+    d_v_um: jax.Array | None
+    angle_mrad: jax.Array | None
+    d_u_um_per_theta: jax.Array
+    d_v_um_per_theta: jax.Array | None
+    angle_mrad_per_theta: jax.Array | None
+
+    @property
+    def at_zero(self) -> tuple:
+        """``(d_u, d_v, angle)`` at ``θ = 0`` (µm, µm, mrad), as :func:`run_deviation` returns them."""
+        return self.d_u_um, self.d_v_um, self.angle_mrad
+
+    @property
+    def derivatives(self) -> tuple:
+        """``(∂d_u, ∂d_v, ∂angle)``, each with a trailing axis P."""
+        return self.d_u_um_per_theta, self.d_v_um_per_theta, self.angle_mrad_per_theta
+
+    def deviation(self, theta) -> tuple:
+        """``(d_u, d_v, angle)`` of the linear model at ``theta`` (P,), mm / mrad."""
+        return tuple(None if a is None else a + b @ theta for a, b in zip(self.at_zero, self.derivatives))
+
+
+def _linear_deviation(at_zero, derivatives) -> LinearDeviation:
+    """:class:`LinearDeviation` from ``(d_u, d_v, angle)`` and their derivatives."""
+    return LinearDeviation(*at_zero, *derivatives)
 
 
 def _check_metric(model: BeltModel, metric: str):
@@ -143,15 +175,18 @@ def _check_metric(model: BeltModel, metric: str):
 
 
 def make_study(model: BeltModel, metric: str, options: RunOptions, *, t_eval: float | None = None, components=None,
-               window_fraction: float | None = None, jacobian: bool = False, steady: bool = False) -> Study:
+               window_fraction: float | None = None, jacobian: bool = False,
+               steady: bool = False) -> Study | tuple[Study, LinearDeviation]:
     """Set up a study: validate the metric and time, select the components, run the aligned
-    reference once.
+    reference once. **Returns:** the :class:`Study`; with ``jacobian``, ``(study, linear)``.
 
     With ``jacobian``, also the run's derivatives with respect to every component at the scene's
-    own misalignment (``Study.linearisation``), for the linear response at ``θ = 0``. On an
-    aligned scene that run is the reference itself: one forward-mode program gives both (the
-    reference is the primal the tangents ride on), where a study and then its Jacobian would run
-    the reference twice and compile two programs.
+    own misalignment (``linear``, a :class:`LinearDeviation`), for the linear response at
+    ``θ = 0``. On an aligned scene that run is the reference itself: one forward-mode program
+    gives both (the reference is the primal the tangents ride on), where a study and then its
+    Jacobian (:func:`linearise`) would run the reference twice and compile two programs. The study
+    is the same with and without ``jacobian`` (but for a steady study's ``steady_tangents``, the
+    start of its steady solves), and so are the programs that run it.
 
     **Arguments:** ``metric`` (one of :data:`~jaxbelt.design.metrics.METRICS`); ``options`` the
     run settings (:class:`jaxbelt.RunOptions`, e.g. a scene's ``RunOptions.from_scene(scene)``:
@@ -173,14 +208,13 @@ def make_study(model: BeltModel, metric: str, options: RunOptions, *, t_eval: fl
         check_finite(ref, frame["dt"])  # a diverging reference is named, as simulate names it
         u, v, angle = ref.tracer_u, ref.tracer_v, ref.control_u
         zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-        lin = ((zero(u), zero(v), _mrad(angle)), (du * M_TO_UM, None if dv is None else dv * M_TO_UM, _mrad(dangle)))
-        return Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), linearisation=lin)
+        linear = _linear_deviation((zero(u), zero(v), _mrad(angle)),
+                                   (du * M_TO_UM, None if dv is None else dv * M_TO_UM, _mrad(dangle)))
+        return Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle)), linear
     _, ref = simulate(aligned(model), frame["solver"], n_steps=frame["n_steps"], dt=frame["dt"])
     study = Study(**frame, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
                   ref_angle=_mrad(ref.control_u))
-    if jacobian:
-        study = dataclasses.replace(study, linearisation=_deviation_tangents(study))
-    return study
+    return (study, linearise(study)) if jacobian else study
 
 
 def _steady_rows(s):
@@ -231,7 +265,7 @@ def _steady_frame(model, metric, options, components) -> dict:
                 steady=True, period_steps=period_steps(model, dt))
 
 
-def _make_steady_study(model, metric, options, components, jacobian) -> Study:
+def _make_steady_study(model, metric, options, components, jacobian):
     """:func:`make_study` of steady operation (module docstring)."""
     frame = _steady_frame(model, metric, options, components)
     if model.kind == "2d" and model.control is None and model.lateral_transport:
@@ -249,15 +283,14 @@ def _make_steady_study(model, metric, options, components, jacobian) -> Study:
     u, v, angle = _steady_rows(s)
     study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,
                   steady_start=s.state, steady_tangents=tangents)
-    if jacobian:
-        if base_is_zero:
-            row = lambda a, k: None if a is None else a[None] * k  # noqa: E731
-            zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-            lin = ((zero(u), zero(v), _mrad(angle)), (row(du, M_TO_UM), row(dv, M_TO_UM), row(dangle, RAD_TO_MRAD)))
-        else:
-            lin = _deviation_tangents(study)
-        study = dataclasses.replace(study, linearisation=lin)
-    return study
+    if not jacobian:
+        return study
+    if not base_is_zero:
+        return study, linearise(study)
+    row = lambda a, k: None if a is None else a[None] * k  # noqa: E731
+    zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
+    return study, _linear_deviation((zero(u), zero(v), _mrad(angle)),
+                                    (row(du, M_TO_UM), row(dv, M_TO_UM), row(dangle, RAD_TO_MRAD)))
 
 
 @stored_jit
@@ -276,17 +309,16 @@ def _reference_and_tangents(model, space, solver, dt, n_steps):
 
 @stored_jit
 def _deviation_tangents(study: Study):
-    """:func:`run_deviation` at ``θ = 0`` and its derivatives (``Study.linearisation``)."""
+    """:func:`run_deviation` at ``θ = 0`` and its derivatives: ``(primal, tangents)``."""
     fn, theta = (lambda t: (run_deviation(study, t),) * 2), jnp.zeros(study.space.size, study.base.dtype)
     J, primal = forward_jacobian(fn, theta, has_aux=True) if study.steady else jax.jacfwd(fn, has_aux=True)(theta)
     return primal, J
 
 
-def with_linearisation(study: Study) -> Study:
-    """``study`` with its :attr:`Study.linearisation`, computed here where it has none."""
-    if study.linearisation is not None:
-        return study
-    return dataclasses.replace(study, linearisation=_deviation_tangents(study))
+def linearise(study: Study) -> LinearDeviation:
+    """The study's deviations at ``θ = 0`` and their derivatives (:class:`LinearDeviation`), from
+    one forward-mode run (implicit tangents of the steady state in steady operation)."""
+    return _linear_deviation(*_deviation_tangents(study))
 
 
 def _study_frame(model, metric, t_eval, options, components, window_fraction) -> dict:
@@ -412,7 +444,7 @@ def with_limits(study: Study, limits) -> Study:
                  base=study.base, space=study.space, metric=study.metric, n_steps=study.n_steps, window=study.window,
                  limit_names=tuple(n for n, _ in pairs),
                  limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None,
-                 ref_angle=study.ref_angle, linearisation=study.linearisation, steady=study.steady,
+                 ref_angle=study.ref_angle, steady=study.steady,
                  period_steps=study.period_steps, jitter_mrad=study.jitter_mrad, steady_start=study.steady_start,
                  steady_tangents=study.steady_tangents)
 

@@ -85,11 +85,12 @@ it widens for configurations further out than any of them. The surrogate is used
 bound is below 10 % of the limit. Then every sample is predicted, and each sample whose
 predicted metric lies within its own bound of the limit is re-run in full. Every pass/fail call
 left to the reduced model is therefore certain up to the bound. ``full_runs`` counts the
-training and validation runs (``validation["validation_runs"]``) plus those re-runs.
+training and validation runs (``validation.validation_runs``) plus those re-runs.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import equinox as eqx
@@ -98,16 +99,70 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..infra.programs import stored_jit
+from ..infra.results import Result, to_json
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
 from ..rom.pod_step import reduced_operators
 from ..state import initial_state
 from ..timeloop import RunOptions, simulate
 from .metrics import METRICS, M_TO_UM, RAD_TO_MRAD, aggregate, response_from_deviation, saturation
-from .study import Study, with_linearisation
+from .study import LinearDeviation, Study, linearise
 from .sampling import STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, standard_normal_samples
 
 ROUNDOFF_UM = 1e-9
 METHODS = ("response", "pod")
+
+
+@dataclasses.dataclass(frozen=True)
+class SurrogateValidation(Result):
+    """The record of a fitted surrogate (:func:`fit_surrogate`, :attr:`Surrogate.validation`).
+
+    **Fields:** ``method`` the reduced model (``"response"`` | ``"pod"``) and ``description`` in
+    words; ``validation_runs`` the full runs it took (training + validation), ``training_runs``,
+    ``n_validation``; ``seed`` of the validation samples; ``training_widths`` (P,) the training
+    widths ``w``, mm / mrad; ``safety`` the factor on the largest validation error; ``rho_max``
+    the largest ``ρ`` of a validation sample; ``max_true_error_um``, ``median_true_error_um``
+    the metric errors on the validation samples; ``max_bound_um`` the bound there;
+    ``effectivity_min`` / ``effectivity_median`` bound over true error there (``inf`` where no
+    sample has an error); ``loo_effectivity_min`` the leave-one-out check (module docstring);
+    ``metric_range_um`` ``[min, max]`` of the validation samples' full metric; ``training_s``,
+    ``fit_s``, ``validation_s``, ``offline_s`` the wall times of the parts and of the whole.
+    Where they apply (else ``None``, left out of :meth:`to_dict`): ``steps_kept`` the steps the
+    response surface keeps; ``snapshots``, ``n_modes``, ``sv_tol``, ``singular_value_ratio`` of
+    the POD basis; ``max_true_steering_error_mrad`` and ``steering_bound_mrad`` on a steered
+    machine."""
+
+    method: str
+    description: str
+    validation_runs: int
+    training_runs: int
+    n_validation: int
+    seed: int
+    training_widths: tuple
+    safety: float
+    rho_max: float
+    max_true_error_um: float
+    median_true_error_um: float
+    max_bound_um: float
+    effectivity_min: float
+    effectivity_median: float
+    loo_effectivity_min: float
+    metric_range_um: tuple
+    training_s: float
+    fit_s: float
+    validation_s: float
+    offline_s: float
+    steps_kept: int | None = None
+    snapshots: int | None = None
+    n_modes: int | None = None
+    sv_tol: float | None = None
+    singular_value_ratio: float | None = None
+    max_true_steering_error_mrad: float | None = None
+    steering_bound_mrad: float | None = None
+
+    def to_dict(self) -> dict:
+        """The record as JSON-able data, the fields that are ``None`` left out."""
+        return to_json({f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                        if getattr(self, f.name) is not None})
 
 
 class ResponseSurface(eqx.Module):
@@ -230,7 +285,8 @@ class Surrogate:
     **Attributes:** ``study``; ``rom`` the reduced model (:class:`ResponseSurface`, or
     :class:`~jaxbelt.rom.ReducedStep` with ``anchor`` its nominal offsets); ``widths`` (P,) the
     training widths ``w``; ``error_um`` (``safety · E``); ``rho_max``; ``bound_um`` (the bound
-    on the validation samples, µm); ``limit_um``; ``validation`` (dict, JSON-able); on a steered
+    on the validation samples, µm); ``limit_um``; ``validation`` its record
+    (:class:`SurrogateValidation`, ``None`` until calibrated); on a steered
     machine ``steering_error_mrad``, the same bound for the largest actuator angle (``safety``
     times its largest validation error, growing alike beyond the validated range).
     """
@@ -243,7 +299,7 @@ class Surrogate:
         self.steering_error_mrad = float("inf")
         self.rho_max = 0.0
         self.bound_um = float("inf")
-        self.validation: dict = {}
+        self.validation: SurrogateValidation | None = None
 
     def predict(self, thetas) -> dict:
         """Reduced ``metric`` and tracer deviations for ``thetas`` (n, P) (numpy arrays, no bound),
@@ -322,12 +378,13 @@ def _fit_response(study: Study, train, widths) -> ResponseSurface:
                            angle0=a0, angle_linear=a1, angle_curvature=a2)
 
 
-def _steady_surface(study: Study) -> ResponseSurface:
+def _steady_surface(study: Study, linear: LinearDeviation | None) -> ResponseSurface:
     """:class:`ResponseSurface` of a steady study without a training run: the aligned steady
-    state's deviations and their implicit-function derivatives (the study's linearisation, or
-    computed here), no curvature — the linear response of steady operation, whose departure from
+    state's deviations and their implicit-function derivatives (``linear``, or computed here
+    where ``None``), no curvature — the linear response of steady operation, whose departure from
     the nonlinear solves the validation measures."""
-    (du, dv, angle), (ju, jv, jangle) = with_linearisation(study).linearisation
+    linear = linearise(study) if linear is None else linear
+    (du, dv, angle), (ju, jv, jangle) = linear.at_zero, linear.derivatives
     d0 = jnp.stack([du] + ([] if dv is None else [dv]))  # (c, 1, n_tr)
     linear = jnp.moveaxis(jnp.stack([ju] + ([] if jv is None else [jv])), -1, 0)  # (P, c, 1, n_tr)
     a1 = None if angle is None else jnp.moveaxis(jangle, -1, 0)
@@ -362,7 +419,7 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
 def _calibrate(surrogate: Surrogate, dist: Distribution, seed: int, n_validation: int, safety: float) -> dict:
     """Run ``n_validation`` fresh samples of ``dist`` both ways and set the surrogate's bound from
     the largest metric error (``error_um``, ``rho_max``, ``bound_um``). **Returns:** the
-    validation figures of :attr:`Surrogate.validation`."""
+    validation figures of :class:`SurrogateValidation`, by field name."""
     study = surrogate.study
     u = standard_normal_samples(n_validation, study.space.size, seed)
     thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(u)))  # one small program, not op by op
@@ -397,14 +454,14 @@ def _calibrate(surrogate: Surrogate, dist: Distribution, seed: int, n_validation
         "effectivity_min": float(finite.min()) if finite.size else float("inf"),
         "effectivity_median": float(np.median(finite)) if finite.size else float("inf"),
         "loo_effectivity_min": float(np.min(loo)),
-        "metric_range_um": [float(np.min(full)), float(np.max(full))],
+        "metric_range_um": (float(np.min(full)), float(np.max(full))),
         **steering,
     }
 
 
 def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int = 0, n_validation: int = 12,
                   safety: float = 10.0, sv_tol: float = 1e-9, max_modes: int = 200, spread: float = 3.0,
-                  batch: int = 64, method: str = "response") -> Surrogate:
+                  batch: int = 64, method: str = "response", linear: LinearDeviation | None = None) -> Surrogate:
     """Train, validate and calibrate a reduced-model surrogate of ``study`` under ``dist``
     (module docstring).
 
@@ -413,14 +470,10 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     ``safety`` factor on the largest validation error; ``spread`` the training width in σ
     (normal laws); ``batch`` rows per compiled evaluation; ``method`` the reduced model:
     ``"response"`` (:class:`ResponseSurface`, default) or ``"pod"`` (the fully reduced POD
-    step, with ``sv_tol`` / ``max_modes`` its mode rule).
+    step, with ``sv_tol`` / ``max_modes`` its mode rule); ``linear`` a steady study's
+    :class:`~jaxbelt.design.study.LinearDeviation`, its surrogate (computed where not given).
 
-    **Returns:** a :class:`Surrogate`. Its ``validation`` holds ``method``, ``validation_runs``
-    (training + validation full runs), ``n_validation``, ``max_true_error_um``,
-    ``max_bound_um``, ``effectivity_min`` / ``_median`` (bound / true error over the validation
-    samples), ``loo_effectivity_min``, ``offline_s`` and its parts (``training_s``, ``fit_s``,
-    ``validation_s``); with ``"pod"`` also ``n_modes``, ``snapshots``, ``sv_tol``,
-    ``singular_value_ratio``.
+    **Returns:** a :class:`Surrogate`, its ``validation`` a :class:`SurrogateValidation`.
     """
     check_distribution(dist, study)
     if method not in METHODS:
@@ -439,7 +492,7 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
         raise ValueError(f"method = {method!r}: steady operation's surrogate is its linear response (method = 'response')")
     if study.steady:  # the implicit tangents of the aligned steady state: no training solve
         train = train[:0]
-        rom, anchor, info = _steady_surface(study), None, {"steps_kept": 1}
+        rom, anchor, info = _steady_surface(study, linear), None, {"steps_kept": 1}
         t_train = t_fitted = time.perf_counter()
     elif method == "response":
         rom, anchor, info = _fit_response(study, train, widths), None, {"steps_kept": steps_needed(study)}
@@ -457,22 +510,22 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
                         "from the +-w runs)",
             "pod": "fully reduced POD step (jaxbelt.rom), nominal-anchored",
         }[method]
-    surrogate.validation = {
-        "method": method,
-        "description": described + "; bound = safety x largest validation error, growing with (rho / rho_max)^2 "
-                                   "beyond the validated range",
-        "validation_runs": int(len(train) + n_validation),
-        "training_runs": int(len(train)),
-        "n_validation": int(n_validation),
-        "seed": int(seed),
-        "training_widths": widths.tolist(),
+    surrogate.validation = SurrogateValidation(
+        method=method,
+        description=described + "; bound = safety x largest validation error, growing with (rho / rho_max)^2 "
+                                "beyond the validated range",
+        validation_runs=int(len(train) + n_validation),
+        training_runs=int(len(train)),
+        n_validation=int(n_validation),
+        seed=int(seed),
+        training_widths=tuple(widths.tolist()),
         **info,
-        "safety": float(safety),
-        "rho_max": surrogate.rho_max,
+        safety=float(safety),
+        rho_max=surrogate.rho_max,
         **checks,
-        "training_s": t_train - t0,
-        "fit_s": t_fitted - t_train,
-        "validation_s": t_full,
-        "offline_s": time.perf_counter() - t0,
-    }
+        training_s=t_train - t0,
+        fit_s=t_fitted - t_train,
+        validation_s=t_full,
+        offline_s=time.perf_counter() - t0,
+    )
     return surrogate

@@ -30,7 +30,7 @@ importance sampling see the metric only. With ``rom="auto"`` the response-surfac
 carries the loop (its training runs are closed-loop runs, and it predicts the actuator angles
 too); a configuration whose predicted angle comes within the surrogate's steering bound of the
 range is re-run in full, so a saturation is never left to the reduced model. The POD surrogate
-does not carry the loop: with ``rom_method="pod"`` the sweep says so in ``rom["reason"]`` and
+does not carry the loop: with ``rom_method="pod"`` the sweep says so in ``rom.reason`` and
 runs every configuration in full.
 """
 
@@ -44,6 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..accuracy import Grid
 from ..infra.results import Result, to_json
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
@@ -52,8 +53,9 @@ from .metrics import SATURATION_FRACTION, metric_unit
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
-from .study import Study, study_on
-from .surrogate import Surrogate, fit_surrogate
+from .records import MetricLimit, RollerMisalignment, misalignment_per_roller
+from .study import LinearDeviation, Study, study_on
+from .surrogate import Surrogate, SurrogateValidation, fit_surrogate
 
 FLIP_BAND = 0.10  # yield error bar: samples within this fraction of the limit are re-run one grid finer
 MIN_RECHECKED = 2  # ... and at least this many, the nearest (the metric's relative change)
@@ -63,13 +65,41 @@ ROM_STEERED = ("the POD surrogate does not carry the steering loop (use the resp
 
 
 @dataclasses.dataclass(frozen=True)
+class ReducedModelUse(Result):
+    """Whether a reduced model stood in for the full runs of a sweep (:func:`run_sweep`).
+    **Fields:** ``used``; ``reason`` why ``rom="auto"`` was refused (a steered machine's POD
+    surrogate), else ``None``; ``validation`` the fitted surrogate's record
+    (:class:`~jaxbelt.design.surrogate.SurrogateValidation`, used or not), ``None`` without one.
+
+    :meth:`to_dict` is one flat record: the validation's entries, ``used``, and ``reason`` where
+    there is one."""
+
+    used: bool
+    reason: str | None = None
+    validation: SurrogateValidation | None = None
+
+    @property
+    def validation_runs(self) -> int:
+        """The surrogate's training and validation full runs (0 without one)."""
+        return 0 if self.validation is None else self.validation.validation_runs
+
+    def to_dict(self) -> dict:
+        """``{**validation, "used": ..., "reason": ...}``, the parts that are ``None`` left out."""
+        out = {} if self.validation is None else self.validation.to_dict()
+        out["used"] = bool(self.used)
+        if self.reason is not None:
+            out["reason"] = self.reason
+        return to_json(out)
+
+
+@dataclasses.dataclass(frozen=True)
 class SweepResult(Result):
     """The yield study of :func:`run_sweep`.
 
     **Fields:**
 
     - ``metric``, ``limit_um``, ``samples``, ``seed``: the question; ``limits`` with several limits
-      (:func:`~jaxbelt.design.study.with_limits`) each one, ``{"metric", "limit", "unit"}``: the
+      (:func:`~jaxbelt.design.study.with_limits`) each one (:class:`~jaxbelt.design.records.MetricLimit`): the
       metric is then the largest value over its limit times ``limit_um`` (the first limit), and a
       configuration passes where every limit holds; ``None`` with one limit.
     - ``yield_``: the fraction of the ``samples`` configurations whose metric is ≤ the limit
@@ -82,16 +112,14 @@ class SweepResult(Result):
     - ``full_runs``: configurations run with the full model, the surrogate's training and
       validation runs included (used or not); ``reduced_runs``: configurations the surrogate
       decided.
-    - ``rom``: the surrogate's validation record (:attr:`Surrogate.validation`) with ``used``
-      (whether it stood in); ``{"used": False}`` without one; ``{"used": False, "reason": ...}``
-      where ``rom="auto"`` was refused (a steered machine).
+    - ``rom``: whether a surrogate stood in and its validation record (:class:`ReducedModelUse`).
     - ``metric_values`` (samples,): the metric of every configuration, µm.
     - ``speedup_estimate``: with a reduced model, the full model's time per configuration in the
       validation runs (compilation included) times the configurations run, over the wall time —
       indicative (``benchmarks/yield_rom.py`` measures it side by side); else ``None``.
     - ``rss_3sigma_um``: the linear statistical stack-up (``σ`` of a uniform law ``h/√3``);
-      ``form_yield``, ``form_beta``, ``form_converged``, ``design_point`` (per roller, mm /
-      mrad): FORM (:func:`~jaxbelt.design.sampling.form`); all ``None`` without FORM.
+      ``form_yield``, ``form_beta``, ``form_converged``, ``design_point`` (per roller,
+      :class:`~jaxbelt.design.records.RollerMisalignment`, mm / mrad): FORM (:func:`~jaxbelt.design.sampling.form`); all ``None`` without FORM.
     - ``is_yield``, ``is_ci95``, ``is_samples``: importance sampling around the design point, run
       when no or few samples failed (yield near 1), else ``None``.
     - ``wall_s``: the sweep's wall time; ``configs_per_s``: configurations evaluated in this call
@@ -107,7 +135,7 @@ class SweepResult(Result):
     passed: int
     full_runs: int
     reduced_runs: int
-    rom: dict
+    rom: ReducedModelUse
     metric_values: np.ndarray
     wall_s: float
     configs_per_s: float
@@ -119,11 +147,11 @@ class SweepResult(Result):
     form_yield: float | None = None
     form_beta: float | None = None
     form_converged: bool | None = None
-    design_point: dict | None = None
+    design_point: dict[str, RollerMisalignment] | None = None
     is_yield: float | None = None
     is_ci95: list | None = None
     is_samples: int | None = None
-    limits: list | None = None
+    limits: tuple[MetricLimit, ...] | None = None
 
     def to_dict(self, values: bool = False) -> dict:
         """The result as JSON-able data (``jaxbelt sweep --json``): ``yield_`` as ``"yield"``, the
@@ -134,7 +162,7 @@ class SweepResult(Result):
             v = getattr(self, name)
             if v is None or (name == "metric_values" and not values):
                 continue
-            out["yield" if name == "yield_" else name] = v
+            out["yield" if name == "yield_" else name] = v.to_dict() if name == "rom" else v
         return to_json(out)
 
 
@@ -156,12 +184,13 @@ def _check(n, limit_um, rom, rom_method):
         raise ValueError(f"rom_method = {rom_method!r}: one of response, pod")
 
 
-def _surrogate(study, dist, limit_um, seed, rom_method) -> tuple[Surrogate | None, dict]:
+def _surrogate(study, dist, limit_um, seed, rom_method, linear) -> tuple[Surrogate | None, ReducedModelUse]:
     """The validated surrogate, or ``None`` where its bound is not below the trust fraction of
     the limit; and its record."""
-    surrogate = fit_surrogate(study, dist, limit_um, seed=seed + 7919, method=rom_method)
-    info = dict(surrogate.validation, used=bool(surrogate.bound_um < ROM_TRUST_FRACTION * limit_um))
-    return (surrogate if info["used"] else None), info
+    surrogate = fit_surrogate(study, dist, limit_um, seed=seed + 7919, method=rom_method, linear=linear)
+    use = ReducedModelUse(used=bool(surrogate.bound_um < ROM_TRUST_FRACTION * limit_um),
+                          validation=surrogate.validation)
+    return (surrogate if use.used else None), use
 
 
 def _chunk_outputs(study, surrogate, block, limit_um, chunk):
@@ -218,16 +247,17 @@ def _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate,
     return metric, (np.concatenate(codes) if codes else np.zeros(0, np.int8)), steering
 
 
-def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate=None) -> dict:
+def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate=None,
+                 linear=None) -> dict:
     """The RSS stack-up, FORM and (yield near 1) importance sampling: :class:`SweepResult` fields.
     With a ``surrogate``, the importance samples are evaluated as the Monte Carlo's are (the
     surrogate, and in full where it cannot decide)."""
-    r0, J = response_jacobian(study)
+    r0, J = response_jacobian(study, linear=linear)
     sigma = [s if k == "normal" else s / np.sqrt(3.0) for k, s in zip(dist.kind, dist.scale)]
-    f = form(study, dist, limit_um)
+    f = form(study, dist, limit_um, linear=linear)
     out = dict(rss_3sigma_um=rss_stackup(LinearResponse(r0, J, study.aggregate), sigma).three_sigma_um,
                form_yield=f.yield_, form_beta=f.beta, form_converged=f.converged,
-               design_point=study.space.per_roller(f.theta_star))
+               design_point=misalignment_per_roller(study.space, f.theta_star))
     if n - passed <= max(5, int(0.001 * n)) and f.beta > 0:  # yield near 1: MC sees few failures
         metric_of = None if surrogate is None else \
             (lambda th: _chunk_outputs(study, surrogate, th, limit_um, chunk)[0]["metric"])
@@ -251,19 +281,21 @@ class YieldDiscretisation(Result):
     re-evaluated samples (the others keep their verdict); ``samples`` those re-evaluated: the
     ones whose metric lies nearest the limit, the only ones a small change of the metric can
     turn; ``flipped`` how many changed verdict; ``metric_relative_change`` the median relative
-    change of their metric; ``grid``/``grid_fine`` the two grids."""
+    change of their metric; ``grid``/``grid_fine`` the two grids (:class:`~jaxbelt.accuracy.Grid`,
+    ``None`` where not given)."""
 
     bias: float
     samples: int
     flipped: int
     metric_relative_change: float
-    grid: dict
-    grid_fine: dict
+    grid: Grid | None
+    grid_fine: Grid | None
 
 
 
 def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distribution, fine_options: RunOptions,
-                         k: int = 16, *, grid=None, grid_fine=None) -> YieldDiscretisation:
+                         k: int = 16, *, grid: Grid | None = None,
+                         grid_fine: Grid | None = None) -> YieldDiscretisation:
     """Re-evaluate the samples of ``res`` whose metric is nearest the limit on
     ``fine_model`` (the same scene one level finer, run with ``fine_options``; the
     metric, components, evaluation time and window those of ``study``) and count the verdicts
@@ -289,12 +321,13 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distr
     rel = np.abs(fine - values[pick]) / np.maximum(np.abs(values[pick]), 1e-12)
     return YieldDiscretisation(
         bias=float((np.sum(after) - np.sum(before)) / n), samples=int(len(pick)), flipped=int(np.sum(before != after)),
-        metric_relative_change=float(np.median(rel)) if len(rel) else 0.0, grid=grid or {}, grid_fine=grid_fine or {})
+        metric_relative_change=float(np.median(rel)) if len(rel) else 0.0, grid=grid, grid_fine=grid_fine)
 
 
 def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, seed: int = 0,
               chunk: int = 64, out=None, rom: str = "off", with_form: bool = True, progress: bool = False,
-              scene: str = "", importance_samples: int = 200, rom_method: str = "response") -> SweepResult:
+              scene: str = "", importance_samples: int = 200, rom_method: str = "response",
+              linear: LinearDeviation | None = None) -> SweepResult:
     """Monte-Carlo yield of ``study`` under ``dist`` (module docstring).
 
     **Arguments:** ``n`` samples (the first ``n`` of ``seed``'s sequence); ``limit_um``; ``chunk``
@@ -303,7 +336,9 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     ``rom="auto"`` (:func:`~jaxbelt.design.surrogate.fit_surrogate`'s ``method``: ``"response"``
     or ``"pod"``); ``with_form`` also the RSS stack-up, FORM and importance sampling
     (``importance_samples``); ``progress`` a progress bar; ``scene`` the scene's name, part of
-    the store's identity.
+    the store's identity; ``linear`` the study's :class:`~jaxbelt.design.study.LinearDeviation`
+    (``make_study(..., jacobian=True)``): FORM, the RSS stack-up and a steady study's surrogate
+    read the linear response from it instead of a run.
 
     **Returns:** a :class:`SweepResult`."""
     _check(n, limit_um, rom, rom_method)
@@ -315,11 +350,11 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     thetas = sweep_samples(study, dist, n, seed)
     identity = sweep_identity(study, dist, n, limit_um, seed, scene)
     done = min(open_sweep(out, identity), n) if out is not None else 0
-    surrogate, rom_info = None, {"used": False}
+    surrogate, rom_use = None, ReducedModelUse(used=False)
     if rom == "auto" and study.steered and rom_method == "pod":
-        rom_info = {"used": False, "reason": ROM_STEERED}
+        rom_use = ReducedModelUse(used=False, reason=ROM_STEERED)
     elif rom == "auto" and done < n:
-        surrogate, rom_info = _surrogate(study, dist, limit_um, seed, rom_method)
+        surrogate, rom_use = _surrogate(study, dist, limit_um, seed, rom_method, linear)
     metric, code, steering = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
     ok = passes(metric, limit_um, None if steering is None else steering[1])
     extra = {}
@@ -327,18 +362,19 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
         extra.update(saturated=int(np.sum(steering[1])), range_mrad=study.range_mrad,
                      steering_max_mrad=float(np.max(steering[0])) if len(steering[0]) else 0.0)
     passed = int(np.sum(ok))
-    if rom_info["used"] and rom_info.get("n_validation"):
+    if rom_use.used and rom_use.validation.n_validation:
         # indicative: the validation's full runs (their compilation included) per configuration
-        per_full = rom_info["validation_s"] / rom_info["n_validation"]
+        per_full = rom_use.validation.validation_s / rom_use.validation.n_validation
         extra["speedup_estimate"] = (n - done) * per_full / max(time.perf_counter() - t0, 1e-9)
     if with_form:
-        extra.update(_reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate))
+        extra.update(_reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate,
+                                  linear))
     wall = time.perf_counter() - t0
     return SweepResult(
         metric=study.metric, limit_um=float(limit_um), samples=int(n), seed=int(seed),
         yield_=passed / n, ci95=list(wilson_interval(passed, n)), passed=passed,
         # the surrogate's training and validation runs are full runs too, used or not
-        full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_info.get("validation_runs", 0),
-        reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_info, metric_values=metric,
+        full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_use.validation_runs,
+        reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_use, metric_values=metric,
         wall_s=wall, configs_per_s=(n - done) / wall,
-        limits=[{"metric": k, "limit": v, "unit": metric_unit(k)} for k, v in study.limits] or None, **extra)
+        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in study.limits) or None, **extra)

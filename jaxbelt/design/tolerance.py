@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..accuracy import Grid
 from ..infra.programs import stored_jit
 from ..infra.results import Result, to_json
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
@@ -35,7 +36,8 @@ from ..steady import map_configurations
 from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
 from .metrics import METRICS, aggregate, aligned_values, metric_unit, response_sizes
-from .study import Study, for_runs, limit_values, study_on, with_limits
+from .records import RollerMisalignment, misalignment_per_roller
+from .study import LinearDeviation, Study, limit_values, study_on, with_limits
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -62,26 +64,63 @@ def _shares(lin: LinearResponse, h, W: float) -> np.ndarray:
 
 
 @dataclasses.dataclass(frozen=True)
+class VerificationRun(Result):
+    """One full run of a box's verification (:func:`tolerance_box`). **Fields:** ``kind``
+    ``"worst corner"`` or ``"random corner"``; ``corner`` the configuration run, ``{roller:
+    RollerMisalignment}`` (mm / mrad around the scene's own misalignment); ``predicted_um`` the
+    linear model's metric there; ``full_um`` the full run's (with several limits both on the scale
+    of ``limit_um``: the largest ratio to its limit times ``limit_um``); ``full_by_limit`` with
+    several limits ``{metric: value}``, each in its metric's own unit, else ``None`` (left out of
+    :meth:`to_dict`)."""
+
+    kind: str
+    corner: dict[str, RollerMisalignment]
+    predicted_um: float
+    full_um: float
+    full_by_limit: dict[str, float] | None = None
+
+    def to_dict(self) -> dict:
+        """The run as JSON-able data, ``full_by_limit`` only with several limits."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        if self.full_by_limit is None:
+            del out["full_by_limit"]
+        return to_json(out)
+
+
+@dataclasses.dataclass(frozen=True)
+class LimitCheck(Result):
+    """One limit of a box with several (module docstring), each value in the metric's own
+    ``unit``. **Fields:** ``metric``; ``limit``; ``unit``; ``predicted_worst`` the linear model's
+    worst case over the box; ``worst_case`` the verified one (full runs); ``ratio`` verified worst
+    over limit; ``binds`` whether this limit has the largest ratio."""
+
+    metric: str
+    limit: float
+    unit: str
+    predicted_worst: float
+    worst_case: float
+    ratio: float
+    binds: bool
+
+
+@dataclasses.dataclass(frozen=True)
 class ToleranceBox(Result):
     """The verified tolerance box of a study (:func:`tolerance_box`).
 
     **Fields:** ``metric``, ``limit_um``, ``t_eval_s`` the question; ``half_widths`` (P,) in
     ``units`` (mm / mrad) of the components ``labels``, around the scene's own misalignment;
-    ``box`` the same per roller ``{name: {"translation_mm": [x, y, z], "rotation_mrad": [x, y,
-    z]}}``; ``share`` (P,) each component's largest share of an active constraint;
+    ``box`` the same per roller, ``{name: RollerMisalignment}``
+    (:class:`~jaxbelt.design.records.RollerMisalignment`); ``share`` (P,) each component's largest share of an active constraint;
     ``predicted_worst_um`` the linear model's worst case; ``worst_case_um`` the verified one
     (full runs); ``verified`` whether that lies in ``[0.97, 1] × limit``; ``binding`` the
     components by share, largest first; ``unconstrained`` those capped at ``h_max`` (not felt);
-    ``verification`` one ``{"kind", "corner", "predicted_um", "full_um"}`` per verification run
-    of the last iteration; ``iterations``; ``rss_um`` the RSS stack-up with ``σ = h/3``;
+    ``verification`` one :class:`VerificationRun` per full run of the last iteration; ``iterations``; ``rss_um`` the RSS stack-up with ``σ = h/3``;
     ``jacobian_um`` (n_r, P) and ``response0_um`` (n_r,) the linear response ``r0 + J θ``;
-    ``limits`` with several limits (module docstring) one ``{"metric", "limit", "unit",
-    "predicted_worst", "worst_case", "ratio", "binds"}`` per limit, each in the metric's own unit
-    (``ratio`` = verified worst / limit), else ``[]``; ``binding_limit`` the metric whose limit
+    ``limits`` with several limits (module docstring) one :class:`LimitCheck` per limit, else
+    ``()``; ``binding_limit`` the metric whose limit
     binds (the study's metric with a single limit). With several limits ``worst_case_um``,
     ``predicted_worst_um``, the verification values and the linear response are the largest ratio
-    to its limit times ``limit_um``, and every verification row has ``full_by_limit``
-    ``{metric: value}``.
+    to its limit times ``limit_um``, and every verification run has ``full_by_limit``.
     """
 
     metric: str
@@ -90,19 +129,19 @@ class ToleranceBox(Result):
     half_widths: np.ndarray
     units: list
     labels: list
-    box: dict
+    box: dict[str, RollerMisalignment]
     share: np.ndarray
     predicted_worst_um: float
     worst_case_um: float
     verified: bool
     binding: list
     unconstrained: list
-    verification: list
+    verification: tuple[VerificationRun, ...]
     iterations: int
     rss_um: float
     jacobian_um: np.ndarray
     response0_um: np.ndarray
-    limits: list = dataclasses.field(default_factory=list)
+    limits: tuple[LimitCheck, ...] = ()
     binding_limit: str = ""
     corners: np.ndarray | None = None  # (m, P) the verified worst corners, as parameter vectors
     limit_names: tuple | None = None  # ((metric, limit), ...) with several limits
@@ -112,7 +151,8 @@ class ToleranceBox(Result):
         and ``half_widths`` as ``[{"component", "half_width", "unit", "share"}]``."""
         out = {k: getattr(self, k) for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um",
                                               "predicted_worst_um", "verified", "binding", "unconstrained",
-                                              "verification", "iterations", "rss_um", "limits", "binding_limit")}
+                                              "iterations", "rss_um", "limits", "binding_limit")}
+        out["verification"] = [row.to_dict() for row in self.verification]
         out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
                               for lab, h, u, s in zip(self.labels, self.half_widths, self.units, self.share)]
         return to_json(out)
@@ -137,11 +177,9 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
         full = _on_limit_scale(values, limit_um, names)
         pred_all = np.concatenate([pred, [lin.metric(c * h) for c in corners_random]])
         kinds = ["worst corner"] * len(signs) + ["random corner"] * n_random
-        table = [{"kind": k, "corner": space.per_roller(c * h), "predicted_um": float(p), "full_um": float(f)}
-                 for k, c, p, f in zip(kinds, corners, pred_all, full)]
-        if names:
-            for row, v in zip(table, values):
-                row["full_by_limit"] = {n: float(x) for (n, _), x in zip(names, v)}
+        by_limit = [{n: float(x) for (n, _), x in zip(names, v)} for v in values] if names else [None] * len(full)
+        table = tuple(VerificationRun(k, misalignment_per_roller(space, c * h), float(p), float(f), b)
+                      for k, c, p, f, b in zip(kinds, corners, pred_all, full, by_limit))
         worst = float(np.max(full))
         history.append((s, worst))
         if 0.97 * limit_um <= worst <= limit_um:
@@ -168,17 +206,17 @@ def _per_limit(lin, h, names, sizes, limit_um, table):
         block = slice(start, start + n)
         start += n
         pred = float(np.max(np.abs(lin.r0[block]) + np.abs(lin.J[block]) @ h)) * lim / limit_um
-        full = max(row["full_by_limit"][name] for row in table)
-        rows.append({"metric": name, "limit": float(lim), "unit": metric_unit(name), "predicted_worst": pred,
-                     "worst_case": full, "ratio": full / lim, "binds": False})
-    binding = max(rows, key=lambda r: r["ratio"])
-    binding["binds"] = True
-    return rows, binding["metric"]
+        full = max(row.full_by_limit[name] for row in table)
+        rows.append(LimitCheck(metric=name, limit=float(lim), unit=metric_unit(name), predicted_worst=pred,
+                               worst_case=full, ratio=full / lim, binds=False))
+    binding = max(rows, key=lambda r: r.ratio)
+    return tuple(dataclasses.replace(r, binds=r is binding) for r in rows), binding.metric
 
 
 def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: float = H_MAX,
                   n_random: int = 4, n_corners: int = 4, max_iter: int = 6, seed: int = 0,
-                  evaluate_many=None, limits: dict | None = None) -> ToleranceBox:
+                  evaluate_many=None, limits: dict | None = None,
+                  linear: LinearDeviation | None = None) -> ToleranceBox:
     """The largest weighted tolerance box keeping ``study``'s metric ≤ ``limit_um``, verified by
     full runs (module docstring).
 
@@ -187,7 +225,9 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     iteration; ``evaluate_many(thetas (m, P)) -> metrics (m,)`` runs the full model (default: a
     ``vmap`` of :func:`jaxbelt.design.study.metric_value`; with ``limits``, each limit's value
     (m, n_limits)); ``limits`` further limits held at the same time, ``{metric: limit}`` in each
-    metric's unit (max-type metrics; the study's metric must be one too).
+    metric's unit (max-type metrics; the study's metric must be one too); ``linear`` the study's
+    :class:`~jaxbelt.design.study.LinearDeviation` (``make_study(..., jacobian=True)``), the
+    linear response read from it instead of a run.
 
     **Returns:** a :class:`ToleranceBox`.
     """
@@ -204,11 +244,11 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     if evaluate_many is None:
         def evaluate_many(thetas):
             if names:
-                return np.asarray(_limit_values_batch(for_runs(work), jnp.asarray(thetas, work.base.dtype)))
+                return np.asarray(_limit_values_batch(work, jnp.asarray(thetas, work.base.dtype)))
             return evaluate_metric(study, thetas)
 
     sp = study.space
-    r0, J = response_jacobian(work)
+    r0, J = response_jacobian(work, linear=linear)
     # with several limits the response is already on the scale of limit_um (the first limit)
     lin = LinearResponse(r0, J, work.aggregate)
     h_lin = optimise_box(lin, limit_um, weights, h_max)
@@ -219,7 +259,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     h, worst, table, iterations, thetas = _verify(lin, h_lin, felt, limit_um, evaluate_many, rand, n_corners, max_iter, sp,
                                           names)
     W = worst_case(lin, h)
-    per_limit, binding_limit = ([], study.metric) if not names else _per_limit(
+    per_limit, binding_limit = ((), study.metric) if not names else _per_limit(
         lin, h, names, response_sizes(work), limit_um, table)
     share = _shares(lin, h, W)
     labels = sp.labels()
@@ -227,8 +267,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     return ToleranceBox(
         metric=study.metric, limit_um=float(limit_um), t_eval_s=study.t_eval,
         half_widths=h, units=sp.units(), labels=labels,
-        box={name: {"translation_mm": g["translation"], "rotation_mrad": g["rotation"]}
-             for name, g in sp.per_roller(h).items()},
+        box=misalignment_per_roller(sp, h),
         share=share, predicted_worst_um=W, worst_case_um=worst,
         verified=bool(0.97 * limit_um <= worst <= limit_um),
         binding=binding, unconstrained=[labels[k] for k in range(len(h)) if not felt[k]],
@@ -254,7 +293,7 @@ class BoxDiscretisation(Result):
     of every half-width the finer grid asks for (the box scaled until its worst corner is back at
     the verified level, the excess over the floor taken as linear in the scale);
     ``half_width_uncertainty`` (P,) its size per half-width, in their units; ``grid``/``grid_fine``
-    the two grids; ``runs`` the full runs made on the finer grid (its aligned reference included)."""
+    the two grids (:class:`~jaxbelt.accuracy.Grid`, ``None`` where not given); ``runs`` the full runs made on the finer grid (its aligned reference included)."""
 
     worst_case_um: float
     worst_case_fine_um: float
@@ -262,8 +301,8 @@ class BoxDiscretisation(Result):
     floor_fine_um: float
     half_width_relative_change: float
     half_width_uncertainty: np.ndarray
-    grid: dict
-    grid_fine: dict
+    grid: Grid | None
+    grid_fine: Grid | None
     runs: int
 
 
@@ -285,7 +324,7 @@ def _on_limit_scale(values, limit_um: float, names=None) -> np.ndarray:
 
 
 def box_discretisation(box: ToleranceBox, study: Study, fine_model, fine_options: RunOptions, *,
-                       grid=None, grid_fine=None) -> BoxDiscretisation:
+                       grid: Grid | None = None, grid_fine: Grid | None = None) -> BoxDiscretisation:
     """The box's worst corners (those of the last verification within :data:`NEAR_WORST` of the
     worst one's excess over the floor) and the scene's own misalignment on ``study``'s grid and on ``fine_model``'s — the same scene one level finer, run with
     ``fine_options`` (the metric, components, evaluation time and window those of ``study``)
@@ -297,7 +336,7 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, fine_options
     where the scene is aligned (its own misalignment zero) the run at ``θ = 0`` is that
     reference itself, read from it (:func:`jaxbelt.design.metrics.aligned_values`), not
     repeated."""
-    worst_rows = np.array([row["full_um"] for row in box.verification if row["kind"] == "worst corner"])
+    worst_rows = np.array([row.full_um for row in box.verification if row.kind == "worst corner"])
     floor, worst = _box_floor(box, study.aggregate), float(np.max(worst_rows))
     # the corners that can be the worst on the finer grid: within NEAR_WORST of the excess over the floor
     corners = box.corners[worst_rows >= worst - NEAR_WORST * max(worst - floor, 0.0)]
@@ -317,7 +356,7 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, fine_options
         worst_case_um=worst, worst_case_fine_um=worst_f, floor_um=floor, floor_fine_um=floor_f,
         half_width_relative_change=float(scale - 1.0),
         half_width_uncertainty=np.abs(scale - 1.0) * np.asarray(box.half_widths),
-        grid=grid or {}, grid_fine=grid_fine or {}, runs=len(thetas) + 1)
+        grid=grid, grid_fine=grid_fine, runs=len(thetas) + 1)
 
 
 def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:

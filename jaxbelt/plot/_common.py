@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 
+from ..infra.results import to_json
+
 
 def pyplot():
     """``matplotlib.pyplot``, imported at the first figure."""
@@ -37,7 +39,7 @@ def result_record(result) -> Mapping:
     :mod:`jaxbelt.design`) as its fields, ``yield_`` under ``"yield"``."""
     if isinstance(result, Mapping):
         return result
-    if dataclasses.is_dataclass(result):
-        return {("yield" if f.name == "yield_" else f.name): getattr(result, f.name)
+    if dataclasses.is_dataclass(result):  # nested records as JSON-able data, as in their to_dict()
+        return {("yield" if f.name == "yield_" else f.name): to_json(getattr(result, f.name))
                 for f in dataclasses.fields(result)}
     raise TypeError(f"expected a result of jaxbelt.design or a mapping, got {type(result).__name__}")

@@ -147,13 +147,13 @@ def test_jacobian_forward_matches_the_reverse_gradient(study):
     through the chain rule: ∇ = Jᵀ r / (n · RMS)."""
     r0, J = design.response_jacobian(study, mode="forward")
     report = design.sensitivity_report(study, repeat=1)
-    grad = np.array([p["gradient"] for p in report.parameters])
+    grad = np.array([p.gradient for p in report.parameters])
     rms = np.sqrt(np.mean(r0**2))
     ref = J.T @ r0 / (len(r0) * rms)
     np.testing.assert_allclose(grad, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
     assert np.isclose(report.value_um, rms, rtol=1e-12)
-    assert report.gradient["roller 1"]["rotation_um_per_mrad"] == [0.0, 0.0, 0.0]
-    assert {z["component"] for z in report.structural_zero} == {"roller 1:az", "roller 2:az", "roller 3:az"}
+    assert report.gradient["roller 1"].rotation_um_per_mrad == (0.0, 0.0, 0.0)
+    assert {z.component for z in report.structural_zero} == {"roller 1:az", "roller 2:az", "roller 3:az"}
 
 
 # ----------------------------------------------------------------------------- tolerance box
@@ -223,7 +223,7 @@ def test_box_on_the_default_scene_is_verified_by_full_runs():
     st = design.make_study(model, "lateral_max", opts, t_eval=0.1, components="roller 2:rotation,roller 3:dz")
     res = design.tolerance_box(st, 20.0, n_random=2, n_corners=2)
     assert res.verified and 0.97 * 20 <= res.worst_case_um <= 20.0
-    full = [row["full_um"] for row in res.verification]
+    full = [row.full_um for row in res.verification]
     assert max(full) == res.worst_case_um
     assert res.binding and set(res.binding) <= set(st.space.labels())
     # the box is around the scene's own misalignment, half-widths non-negative and finite
@@ -367,6 +367,33 @@ def test_a_diverging_reference_is_named_with_or_without_the_jacobian():
     for jacobian in (False, True):
         with pytest.raises(jb.NonFiniteStateError, match="diverged"):
             design.make_study(bad, "longitudinal_max", opts.replace(n_steps=4, solver=jb.make_solver()), jacobian=jacobian)
+
+
+def test_a_study_with_its_jacobian_runs_the_programs_of_one_without():
+    """``make_study(..., jacobian=True)`` gives the study and, beside it, its linear deviations: the
+    study is the plain one (the same pytree), so the programs that run configurations are traced
+    and compiled once for both, and the linear response read from the deviations is the one a
+    run of the plain study gives."""
+    from helpers import counting_compiles
+
+    model, opts = load(jb.load_scene("two-roller-1d"))
+    opts = opts.replace(n_steps=4, solver=jb.make_solver())
+    plain = design.make_study(model, "longitudinal_max", opts)
+    study, linear = design.make_study(model, "longitudinal_max", opts, jacobian=True)
+    assert isinstance(study, design.Study) and isinstance(linear, design.LinearDeviation)
+    assert jax.tree.structure(study) == jax.tree.structure(plain)
+    assert linear.d_u_um_per_theta.shape == study.ref_u.shape + (study.space.size,)
+    thetas = np.full((2, study.space.size), 0.01)
+    first = design.evaluate_metric(plain, thetas, chunk=2)
+    with counting_compiles() as events:
+        again = design.evaluate_metric(study, thetas, chunk=2)
+    assert events == [] and again == pytest.approx(first, rel=1e-12)
+    r0, J = design.response_jacobian(plain)
+    r0_lin, J_lin = design.response_jacobian(study, linear=linear)
+    np.testing.assert_allclose(J_lin, J, rtol=0, atol=1e-9 * np.abs(J).max())
+    np.testing.assert_allclose(r0_lin, r0, rtol=0, atol=1e-9 * np.abs(J).max())
+    with pytest.raises(ValueError, match="θ = 0 only"):
+        design.response_jacobian(study, np.zeros(study.space.size), linear=linear)
 
 
 def test_study_and_its_values_in_one_batch_equal_the_reference_run_and_single_runs(study, metric_fn, model2d):

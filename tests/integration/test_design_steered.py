@@ -30,13 +30,23 @@ def _coarse(d):
 
 
 @pytest.fixture(scope="module")
-def study():
+def study_and_linear():
     from jaxbelt import make_solver
 
     model, opts = load(scene_with(_coarse, "three-roller-steered"))
     # with its Jacobian, as jaxbelt tolerance builds it: the reference is the forward-mode run's primal
     return design.make_study(model, "lateral_max", opts.replace(solver=make_solver("direct", "reuse")),
                              components=COMPONENTS, jacobian=True)
+
+
+@pytest.fixture(scope="module")
+def study(study_and_linear):
+    return study_and_linear[0]
+
+
+@pytest.fixture(scope="module")
+def linear(study_and_linear):
+    return study_and_linear[1]
 
 
 def _batch(rows):
@@ -69,19 +79,19 @@ def test_closed_loop_metrics_are_linear_below_saturation(study):
 
 
 @pytest.mark.slow
-def test_box_with_several_limits_verified_by_closed_loop_runs(study):
-    box = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 3.0})
+def test_box_with_several_limits_verified_by_closed_loop_runs(study, linear):
+    box = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 3.0}, linear=linear)
     assert box.verified and 0.97 * 20 <= box.worst_case_um <= 20
-    assert [x["metric"] for x in box.limits] == ["lateral_max", "longitudinal_max", "steering_max"]
-    assert box.binding_limit == "lateral_max" and [x["binds"] for x in box.limits] == [True, False, False]
+    assert [x.metric for x in box.limits] == ["lateral_max", "longitudinal_max", "steering_max"]
+    assert box.binding_limit == "lateral_max" and [x.binds for x in box.limits] == [True, False, False]
     for row in box.verification:  # every full closed-loop run within every limit
-        assert row["full_by_limit"]["lateral_max"] <= 20.0 and row["full_by_limit"]["steering_max"] <= 3.0
+        assert row.full_by_limit["lateral_max"] <= 20.0 and row.full_by_limit["steering_max"] <= 3.0
     lat = box.limits[0]
-    assert lat["worst_case"] == pytest.approx(lat["predicted_worst"], rel=0.01)  # linear in closed loop
+    assert lat.worst_case == pytest.approx(lat.predicted_worst, rel=0.01)  # linear in closed loop
     # a tight steering range binds instead, and the box shrinks
-    tight = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 0.02})
+    tight = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 0.02}, linear=linear)
     assert tight.verified and tight.binding_limit == "steering_max"
-    assert tight.limits[2]["worst_case"] <= 0.02 and tight.limits[0]["worst_case"] < 20.0
+    assert tight.limits[2].worst_case <= 0.02 and tight.limits[0].worst_case < 20.0
     assert np.all(tight.half_widths <= box.half_widths * (1 + 1e-9))
     assert tight.to_dict()["binding_limit"] == "steering_max"
     # the error bars against the box's own grid: its verification values and the aligned
@@ -101,17 +111,18 @@ def test_sweep_counts_saturation_as_failure(study):
     dist = design.Distribution(("roller 1:ax", "roller 3:dz"), ("normal", "normal"), (0.08, 0.001))
     res = design.run_sweep(st, dist, CHUNK, limit_um=1e4, chunk=CHUNK, with_form=False, rom="auto")
     mc = design.monte_carlo(st, dist, CHUNK, 1e4, chunk=CHUNK)
-    sat = np.asarray(mc.outputs["saturated"])
+    sat = np.asarray(mc.outputs.saturated)
     assert 0 < sat.sum() < CHUNK and np.all(mc.metric <= 1e4)  # only saturation fails here
     assert res.saturated == int(sat.sum()) and res.passed == CHUNK - res.saturated
     assert res.range_mrad == pytest.approx(0.05) and res.steering_max_mrad >= 0.999 * 0.05
     # the response surface stands in with the loop closed, but never decides a saturation: every
     # configuration it predicts near the range is re-run in full
-    assert res.rom["used"] and res.rom["steering_bound_mrad"] > 0
+    assert res.rom.used and res.rom.validation.steering_bound_mrad > 0
     # the saturated ones are exactly those whose actuator reached its range
-    assert np.array_equal(sat, np.asarray(mc.outputs["steering_mrad"]) >= 0.999 * 0.05)
+    assert np.array_equal(sat, np.asarray(mc.outputs.steering_mrad) >= 0.999 * 0.05)
     pod = design.run_sweep(st, dist, CHUNK, limit_um=1e4, chunk=CHUNK, with_form=False, rom="auto", rom_method="pod")
-    assert pod.rom == {"used": False, "reason": ROM_STEERED} and pod.full_runs == CHUNK
+    assert pod.rom == design.ReducedModelUse(used=False, reason=ROM_STEERED) and pod.full_runs == CHUNK
+    assert pod.to_dict()["rom"] == {"used": False, "reason": ROM_STEERED}
     assert pod.saturated == res.saturated
     # the yield's error bar against the sweep's own grid: the samples and the aligned reference in
     # one batch meet the sweep's runs, no verdict changes
@@ -140,13 +151,13 @@ def test_aligned_values_read_the_reference_without_a_run(study):
     assert np.asarray(values) == pytest.approx([0.0, steer], rel=1e-9, abs=1e-9)
 
 
-def test_study_with_its_jacobian_predicts_full_runs(study):
+def test_study_with_its_jacobian_predicts_full_runs(study, linear):
     """The study built with its Jacobian (one forward-mode run: the reference is its primal, and
     the closed-loop runs at θ = 0 meet it, test above): the linear response read from its
     derivatives, ``max |J θ|``, is the metric the full closed-loop runs give at small
     misalignments (the batch of the sweep above)."""
-    assert study.linearisation is not None
-    r0, J = design.response_jacobian(study)
+    assert isinstance(linear, design.LinearDeviation)
+    r0, J = design.response_jacobian(study, linear=linear)
     assert np.all(r0 == 0.0) and J.shape[1] == 2
     h = 0.002  # mm / mrad: well inside the linear range (the slow test below: 1e-6 relative at 0.05)
     thetas = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h], [h, -h]])
@@ -157,27 +168,29 @@ def test_study_with_its_jacobian_predicts_full_runs(study):
 
 
 @pytest.mark.slow
-def test_study_with_its_jacobian_equals_a_study_and_then_its_jacobian(study):
+def test_study_with_its_jacobian_equals_a_study_and_then_its_jacobian(study, linear):
     """``make_study(..., jacobian=True)`` on the aligned machine: one forward-mode run gives the
     reference (its primal) and the derivatives; the linear response read from them, with several
     limits, equals the Jacobian of full runs taken after the study (two programs)."""
+    import jax
+
     from jaxbelt import make_solver
     from jaxbelt.design.metrics import aligned_values
 
     lin = study
     study = design.make_study(lin.model, "lateral_max", lin.options.replace(solver=make_solver("direct", "reuse")),
                               components=COMPONENTS)
-    assert study.linearisation is None and lin.linearisation is not None
+    assert jax.tree.structure(study) == jax.tree.structure(lin)  # the same study: the same programs run it
     np.testing.assert_allclose(lin.ref_u, study.ref_u, rtol=0, atol=1e-15)
     np.testing.assert_allclose(lin.ref_angle, study.ref_angle, rtol=0, atol=1e-12)
     limits = {"longitudinal_max": 20.0, "steering_max": 3.0}
     for a, b in ((study, lin), (design.with_limits(study, limits), design.with_limits(lin, limits))):
         r0, J = design.response_jacobian(a)
-        r0_lin, J_lin = design.response_jacobian(b)  # no run: read from the linearisation
+        r0_lin, J_lin = design.response_jacobian(b, linear=linear)  # no run: read from the linear deviations
         assert np.abs(J).max() > 0.1  # µm per mm or mrad; with limits, per limit
         np.testing.assert_allclose(r0_lin, r0, rtol=0, atol=1e-9 * np.abs(r0).max() + 1e-12)
         np.testing.assert_allclose(J_lin, J, rtol=0, atol=1e-9 * np.abs(J).max())
-    # the linearisation's zero deviations read what the reference reads
+    # the linear deviations at θ = 0 read what the reference reads
     assert np.asarray(aligned_values(design.with_limits(lin, limits))[1]) == pytest.approx(
         np.asarray(aligned_values(design.with_limits(study, limits))[1]), rel=1e-12)
     # away from θ = 0 the study runs as before

@@ -53,17 +53,18 @@ def test_training_runs_are_nominal_and_plus_minus_the_spread(dist):
 def test_validation_record(which, request):
     sur = request.getfixturevalue(which)
     v = sur.validation
-    assert v["method"] == {"surrogate": "response", "pod_surrogate": "pod"}[which]
-    assert v["validation_runs"] == 5 + 12 and v["n_validation"] == 12
+    assert v.method == {"surrogate": "response", "pod_surrogate": "pod"}[which]
+    assert v.validation_runs == 5 + 12 and v.n_validation == 12
     if which == "pod_surrogate":
-        assert v["n_modes"] >= 1 and v["singular_value_ratio"] >= v["sv_tol"]
+        assert v.n_modes >= 1 and v.singular_value_ratio >= v.sv_tol and v.steps_kept is None
     else:
-        assert isinstance(sur.rom, ResponseSurface) and v["steps_kept"] == 1  # lateral_max: the last step
+        assert isinstance(sur.rom, ResponseSurface) and v.steps_kept == 1  # lateral_max: the last step
+        assert "n_modes" not in v.to_dict()
     # calibrated: the bound is at least `safety` times the true error on every validation sample
-    assert v["effectivity_min"] >= v["safety"] * (1 - 1e-9)
-    assert v["max_true_error_um"] <= sur.bound_um == v["max_bound_um"] < 0.1 * LIMIT
-    assert 0 < v["metric_range_um"][0] < LIMIT < v["metric_range_um"][1]  # the limit is in play
-    json.dumps(v)
+    assert v.effectivity_min >= v.safety * (1 - 1e-9)
+    assert v.max_true_error_um <= sur.bound_um == v.max_bound_um < 0.1 * LIMIT
+    assert 0 < v.metric_range_um[0] < LIMIT < v.metric_range_um[1]  # the limit is in play
+    json.dumps(v.to_dict())
 
 
 @pytest.mark.slow
@@ -119,8 +120,8 @@ def test_sweep_with_rom_auto_matches_the_full_model_yield(study, dist):
     off = design.run_sweep(study, dist, n, LIMIT, seed=0, with_form=False)
     auto = design.run_sweep(study, dist, n, LIMIT, seed=0, rom="auto", with_form=False)
     assert off.reduced_runs == 0 and 0.1 < off.yield_ < 0.95
-    assert auto.rom["used"] and auto.reduced_runs > 0
-    assert auto.full_runs + auto.reduced_runs == n + auto.rom["validation_runs"]
+    assert auto.rom.used and auto.reduced_runs > 0
+    assert auto.full_runs + auto.reduced_runs == n + auto.rom.validation_runs
     lo, hi = off.ci95
     assert lo <= auto.yield_ <= hi
     assert np.max(np.abs(auto.metric_values - off.metric_values)) < 0.1 * LIMIT
@@ -132,5 +133,5 @@ def test_sweep_with_rom_auto_matches_the_full_model_yield(study, dist):
 def test_sweep_falls_back_to_full_runs_when_the_bound_is_too_large(study, dist, surrogate):
     limit = 2 * surrogate.bound_um  # the bound is half of this limit: not trusted
     res = design.run_sweep(study, dist, 12, limit, seed=0, rom="auto", with_form=False)
-    assert not res.rom["used"] and res.reduced_runs == 0
-    assert res.full_runs == 12 + res.rom["validation_runs"]  # training and validation count too
+    assert not res.rom.used and res.reduced_runs == 0
+    assert res.full_runs == 12 + res.rom.validation_runs  # training and validation count too

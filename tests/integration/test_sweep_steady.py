@@ -8,7 +8,6 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.design import distribution_from_dict, evaluate_metric, make_study, run_sweep
-from jaxbelt.design.study import for_runs
 from jaxbelt.steady import forward_jacobian, map_configurations
 
 SCENE = "two-roller-steered"  # N = 180, PI loop on the idle roller about y
@@ -21,19 +20,19 @@ def steady_study():
     scene = jb.load_scene(SCENE)
     model, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
     dist = distribution_from_dict(DIST, model)
-    study = make_study(model, "lateral_max", opts, components=list(dist.labels), jacobian=True, steady=True)
-    return study, dist
+    study, linear = make_study(model, "lateral_max", opts, components=list(dist.labels), jacobian=True, steady=True)
+    return study, dist, linear
 
 
 def test_steady_sweep_linear_response_agrees_with_steady_solves(steady_study):
-    study, dist = steady_study
+    study, dist, linear = steady_study
     # a limit inside the spread of the metric (33.7–36.1 µm: the drive's own skew gives 35), so that
     # both verdicts occur
-    res = run_sweep(study, dist, 48, limit_um=35.3, seed=3, chunk=16, rom="auto", with_form=False)
-    assert res.rom["used"] and res.rom["training_runs"] == 0
-    assert "linear response of steady operation" in res.rom["description"]
+    res = run_sweep(study, dist, 48, limit_um=35.3, seed=3, chunk=16, rom="auto", with_form=False, linear=linear)
+    assert res.rom.used and res.rom.validation.training_runs == 0
+    assert "linear response of steady operation" in res.rom.validation.description
     assert 0 < res.passed < res.samples
-    assert res.reduced_runs + res.full_runs - res.rom["validation_runs"] == res.samples
+    assert res.reduced_runs + res.full_runs - res.rom.validation_runs == res.samples
     # the surrogate's calls against steady solves of the same configurations
     from jaxbelt.design.sweep import sweep_samples
 
@@ -41,19 +40,18 @@ def test_steady_sweep_linear_response_agrees_with_steady_solves(steady_study):
     pick = np.arange(0, 48, 6)
     full = evaluate_metric(study, thetas[pick])
     np.testing.assert_array_equal(full <= 35.3, res.metric_values[pick] <= 35.3)
-    assert np.max(np.abs(full - res.metric_values[pick])) <= res.rom["max_bound_um"]
+    assert np.max(np.abs(full - res.metric_values[pick])) <= res.rom.validation.max_bound_um
 
 
 @pytest.mark.slow
 def test_sequential_batch_and_jacobian_equal_the_batched_ones(steady_study):
     """:func:`jaxbelt.steady.map_configurations` and :func:`jaxbelt.steady.forward_jacobian` give
     what ``vmap`` and ``jacfwd`` give (they only order the solves differently)."""
-    study, _ = steady_study
+    study, _, _ = steady_study
     from jaxbelt.design.study import run_deviation
 
-    work = for_runs(study)
     thetas = np.array([[0.01, 0.2, 0.005], [-0.02, -0.3, 0.01]])[:, :study.space.size]
-    one = jax.jit(lambda t: run_deviation(work, t)[1])
+    one = jax.jit(lambda t: run_deviation(study, t)[1])
     seq = np.asarray(jax.jit(lambda x: map_configurations(one, x))(thetas))
     # equal to well within the solve's tolerance (1e-5 µm): a batch's Krylov loops round differently
     np.testing.assert_allclose(seq, np.asarray(jax.vmap(one)(thetas)), rtol=0, atol=1e-6)
@@ -71,17 +69,17 @@ def test_a_steered_sweep_holds_the_limits_tolerance_holds(steady_study):
     from jaxbelt.design.sweep import sweep_samples
     from jaxbelt.design.tolerance import _limit_values_batch
 
-    study, dist = steady_study
+    study, dist, linear = steady_study
     names = (("lateral_max", 35.3), ("longitudinal_max", 35.3), ("steering_max", float(study.range_mrad)))
     limited = with_limits(study, names)
-    res = run_sweep(limited, dist, 24, limit_um=35.3, seed=3, chunk=8, rom="auto", with_form=False)
-    assert [x["metric"] for x in res.limits] == ["lateral_max", "longitudinal_max", "steering_max"]
+    res = run_sweep(limited, dist, 24, limit_um=35.3, seed=3, chunk=8, rom="auto", with_form=False, linear=linear)
+    assert [x.metric for x in res.limits] == ["lateral_max", "longitudinal_max", "steering_max"]
     thetas = sweep_samples(limited, dist, 24, 3)
     pick = np.arange(0, 24, 4)
-    each = np.asarray(_limit_values_batch(for_runs(limited), thetas[pick]))  # (m, 3), each in its own unit
+    each = np.asarray(_limit_values_batch(limited, thetas[pick]))  # (m, 3), each in its own unit
     lims = np.array([v for _, v in names])
     np.testing.assert_array_equal(np.all(each <= lims, axis=1), res.metric_values[pick] <= 35.3)
     np.testing.assert_allclose(res.metric_values[pick], 35.3 * np.max(each / lims, axis=1),
-                               atol=res.rom["max_bound_um"] + 1e-9)
+                               atol=res.rom.validation.max_bound_um + 1e-9)
     with pytest.raises(ValueError, match="first limit"):
         run_sweep(limited, dist, 4, limit_um=20.0, rom="off", with_form=False)

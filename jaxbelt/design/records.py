@@ -1,0 +1,88 @@
+"""The small typed records the design results are made of (:mod:`jaxbelt.infra.results`): a
+roller's misalignment or half-widths, a roller's sensitivities, one limit of a study with several,
+one component's gradient, one structurally zero component.
+
+Per-roller tables are mappings ``{roller name: record}`` in the rollers' order, every roller of
+the model present (components that are not parameters read 0), so that their JSON is
+``{"roller 1": {"translation_mm": [x, y, z], "rotation_mrad": [x, y, z]}, ...}``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..infra.results import Result
+from ..misalignment import TRANSLATIONS, ParameterSpace
+
+
+@dataclasses.dataclass(frozen=True)
+class RollerMisalignment(Result):
+    """One roller's misalignment components (a corner of a box, a design point) or its
+    half-widths (a tolerance box). **Fields:** ``translation_mm`` (3,) along x, y, z, mm;
+    ``rotation_mrad`` (3,) about x, y, z, mrad."""
+
+    translation_mm: tuple
+    rotation_mrad: tuple
+
+
+@dataclasses.dataclass(frozen=True)
+class RollerSensitivity(Result):
+    """One roller's gradient of a metric (µm; µm/s for ``walk_rate``, mrad for
+    ``steering_max``). **Fields:** ``translation_um_per_mm`` (3,) per mm along x, y, z;
+    ``rotation_um_per_mrad`` (3,) per mrad about x, y, z."""
+
+    translation_um_per_mm: tuple
+    rotation_um_per_mrad: tuple
+
+
+def _groups(space: ParameterSpace, values) -> dict[str, tuple[tuple, tuple]]:
+    """``{roller: (translation (3,), rotation (3,))}`` of (P,) ``values`` in the units of the
+    components; components that are not parameters 0."""
+    values = np.asarray(values, float)
+    out = {name: ([0.0] * 3, [0.0] * 3) for name in space.roller_names}
+    for k, (j, c) in enumerate(space.entries):
+        out[space.roller_names[j]][0 if c in TRANSLATIONS else 1]["xyz".index(c[1])] = float(values[k])
+    return {name: (tuple(t), tuple(r)) for name, (t, r) in out.items()}
+
+
+def misalignment_per_roller(space: ParameterSpace, theta) -> dict[str, RollerMisalignment]:
+    """``{roller: RollerMisalignment}`` of a design vector or half-widths ``theta`` (P,), mm / mrad."""
+    return {name: RollerMisalignment(t, r) for name, (t, r) in _groups(space, theta).items()}
+
+
+def sensitivity_per_roller(space: ParameterSpace, gradient) -> dict[str, RollerSensitivity]:
+    """``{roller: RollerSensitivity}`` of a gradient (P,), per mm / per mrad."""
+    return {name: RollerSensitivity(t, r) for name, (t, r) in _groups(space, gradient).items()}
+
+
+@dataclasses.dataclass(frozen=True)
+class MetricLimit(Result):
+    """One limit of a study with several (:func:`jaxbelt.design.study.with_limits`).
+    **Fields:** ``metric``; ``limit`` in the metric's ``unit`` (``"µm"``, ``"µm/s"``,
+    ``"mrad"``: :func:`jaxbelt.design.metrics.metric_unit`)."""
+
+    metric: str
+    limit: float
+    unit: str
+
+
+@dataclasses.dataclass(frozen=True)
+class ComponentGradient(Result):
+    """A metric's derivative with respect to one varied component. **Fields:** ``component``
+    ``"roller:component"``; ``unit`` the component's (``"mm"`` or ``"mrad"``); ``gradient`` the
+    metric's unit per that unit."""
+
+    component: str
+    unit: str
+    gradient: float
+
+
+@dataclasses.dataclass(frozen=True)
+class StructuralZero(Result):
+    """A component that cannot vary in the model. **Fields:** ``component``
+    ``"roller:component"``; ``reason``."""
+
+    component: str
+    reason: str
