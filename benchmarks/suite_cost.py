@@ -105,7 +105,7 @@ def _totals(workers):
         for test, c in w["tests"].items():
             for k, v in c.items():
                 tot[k] += v
-            by_module[re.sub(r"::.*", "", test).rsplit("/", 1)[-1]] += c.get("wall", 0.0)
+            by_module[re.sub(r"::.*", "", test).removeprefix("tests/")] += c.get("wall", 0.0)  # integration/design/test_study.py
     out = {"test_s": tot["wall"], **{PHASES[k]: tot[k] for k in PHASES}}
     out["compile_share"] = sum(tot[k] for k in PHASES) / tot["wall"]
     out["other_s"] = tot["wall"] - sum(tot[k] for k in PHASES)
@@ -139,7 +139,8 @@ def main():
     per_test = results["one_process"].pop("per_test_s")
     results["two_workers"].pop("per_test_s")
     write("suite_cost", results)
-    # the scheduling table tests/conftest.py reads: seconds per test module, one process, measured
+    # the scheduling table tests/conftest.py reads: seconds per test module (its path under tests/
+    # without .py, tests/conftest.py: module_key), one process, measured
     table = {m.removesuffix(".py"): max(1, round(v)) for m, v in sorted(module_s.items(), key=lambda kv: -kv[1])}
     MODULE_SECONDS.write_text(json.dumps(table, indent=1) + "\n")
     # the measured half of the slow/fast split (tests/conftest.py: SLOW_TEST_S): seconds per test

@@ -178,7 +178,7 @@ def free_belt_stencil(model: BeltModel):
     A bilinear quad couples a node only to the nodes of the elements it belongs to, so each
     ``2 n_eta``-square block of ``K_f`` is block-tridiagonal in ``η`` with 2 × 2 blocks — 12–13 %
     of its entries are non-zero on the default scene. The stencil keeps exactly those entries
-    (``tests/integration/test_kept_interior.py`` checks :func:`stencil_matvec` against the block product), so a
+    (``tests/integration/integrators/test_kept_interior.py`` checks :func:`stencil_matvec` against the block product), so a
     product costs a sixth of the block one: 67 k instead of 400 k multiply-adds on
     ``three-roller-t72``. Gathered from ``K_diag``/``K_lower``/``K_upper``, it carries their
     derivatives."""

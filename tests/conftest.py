@@ -67,14 +67,17 @@ def pytest_addoption(parser):
 # xdist's loadfile scheduling hands whole modules to the two workers in collection order; heaviest
 # first, so that the run ends on small modules and both workers finish together (pyproject.toml
 # turns off xdist's own reordering by test count). Seconds per module as benchmarks/suite_cost.py
-# measured them (a module not in the table, default 5, only costs balance).
-MODULE_SECONDS = json.loads((Path(__file__).parent / "module_seconds.json").read_text())
+# measured them, keyed by the module's path under tests/ without ``.py`` (``integration/design/test_study``:
+# the folders mirror the package, so stems repeat); a module not in the table, default 5, only
+# costs balance.
+TESTS = Path(__file__).parent
+MODULE_SECONDS = json.loads((TESTS / "module_seconds.json").read_text())
 
 # The measured half of the slow/fast split: a test of the default run whose one-process seconds,
 # as benchmarks/suite_cost.py measured them (tests/test_seconds.json), exceed SLOW_TEST_S is
 # slow; the hand-placed ``@pytest.mark.slow`` marks are the other half (coverage: a test whose
 # code cheaper tests already reach).
-TEST_SECONDS_FILE = Path(__file__).parent / "test_seconds.json"
+TEST_SECONDS_FILE = TESTS / "test_seconds.json"
 TEST_SECONDS = json.loads(TEST_SECONDS_FILE.read_text()) if TEST_SECONDS_FILE.exists() else {}
 if os.environ.get("JAXBELT_MEASURED_SPLIT", "1") == "0":  # suite_cost.py measures every test
     TEST_SECONDS = {}
@@ -88,7 +91,13 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if TEST_SECONDS.get(item.nodeid, 0.0) > SLOW_TEST_S:
             item.add_marker(pytest.mark.slow)
-    items.sort(key=lambda item: -MODULE_SECONDS.get(item.path.stem, 5))
+    items.sort(key=lambda item: -MODULE_SECONDS.get(module_key(item.path), 5))
+
+
+def module_key(path):
+    """A test module's key in ``module_seconds.json``: its path under tests/ without ``.py`` (its
+    stem, outside tests/)."""
+    return path.relative_to(TESTS).with_suffix("").as_posix() if path.is_relative_to(TESTS) else path.stem
 
 
 def pytest_configure(config):

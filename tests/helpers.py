@@ -111,6 +111,11 @@ def load(source, **changes):
     return jb.build_model(scene), jb.RunOptions.from_scene(scene).replace(**changes)
 
 
+def coarse(name, n_eta=3):
+    """``(model, options)`` of a built-in scene on a coarser grid."""
+    return load(scene_with(lambda d: d.setdefault("mesh", {}).update(n_eta=n_eta), name))
+
+
 def scene_fixtures(source):
     """Module-scoped fixtures ``loaded`` (``(model, options)`` of :func:`load`), ``model`` and
     ``dt`` for a test module: ``loaded, model, dt = scene_fixtures(name)``. ``source``: what

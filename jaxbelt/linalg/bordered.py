@@ -135,7 +135,7 @@ def row_equilibrate(A: BorderedBlockCyclic, rhs_belt, rhs_roll):
     The belt DAE mixes rows of very different size: Backward-Euler constraint rows are
     ``Δt²`` times unit coefficients, stiffness rows ``~EA/ℓ``, roller rows ``r EA``. On the
     small three-roller scene row scaling brings the condition number of ``M + Δt² K`` from
-    3e8 to 1e4 (``tests/unit/test_linalg.py``)."""
+    3e8 to 1e4 (``tests/unit/linalg/test_bordered.py``)."""
     absmax = lambda a, axes: jnp.max(jnp.abs(a), axis=axes)
     rb = jnp.maximum(jnp.maximum(absmax(A.diag, 2), jnp.maximum(absmax(A.lower, 2), absmax(A.upper, 2))),
                      absmax(A.C, 2) if A.C.shape[2] else 0.0)
@@ -360,7 +360,7 @@ def refactorise_border(A: BorderedBlockCyclic, F_ref: BorderedFactorisation, S_r
     right-hand sides) and the Schur complement in the listed columns and rows only; the rest is
     ``F_ref``'s. The rows keep ``F_ref``'s equilibration scales (any positive row scaling
     factors the same system). The result is the exact factorisation of ``A``:
-    :func:`factor_solve` with it solves ``A x = r`` to round-off (``tests/unit/test_linalg.py``
+    :func:`factor_solve` with it solves ``A x = r`` to round-off (``tests/unit/linalg/test_bordered.py``
     checks it against :func:`factorise`). For the belt on rollers with tilt DOFs, whose lever
     arm moves with the lateral displacement (§4.2) while nothing else in ``M + Δt² K`` changes
     under the shift transport, this is the whole difference between two steps' matrices

@@ -83,7 +83,7 @@ class ChainedThomasFactors(eqx.Module):
     once, as long as the longest span, and the single blocks as one batched product: on
     ``three-roller-t72`` 37 dependent steps per sweep instead of 103 — the same arithmetic, ~35 %
     less time on a CPU. Built by :func:`chain_thomas` from static break positions; the result
-    equals :func:`thomas_apply`'s (``tests/integration/test_kept_interior.py``).
+    equals :func:`thomas_apply`'s (``tests/integration/integrators/test_kept_interior.py``).
 
     The forward sweep ``y_i = den_i⁻¹ (r_i - L_i y_{i-1})`` takes one of two forms.
 

@@ -199,10 +199,10 @@ def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, s
     """Reverse mode through the whole run (custom adjoint solve, checkpointed scan) against
     central differences (h = 1e-6 m or rad) around a random misalignment, every component.
     The factorisation-reuse solver's cases are slow; fast, the kept-interior solver's cases here and,
-    for reverse mode through the reuse solver in 2D, test_design.py's shared study (reuse):
-    test_response_is_linear_in_small_misalignments (its forward-mode Jacobian against full runs)
-    and test_jacobian_forward_matches_the_reverse_gradient (its reverse-mode gradient against that
-    Jacobian)."""
+    for reverse mode through the reuse solver in 2D, the shared study of design/conftest.py (reuse) in
+    design/test_sensitivity.py: test_response_is_linear_in_small_misalignments (its forward-mode
+    Jacobian against full runs) and test_jacobian_forward_matches_the_reverse_gradient (its
+    reverse-mode gradient against that Jacobian)."""
     make, n_steps, active, inactive = _FD_CASES[case]
     model, opts = make()
     chi0 = _fd_point(model)

@@ -2,7 +2,7 @@
 
 The runs share the coarse grid (three lines across) and a few run lengths that are whole numbers
 of the scan's checkpoint chunks (9, 36, 156), so that they share compiled programs (with each other
-and with test_vmap.py, test_validation.py's 2D statics, test_reuse.py, test_rom_snapshots.py)."""
+and with test_vmap.py, test_validation.py's 2D statics, integrators/test_reuse.py, rom/test_snapshots.py)."""
 
 import functools
 
@@ -132,7 +132,7 @@ def test_doubling_a_small_misalignment_doubles_the_response():
 @pytest.mark.parametrize("name", [pytest.param("naive", marks=pytest.mark.slow), "eliminated"])
 def test_integrators_agree_2d(name):
     """The eliminated and the naive integrator give the direct one's run. The naive one (a dense
-    3N = 1926 solve a step) is slow here; test_integrators.py checks it in 1D."""
+    3N = 1926 solve a step) is slow here; integrators/test_integrators.py checks it in 1D."""
     m = with_variant(small()[0], {0: dict(translation=(0, 1e-3, 5e-4)), 1: dict(rotation=(3e-4, 1e-4))})
     ref = simulate(m, 9, jb.make_solver("direct"))[1]
     scale = float(jnp.max(jnp.abs(ref.tracer_u)))

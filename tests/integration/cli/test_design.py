@@ -50,7 +50,7 @@ def test_sensitivity_json_and_plot(files, capsys):
 
 def test_tolerance_json(files, capsys):
     """The tolerance box verified by full runs (the fast version of
-    test_design.py::test_box_on_the_default_scene_is_verified_by_full_runs)."""
+    design/test_tolerance.py::test_box_on_the_default_scene_is_verified_by_full_runs)."""
     (files / "w.toml").write_text('[roller."roller 2"]\nrotation = [4.0, 1.0, 1.0]\n')
     r = _json(capsys, ["tolerance", str(files / "small.toml"), "--components", "roller 2:rotation",
                        "--weights", str(files / "w.toml"), "--solver", "reuse", "--json", "--plot", str(files / "t.png")])

@@ -21,7 +21,7 @@ LIMIT = 20.0  # µm
 @pytest.fixture(scope="module")
 def study():
     """Coarse, 30 steps (whole checkpoint chunks), the factorisation-reuse solver (cheaper to
-    compile and to run; checked against the exact one in test_reuse.py)."""
+    compile and to run; checked against the exact one in integrators/test_reuse.py)."""
     model, opts = load(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
     return design.make_study(model, "lateral_max", opts.replace(solver=jb.make_solver("direct", "reuse")), t_eval=0.6,
                              components="roller 2:rotation")

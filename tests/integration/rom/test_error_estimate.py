@@ -5,7 +5,7 @@ Small 1D scenes, short runs. The models are fitted once per module on the nomina
 their first half predicting the whole window), and the effectivity is checked on configurations
 no fit has seen: the drive moved -6 mm (and for POD, which takes the drive rate as an input,
 turning at 0.9 of the nominal rate). Single-configuration DMD (pre-transport states) is checked
-through ``jaxbelt reduce`` in ``tests/integration/test_cli_reduce.py``."""
+through ``jaxbelt reduce`` in ``tests/integration/cli/test_reduce.py``."""
 
 import logging
 

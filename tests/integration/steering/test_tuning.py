@@ -37,7 +37,7 @@ def result(setup):
     return tuning.tune(model, options, iterations=4, response=response)
 
 
-@pytest.mark.slow  # the closed-loop gradient in the gains is checked in test_control.py; this adds the ISE objective's
+@pytest.mark.slow  # the closed-loop gradient in the gains is checked in integration/test_control.py; this adds the ISE objective's
 def test_gradient_matches_central_differences(setup):
     model, options, _ = setup
     g = np.array([1.5, 0.3])
