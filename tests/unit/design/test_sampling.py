@@ -20,7 +20,7 @@ def test_monte_carlo_counts_saturation_as_failure(monkeypatch):
     study = SimpleNamespace(space=SimpleNamespace(size=1, labels=lambda: labels))
     dist = SimpleNamespace(labels=labels, transform=lambda u: u)
     fake = {"metric": np.array([1.0, 2.0, 3.0, 30.0]), "saturated": np.array([False, True, False, False]),
-            "steering_mrad": np.array([0.1, 3.0, 0.2, 0.3])}
+            "steering_mrad": np.array([0.1, 3.0, 0.2, 0.3]), "longitudinal_um": np.zeros((4, 2))}
     monkeypatch.setattr(sampling, "evaluate_configs", lambda study, thetas, chunk, progress: fake)
     mc = sampling.monte_carlo(study, dist, 4, 20.0)
     assert mc.passed == 2 and mc.yield_ == 0.5  # the saturated one fails though its metric is small
