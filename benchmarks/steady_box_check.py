@@ -26,7 +26,7 @@ from _common import RESULTS, load, write
 from jaxbelt.cli import main as cli
 from jaxbelt.misalignment import aligned, apply, parameter_space
 
-BLOCK_S, WINDOW_S, MAX_BLOCKS = 20.0, 4.0, 8
+BLOCK_S, WINDOW_S, MAX_BLOCKS = 20.0, 4.0, 20
 
 
 def window_box():

@@ -88,6 +88,14 @@ def render_comparison(data: dict, check: dict) -> str:
              f"{last['steering_max_mrad']:.4g} mrad over its last {WINDOW_S:g} s"
              + (f", its last two {BLOCK_S:g} s blocks agreeing within {check['settled_within_um']:.3g} µm."
                 if check["settled"] else ", not yet settled within the runs made.")]
+    blocks = check["time_stepped_blocks"]
+    first = blocks[0]
+    back = next((b["t_end_s"] for b in blocks if b["lateral_max_um"] <= st["limit_um"]), None)
+    rows[-1] += (f" The start from rest is a transient question (`--window`), and a different answer: over "
+                 f"{BLOCK_S - WINDOW_S:g}–{BLOCK_S:g} s this corner's belt runs up to {first['lateral_max_um']:.4g} µm off its path with "
+                 f"the actuator at {first['steering_max_mrad']:.4g} mrad, and its lateral deviation is within the "
+                 f"{st['limit_um']:g} µm limit again only in the {WINDOW_S:g} s before "
+                 + (f"{back:g} s." if back is not None else "the end of the last block run."))
     return "\n".join(rows)
 
 
