@@ -1,4 +1,5 @@
-"""Linear algebra for the belt DAE: the bordered cyclic block-tridiagonal structure."""
+"""Linear algebra for the belt DAE: the bordered cyclic block-tridiagonal structure, and restarted
+GMRES for the steady-state solves (:mod:`jaxbelt.linalg.gmres`)."""
 
 from .bordered import BorderedBlockCyclic as BorderedBlockCyclic
 from .bordered import bordered_solve as bordered_solve
