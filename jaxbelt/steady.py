@@ -466,10 +466,8 @@ def map_configurations(fn, xs):
     A batched Newton–GMRES runs its members' loops in lockstep: every GMRES iteration and Newton
     step is taken by the whole batch until its slowest member is done, and the Krylov basis's
     update at a batched iteration index is a scatter into the whole basis instead of an in-place
-    column write. Measured on the design scene (``benchmarks/tolerance_latency.py``, a tolerance
-    box's verification batch of eight solves at the aligned configuration, warm): 172 s as one
-    ``vmap``, 1.5 s in sequence; on a CPU the cores a batch could fill are already busy with each
-    solve's own linear algebra."""
+    write; on a CPU the cores a batch could fill are already busy with each solve's own linear
+    algebra."""
     if jax.default_backend() == "cpu":
         return lax.map(fn, xs)
     return jax.vmap(fn)(xs)
@@ -478,8 +476,7 @@ def map_configurations(fn, xs):
 def forward_jacobian(fn, theta, has_aux: bool = False):
     """``jax.jacfwd(fn, has_aux=has_aux)(theta)`` for functions that solve for a steady state: the
     primal solve once (:func:`jax.linearize`), then one tangent solve per component through
-    :func:`map_configurations` (``jacfwd`` batches the tangents' GMRES loops in lockstep; measured on
-    the design scene's fifteen tangents, warm: 4.9 s batched, 3.6 s in sequence). Each output gets
+    :func:`map_configurations` (``jacfwd`` would batch the tangents' GMRES loops in lockstep). Each output gets
     a trailing axis of ``theta``'s length."""
     out = jax.linearize(fn, theta, has_aux=has_aux)
     lin = out[1]

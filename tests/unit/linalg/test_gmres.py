@@ -1,0 +1,68 @@
+"""Restarted GMRES (:mod:`jaxbelt.linalg.gmres`) against dense solves: its residual is the true one,
+restarts and right preconditioning reach the same solution, and it batches under ``vmap``."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxbelt.linalg.gmres import BLOCK, gmres
+
+
+def _system(n=120, seed=0, spread=0.9):
+    rng = np.random.default_rng(seed)
+    A = np.eye(n) + spread * rng.standard_normal((n, n)) / np.sqrt(n)
+    return A, rng.standard_normal(n)
+
+
+@pytest.mark.parametrize("rtol", [1e-3, 1e-8, 1e-12])
+def test_solution_meets_the_relative_residual_and_equals_a_dense_solve(rtol):
+    A, b = _system()
+    x, res, its = jax.jit(lambda b: gmres(lambda v: jnp.asarray(A) @ v, b, rtol=rtol, restart=100, max_cycles=4))(
+        jnp.asarray(b))
+    true = np.linalg.norm(A @ np.asarray(x) - b) / np.linalg.norm(b)
+    assert true <= rtol and abs(float(res) - true) <= 1e-3 * rtol + 1e-15
+    np.testing.assert_allclose(np.asarray(x), np.linalg.solve(A, b), rtol=0, atol=50 * rtol * np.abs(np.linalg.solve(A, b)).max())
+    assert 0 < int(its) <= 100
+
+
+def test_restarts_reach_the_tolerance_and_count_every_iteration():
+    """A restart shorter than the iterations needed, and not a multiple of the basis block."""
+    A, b = _system(spread=0.5)
+    restart = BLOCK + 3
+    x, res, its = gmres(lambda v: jnp.asarray(A) @ v, jnp.asarray(b), rtol=1e-10, restart=restart, max_cycles=30)
+    assert float(res) <= 1e-10 and int(its) > restart
+    np.testing.assert_allclose(np.asarray(x), np.linalg.solve(A, b), atol=1e-8)
+
+
+def test_an_exact_right_preconditioner_solves_in_one_iteration_and_a_poor_one_still_converges():
+    A, b = _system()
+    Ainv = np.linalg.inv(A)
+    x, res, its = gmres(lambda v: jnp.asarray(A) @ v, jnp.asarray(b), rtol=1e-10, restart=20,
+                        precondition=lambda v: jnp.asarray(Ainv) @ v)
+    assert int(its) == 1 and float(res) <= 1e-10
+    D = np.diag(1.0 + np.arange(len(b)) / len(b))  # a scaling, unrelated to A
+    x, res, _ = gmres(lambda v: jnp.asarray(A) @ v, jnp.asarray(b), rtol=1e-10, restart=100,
+                      precondition=lambda v: jnp.asarray(D) @ v)
+    np.testing.assert_allclose(np.asarray(x), np.linalg.solve(A, b), atol=1e-8)
+
+
+def test_zero_right_hand_side_and_a_singular_consistent_system():
+    A, _ = _system(n=40)
+    x, res, its = gmres(lambda v: jnp.asarray(A) @ v, jnp.zeros(40), rtol=1e-8)
+    assert np.all(np.asarray(x) == 0) and int(its) == 0 and float(res) == 0
+    P = np.eye(40)
+    P[-1, -1] = 0.0  # singular: the last component is invisible; b in the range
+    b = np.r_[np.ones(39), 0.0]
+    x, res, _ = gmres(lambda v: jnp.asarray(P) @ v, jnp.asarray(b), rtol=1e-10)
+    assert float(res) <= 1e-10 and np.all(np.isfinite(np.asarray(x)))
+
+
+def test_vmap_over_right_hand_sides_equals_one_at_a_time():
+    A, _ = _system(n=60)
+    B = np.random.default_rng(3).standard_normal((4, 60))
+    solve = lambda b: gmres(lambda v: jnp.asarray(A) @ v, b, rtol=1e-9, restart=60)[0]  # noqa: E731
+    X = jax.vmap(solve)(jnp.asarray(B))
+    for k in range(4):
+        np.testing.assert_allclose(np.asarray(X[k]), np.asarray(solve(jnp.asarray(B[k]))), atol=1e-10)
+        np.testing.assert_allclose(np.asarray(X[k]), np.linalg.solve(A, B[k]), atol=1e-7)
