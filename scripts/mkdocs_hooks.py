@@ -269,9 +269,14 @@ BENCHMARKS = {
                         "the incompatible-modes element (QM6, the default) does not."),
     "steady_state": ("Steady operation solved directly", "The steered design machine's steady state as the fixed "
                      "point of its one-period map (`jaxbelt.steady.steady_state`): Newton steps, residual and time "
-                     "per solve, aligned and misaligned, beside a time-stepped run of the same noise-free machine, "
+                     "per solve, Krylov iterations with and without the mass-transport preconditioner, the design "
+                     "tangents' time, aligned and misaligned, beside a time-stepped run of the same noise-free machine, "
                      "when it settles within 0.5 % of a 20 µm limit of the steady deviation, and what those steps "
                      "cost ([tolerance design](tolerance.md#steady-operation))."),
+    "call_path": ("How a sweep's study travels through the design package", "The module stops of "
+                  "`jaxbelt sweep` on a small scene: every Python call into a `jaxbelt.design` module recorded "
+                  "(tracing included), consecutive calls in one module one stop, a stop in a module the path "
+                  "had already left a return."),
     "design_steady": ("The main job's answer", "`jaxbelt tolerance --json` on the default scene (steady operation, "
                       "error bars on) and on the source's variant `three-roller-tolerance`, as a user runs them; the "
                       "README's table and figures are written from this file (`scripts/readme_results.py`)."),
