@@ -9,7 +9,7 @@ steps :func:`jaxbelt.simulate` takes — steady operation is the fixed point
     x* = Φ(x*),
 
 solved here by Newton's method on ``F(x) = Φ(x) − x`` with GMRES on the Jacobian-vector products
-of ``Φ`` (:func:`newton_krylov`, :func:`jaxbelt.linalg.gmres.gmres`). Because ``Φ``
+of ``Φ`` (:func:`jaxbelt.linalg.newton.newton_krylov`, :func:`jaxbelt.linalg.gmres.gmres`). Because ``Φ``
 is the time stepper's own map, a long time-stepped run settles onto ``x*`` to the solver's
 tolerance, not to a discretisation error. Derivatives come from the implicit function theorem
 (``jax.lax.custom_root``): ``dx*/dθ = (I − ∂Φ/∂x)⁻¹ ∂Φ/∂θ``, one linear solve per tangent
@@ -53,7 +53,8 @@ inverted exactly as a right preconditioner (:class:`MassTransportPreconditioner`
 own slow modes are left to GMRES. Newton takes three steps from the static equilibrium: the first
 removes the start guess's large velocity residual, the response is nearly linear after it, and
 each step's GMRES is asked for no more reduction than ends the iteration
-(:func:`newton_krylov`). Measured on the design scene (``benchmarks/steady_state.py``): about 60
+(:func:`jaxbelt.linalg.newton.newton_krylov`). Measured on the design scene
+(``benchmarks/steady_state.py``): about 60
 GMRES iterations per solve (one linearised period each), about 90 without the preconditioner,
 and 0.1–0.2 s per solve. No preconditioner from the step's factors: it would act on the fast
 modes, which GMRES resolves in its first iterations anyway.
@@ -76,7 +77,7 @@ from .control import ControllerState, samples_per_update, sensor_displacement
 from .integrators import AbstractIntegrator, make_solver
 from .model import BeltModel
 from .infra.programs import stored_jit
-from .linalg.gmres import gmres
+from .linalg.newton import DEFAULT_GMRES_CYCLES, DEFAULT_GMRES_RESTART, krylov_solve, newton_krylov
 from .state import BeltState, initial_state
 from .transport import transport_masses, upwind_weights
 from .timeloop import SaveAt, belt_speed, check_time_step, edge_margin, make_step, simulate, tracer_values
@@ -86,10 +87,6 @@ DEFAULT_TOL_UM = 1e-6  # the residual RMS that ends Newton, µm: its solutions a
 UNBOUNDED = 1e30  # the lifted actuator range and rate limit of the steady map (rad, rad/s)
 JITTER_TURNS = 2.0  # belt turns of the time-stepped run that measures the actuator jitter
 DEFAULT_MAX_NEWTON = 8
-DEFAULT_GMRES_RESTART = 120
-DEFAULT_GMRES_CYCLES = 6
-NEWTON_KRYLOV_RTOL = 1e-3  # the most GMRES reduces the residual in one Newton step (newton_krylov)
-FORCING_SAFETY = 0.3  # a Newton step's GMRES aims this far below the tolerance (newton_krylov)
 ADJOINT_KRYLOV_RTOL = 1e-8  # per tangent (implicit function theorem)
 
 
@@ -229,8 +226,9 @@ def mass_transport_preconditioner(model: BeltModel, dt, n: int) -> MassTransport
 
 
 def _preconditioned(pre: MassTransportPreconditioner | None, y_template, transpose: bool = False):
-    """``None`` without a preconditioner, else ``z ↦ M⁻¹ z`` on flat vectors shaped like ``y_template`` (the unknowns, or the walk system's
-    ``(unknowns, c)``): the mass block (``state_fields``' fifth) preconditioned, the rest passed."""
+    """``None`` without a preconditioner, else ``z ↦ M⁻¹ z`` on flat vectors shaped like
+    ``y_template`` (the unknowns, or the walk system's ``(unknowns, c)``): the mass block
+    (``state_fields``' fifth) preconditioned, the rest passed."""
     if pre is None:
         return None
     _, unravel = jax.flatten_util.ravel_pytree(y_template)
@@ -281,58 +279,6 @@ def _residual(solver, dt, n, sc, template, walking: bool):
     return fn_walk
 
 
-def krylov_solve(matvec, b, rtol: float, restart: int = DEFAULT_GMRES_RESTART, cycles: int = DEFAULT_GMRES_CYCLES,
-                 precondition=None):
-    """Restarted GMRES (:func:`jaxbelt.linalg.gmres.gmres`) on ``matvec(x) = b`` (pytrees) stopped at
-    ``‖r‖₂ ≤ rtol ‖b‖₂``: ``(x, missed)``, ``missed`` true where the solve ended a thousand times
-    above the tolerance. ``restart`` should exceed the iterations a solve needs: a restart drops the
-    Krylov vectors of the slow, transported directions, which the next cycle must find again
-    (measured: restart 40 stagnates at 3e-6 where 64 reaches 1e-8 in 57 iterations)."""
-    b_flat, unravel = jax.flatten_util.ravel_pytree(b)
-    mv = lambda x: jax.flatten_util.ravel_pytree(matvec(unravel(x)))[0]  # noqa: E731
-    x, res, _ = gmres(mv, b_flat, rtol=rtol, restart=restart, max_cycles=cycles, precondition=precondition)
-    missed = ~(res <= 1e3 * rtol)  # (NaN counts as missed)
-    return unravel(x), missed
-
-
-def newton_krylov(f, y0, tol, max_steps: int, restart: int = DEFAULT_GMRES_RESTART,
-                  cycles: int = DEFAULT_GMRES_CYCLES, precondition=None):
-    """Newton's method on ``f(y) = 0`` (pytrees) from ``y0``, each step's linear system solved by GMRES
-    (:func:`jaxbelt.linalg.gmres.gmres`) on the linearisation at the step's start (:func:`jax.linearize`:
-    a product replays the linearised period, the primal map is not evaluated again).
-
-    Returns ``(y, rms, max, steps, krylov_iterations)``, ``rms``/``max`` the final residual's RMS and
-    largest entry. The iteration ends when ``RMS(f) ≤ tol`` — tested *before* a step, so a residual
-    already within the tolerance costs no further linear solve — or after ``max_steps``, or when
-    ``f`` is not finite.
-
-    **Forcing** (inexact Newton): GMRES reduces the residual by ``max(NEWTON_KRYLOV_RTOL,
-    min(0.1, FORCING_SAFETY · tol / RMS(f)))``, i.e. by no more than the step needs to end within
-    the tolerance (a step's nonlinear remainder is far below its linear one once the large start
-    residual is gone), and by at least 1e-3 when the residual is far above it. :mod:`optimistix`'s
-    ``Newton`` tests after the step, one step late: on this problem a whole extra linear solve, the
-    most expensive one (the last step's GMRES works on the slowest directions)."""
-    y0f, unravel = jax.flatten_util.ravel_pytree(y0)
-    F = lambda yf: jax.flatten_util.ravel_pytree(f(unravel(yf)))[0]  # noqa: E731
-    rms = lambda v: jnp.sqrt(jnp.mean(v * v))  # noqa: E731
-
-    def cond(carry):
-        _, Fy, k, _ = carry
-        return (rms(Fy) > tol) & (k < max_steps) & jnp.all(jnp.isfinite(Fy))
-
-    def body(carry):
-        y, Fy, k, its = carry
-        _, lin = jax.linearize(F, y)
-        rtol = jnp.clip(FORCING_SAFETY * tol / rms(Fy), NEWTON_KRYLOV_RTOL, 0.1)
-        dy, _, n_its = gmres(lin, -Fy, rtol=rtol, restart=restart, max_cycles=cycles, precondition=precondition)
-        y = y + dy
-        return y, F(y), k + 1, its + n_its
-
-    zero = jnp.zeros((), jnp.int32)
-    y, Fy, k, its = lax.while_loop(cond, body, (y0f, F(y0f), zero, zero))
-    return unravel(y), rms(Fy), jnp.max(jnp.abs(Fy)), k, its
-
-
 class _Solution(eqx.Module):
     value: object  # the root, scaled unknowns
     residual: jax.Array  # max |F| at the root, µm
@@ -343,9 +289,10 @@ class _Solution(eqx.Module):
 
 def _solve(fn, y0, model, solver, template, dt, n, tol, max_steps, restart, gmres_steps, tangent_rtol,
            precondition: bool = True) -> _Solution:
-    """Newton on ``fn(y, (model, run_data)) = 0`` from ``y0`` (:func:`newton_krylov`), its derivatives
-    by the implicit function theorem (:func:`jax.lax.custom_root`): a tangent ``dy`` solves
-    ``(∂F/∂y) dy = −(∂F/∂θ) dθ`` by :func:`krylov_solve` on the linearised map, the transposed solve of
+    """Newton on ``fn(y, (model, run_data)) = 0`` from ``y0``
+    (:func:`jaxbelt.linalg.newton.newton_krylov`), its derivatives by the implicit function theorem
+    (:func:`jax.lax.custom_root`): a tangent ``dy`` solves ``(∂F/∂y) dy = −(∂F/∂θ) dθ`` by
+    :func:`jaxbelt.linalg.newton.krylov_solve` on the linearised map, the transposed solve of
     reverse mode by the same GMRES on the transposed linearisation (:func:`jax.lax.custom_linear_solve`).
     No host callback anywhere in the program: a program holding one is never written to JAX's
     persistent compilation cache (``optimistix.ImplicitAdjoint`` checks its solve through one;

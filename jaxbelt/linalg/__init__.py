@@ -1,5 +1,6 @@
 """Linear algebra for the belt DAE: the bordered cyclic block-tridiagonal structure, and restarted
-GMRES for the steady-state solves (:mod:`jaxbelt.linalg.gmres`)."""
+GMRES and Newton's method for the steady-state solves (:mod:`jaxbelt.linalg.gmres`,
+:mod:`jaxbelt.linalg.newton`)."""
 
 from .bordered import BorderedBlockCyclic as BorderedBlockCyclic
 from .bordered import bordered_solve as bordered_solve
