@@ -32,6 +32,7 @@ gains) is :mod:`jaxbelt.steering`.
 from ..misalignment import COMPONENTS as COMPONENTS
 from ..misalignment import ParameterSpace as ParameterSpace
 from ..misalignment import parameter_space as parameter_space
+from .linear_box import LinearDeviation as LinearDeviation
 from .linear_box import LinearResponse as LinearResponse
 from .linear_box import Stackup as Stackup
 from .linear_box import optimise_box as optimise_box
@@ -45,7 +46,6 @@ from .records import MetricLimit as MetricLimit
 from .records import RollerMisalignment as RollerMisalignment
 from .records import RollerSensitivity as RollerSensitivity
 from .records import StructuralZero as StructuralZero
-from .study import LinearDeviation as LinearDeviation
 from .study import Study as Study
 from .study import evaluate as evaluate
 from .study import linearise as linearise

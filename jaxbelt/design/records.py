@@ -1,6 +1,6 @@
 """The small typed records the design results are made of (:mod:`jaxbelt.infra.results`): a
 roller's misalignment or half-widths, a roller's sensitivities, one limit of a study with several,
-one component's gradient, one structurally zero component.
+one component's gradient, one structurally zero component, a surrogate's validation.
 
 Per-roller tables are mappings ``{roller name: record}`` in the rollers' order, every roller of
 the model present (components that are not parameters read 0), so that their JSON is
@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from ..infra.results import Result
+from ..infra.results import Result, to_json
 from ..misalignment import TRANSLATIONS, ParameterSpace
 
 
@@ -86,3 +86,57 @@ class StructuralZero(Result):
 
     component: str
     reason: str
+
+
+@dataclasses.dataclass(frozen=True)
+class SurrogateValidation(Result):
+    """The record of a fitted surrogate (:func:`~jaxbelt.design.surrogate.fit_surrogate`,
+    :attr:`~jaxbelt.design.surrogate.Surrogate.validation`).
+
+    **Fields:** ``method`` the reduced model (``"response"`` | ``"pod"``) and ``description`` in
+    words; ``validation_runs`` the full runs it took (training + validation), ``training_runs``,
+    ``n_validation``; ``seed`` of the validation samples; ``training_widths`` (P,) the training
+    widths ``w``, mm / mrad; ``safety`` the factor on the largest validation error; ``rho_max``
+    the largest ``ρ`` of a validation sample; ``max_true_error_um``, ``median_true_error_um``
+    the metric errors on the validation samples; ``max_bound_um`` the bound there;
+    ``effectivity_min`` / ``effectivity_median`` bound over true error there (``inf`` where no
+    sample has an error); ``loo_effectivity_min`` the leave-one-out check (:mod:`jaxbelt.design.surrogate`);
+    ``metric_range_um`` ``[min, max]`` of the validation samples' full metric; ``training_s``,
+    ``fit_s``, ``validation_s``, ``offline_s`` the wall times of the parts and of the whole.
+    Where they apply (else ``None``, left out of :meth:`to_dict`): ``steps_kept`` the steps the
+    response surface keeps; ``snapshots``, ``n_modes``, ``sv_tol``, ``singular_value_ratio`` of
+    the POD basis; ``max_true_steering_error_mrad`` and ``steering_bound_mrad`` on a steered
+    machine."""
+
+    method: str
+    description: str
+    validation_runs: int
+    training_runs: int
+    n_validation: int
+    seed: int
+    training_widths: tuple
+    safety: float
+    rho_max: float
+    max_true_error_um: float
+    median_true_error_um: float
+    max_bound_um: float
+    effectivity_min: float
+    effectivity_median: float
+    loo_effectivity_min: float
+    metric_range_um: tuple
+    training_s: float
+    fit_s: float
+    validation_s: float
+    offline_s: float
+    steps_kept: int | None = None
+    snapshots: int | None = None
+    n_modes: int | None = None
+    sv_tol: float | None = None
+    singular_value_ratio: float | None = None
+    max_true_steering_error_mrad: float | None = None
+    steering_bound_mrad: float | None = None
+
+    def to_dict(self) -> dict:
+        """The record as JSON-able data, the fields that are ``None`` left out."""
+        return to_json({f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                        if getattr(self, f.name) is not None})

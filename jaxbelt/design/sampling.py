@@ -34,7 +34,8 @@ from jax.scipy.stats import norm
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
 from ..infra.programs import stored_jit
 from ..steady import map_configurations
-from .study import LinearDeviation, Study, evaluate, metric_value
+from .linear_box import LinearDeviation
+from .study import Study, evaluate, metric_value
 from .sensitivity import response_jacobian
 from ..infra.results import Result
 from ..infra.sharding import batched_map
@@ -272,7 +273,7 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
 
     The start point ``u0`` defaults to the design point of the linearised response's most
     critical row (see :func:`linear_design_point`); the linear response is read from ``linear``
-    (the study's :class:`~jaxbelt.design.study.LinearDeviation`) where given, else from a run.
+    (the study's :class:`~jaxbelt.design.linear_box.LinearDeviation`) where given, else from a run.
 
     **Returns:** a :class:`FormResult`; its ``series_bounds`` (max-type metrics) bound the yield
     over all linearised failure modes, of which FORM's single design point sees only the most

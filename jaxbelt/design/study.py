@@ -4,7 +4,7 @@ the aligned reference — and the runs that answer it at a design vector (:func:
 :func:`response`, :func:`metric_value`, :func:`evaluate`). Built by :func:`make_study` (one model),
 :func:`make_study_at` (a model and its batch of configurations at once) or :func:`study_on` (the
 same question on another grid of the scene). The linear response of the runs at ``θ = 0`` is a
-:class:`LinearDeviation` beside the study (:func:`make_study` with ``jacobian=True``,
+:class:`~jaxbelt.design.linear_box.LinearDeviation` beside the study (:func:`make_study` with ``jacobian=True``,
 :func:`linearise`), passed to what reads it."""
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
                       map_configurations, period_steps, state_fields, steady_state)
 from ..timeloop import RunOptions, check_finite, simulate
+from .linear_box import LinearDeviation, linear_deviation
 from .metrics import (CLOSED_LOOP_WINDOW, METRICS, M_TO_UM, OPEN_LOOP_WINDOW, RAD_TO_MRAD, limit_values_from_deviation,
                       aggregate, response_from_deviation, saturation)
 
@@ -50,7 +51,7 @@ class Study(eqx.Module):
     ``jacobian=True``): every steady solve of the study starts at the linear prediction
     :func:`jaxbelt.steady.linear_start`, or without them at the aligned steady state. Both are
     where the study's runs start, so they belong to the study; the linear response of the
-    deviations, which no run reads, is a :class:`LinearDeviation` beside it.
+    deviations, which no run reads, is a :class:`~jaxbelt.design.linear_box.LinearDeviation` beside it.
     """
 
     model: BeltModel
@@ -123,48 +124,6 @@ def _mrad(angle):
     return None if angle is None else angle * RAD_TO_MRAD
 
 
-class LinearDeviation(eqx.Module):
-    """The deviations of a study's runs (:func:`run_deviation`) at ``θ = 0`` and their derivatives
-    with respect to every component of ``θ``: ``d(θ) ≈ d(0) + ∂d θ``, what
-    :func:`jaxbelt.design.response_jacobian` reads at ``θ = 0`` instead of running again (from
-    :func:`make_study` with ``jacobian=True`` or :func:`linearise`). It is a function of the
-    deviations alone, so it serves every metric and every set of limits of the same study
-    (:func:`with_limits`).
-
-    **Fields:** ``d_u_um``, ``d_v_um`` (n_steps, n_tr) the tracer deviations at ``θ = 0``, µm
-    (``d_v_um`` ``None`` in 1D); ``angle_mrad`` (n_steps, n_c) the actuator angles there, mrad
-    (``None`` without a loop); ``d_u_um_per_theta``, ``d_v_um_per_theta``,
-    ``angle_mrad_per_theta`` their derivatives, the same shapes with a trailing axis P, per mm
-    (translations) or mrad (rotations).
-    """
-
-    d_u_um: jax.Array
-    d_v_um: jax.Array | None
-    angle_mrad: jax.Array | None
-    d_u_um_per_theta: jax.Array
-    d_v_um_per_theta: jax.Array | None
-    angle_mrad_per_theta: jax.Array | None
-
-    @property
-    def at_zero(self) -> tuple:
-        """``(d_u, d_v, angle)`` at ``θ = 0`` (µm, µm, mrad), as :func:`run_deviation` returns them."""
-        return self.d_u_um, self.d_v_um, self.angle_mrad
-
-    @property
-    def derivatives(self) -> tuple:
-        """``(∂d_u, ∂d_v, ∂angle)``, each with a trailing axis P."""
-        return self.d_u_um_per_theta, self.d_v_um_per_theta, self.angle_mrad_per_theta
-
-    def deviation(self, theta) -> tuple:
-        """``(d_u, d_v, angle)`` of the linear model at ``theta`` (P,), mm / mrad."""
-        return tuple(None if a is None else a + b @ theta for a, b in zip(self.at_zero, self.derivatives))
-
-
-def _linear_deviation(at_zero, derivatives) -> LinearDeviation:
-    """:class:`LinearDeviation` from ``(d_u, d_v, angle)`` and their derivatives."""
-    return LinearDeviation(*at_zero, *derivatives)
-
-
 def _check_metric(model: BeltModel, metric: str):
     if metric not in METRICS:
         raise ValueError(f"metric = {metric!r}: unknown (one of {', '.join(METRICS)})")
@@ -181,7 +140,7 @@ def make_study(model: BeltModel, metric: str, options: RunOptions, *, t_eval: fl
     reference once. **Returns:** the :class:`Study`; with ``jacobian``, ``(study, linear)``.
 
     With ``jacobian``, also the run's derivatives with respect to every component at the scene's
-    own misalignment (``linear``, a :class:`LinearDeviation`), for the linear response at
+    own misalignment (``linear``, a :class:`~jaxbelt.design.linear_box.LinearDeviation`), for the linear response at
     ``θ = 0``. On an aligned scene that run is the reference itself: one forward-mode program
     gives both (the reference is the primal the tangents ride on), where a study and then its
     Jacobian (:func:`linearise`) would run the reference twice and compile two programs. The study
@@ -208,7 +167,7 @@ def make_study(model: BeltModel, metric: str, options: RunOptions, *, t_eval: fl
         check_finite(ref, frame["dt"])  # a diverging reference is named, as simulate names it
         u, v, angle = ref.tracer_u, ref.tracer_v, ref.control_u
         zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-        linear = _linear_deviation((zero(u), zero(v), _mrad(angle)),
+        linear = linear_deviation((zero(u), zero(v), _mrad(angle)),
                                    (du * M_TO_UM, None if dv is None else dv * M_TO_UM, _mrad(dangle)))
         return Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle)), linear
     _, ref = simulate(aligned(model), frame["solver"], n_steps=frame["n_steps"], dt=frame["dt"])
@@ -289,7 +248,7 @@ def _make_steady_study(model, metric, options, components, jacobian):
         return study, linearise(study)
     row = lambda a, k: None if a is None else a[None] * k  # noqa: E731
     zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-    return study, _linear_deviation((zero(u), zero(v), _mrad(angle)),
+    return study, linear_deviation((zero(u), zero(v), _mrad(angle)),
                                     (row(du, M_TO_UM), row(dv, M_TO_UM), row(dangle, RAD_TO_MRAD)))
 
 
@@ -316,9 +275,9 @@ def _deviation_tangents(study: Study):
 
 
 def linearise(study: Study) -> LinearDeviation:
-    """The study's deviations at ``θ = 0`` and their derivatives (:class:`LinearDeviation`), from
+    """The study's deviations at ``θ = 0`` and their derivatives (:class:`~jaxbelt.design.linear_box.LinearDeviation`), from
     one forward-mode run (implicit tangents of the steady state in steady operation)."""
-    return _linear_deviation(*_deviation_tangents(study))
+    return linear_deviation(*_deviation_tangents(study))
 
 
 def _study_frame(model, metric, t_eval, options, components, window_fraction) -> dict:

@@ -90,7 +90,6 @@ training and validation runs (``validation.validation_runs``) plus those re-runs
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import equinox as eqx
@@ -99,70 +98,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..infra.programs import stored_jit
-from ..infra.results import Result, to_json
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
 from ..rom.pod_step import reduced_operators
 from ..state import initial_state
 from ..timeloop import RunOptions, simulate
 from .metrics import METRICS, M_TO_UM, RAD_TO_MRAD, aggregate, response_from_deviation, saturation
-from .study import LinearDeviation, Study, linearise
+from .linear_box import LinearDeviation
+from .study import Study, linearise
+from .records import SurrogateValidation
 from .sampling import STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, standard_normal_samples
 
 ROUNDOFF_UM = 1e-9
 METHODS = ("response", "pod")
-
-
-@dataclasses.dataclass(frozen=True)
-class SurrogateValidation(Result):
-    """The record of a fitted surrogate (:func:`fit_surrogate`, :attr:`Surrogate.validation`).
-
-    **Fields:** ``method`` the reduced model (``"response"`` | ``"pod"``) and ``description`` in
-    words; ``validation_runs`` the full runs it took (training + validation), ``training_runs``,
-    ``n_validation``; ``seed`` of the validation samples; ``training_widths`` (P,) the training
-    widths ``w``, mm / mrad; ``safety`` the factor on the largest validation error; ``rho_max``
-    the largest ``ρ`` of a validation sample; ``max_true_error_um``, ``median_true_error_um``
-    the metric errors on the validation samples; ``max_bound_um`` the bound there;
-    ``effectivity_min`` / ``effectivity_median`` bound over true error there (``inf`` where no
-    sample has an error); ``loo_effectivity_min`` the leave-one-out check (module docstring);
-    ``metric_range_um`` ``[min, max]`` of the validation samples' full metric; ``training_s``,
-    ``fit_s``, ``validation_s``, ``offline_s`` the wall times of the parts and of the whole.
-    Where they apply (else ``None``, left out of :meth:`to_dict`): ``steps_kept`` the steps the
-    response surface keeps; ``snapshots``, ``n_modes``, ``sv_tol``, ``singular_value_ratio`` of
-    the POD basis; ``max_true_steering_error_mrad`` and ``steering_bound_mrad`` on a steered
-    machine."""
-
-    method: str
-    description: str
-    validation_runs: int
-    training_runs: int
-    n_validation: int
-    seed: int
-    training_widths: tuple
-    safety: float
-    rho_max: float
-    max_true_error_um: float
-    median_true_error_um: float
-    max_bound_um: float
-    effectivity_min: float
-    effectivity_median: float
-    loo_effectivity_min: float
-    metric_range_um: tuple
-    training_s: float
-    fit_s: float
-    validation_s: float
-    offline_s: float
-    steps_kept: int | None = None
-    snapshots: int | None = None
-    n_modes: int | None = None
-    sv_tol: float | None = None
-    singular_value_ratio: float | None = None
-    max_true_steering_error_mrad: float | None = None
-    steering_bound_mrad: float | None = None
-
-    def to_dict(self) -> dict:
-        """The record as JSON-able data, the fields that are ``None`` left out."""
-        return to_json({f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                        if getattr(self, f.name) is not None})
 
 
 class ResponseSurface(eqx.Module):
@@ -471,7 +418,7 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     (normal laws); ``batch`` rows per compiled evaluation; ``method`` the reduced model:
     ``"response"`` (:class:`ResponseSurface`, default) or ``"pod"`` (the fully reduced POD
     step, with ``sv_tol`` / ``max_modes`` its mode rule); ``linear`` a steady study's
-    :class:`~jaxbelt.design.study.LinearDeviation`, its surrogate (computed where not given).
+    :class:`~jaxbelt.design.linear_box.LinearDeviation`, its surrogate (computed where not given).
 
     **Returns:** a :class:`Surrogate`, its ``validation`` a :class:`SurrogateValidation`.
     """

@@ -48,14 +48,14 @@ from ..accuracy import Grid
 from ..infra.results import Result, to_json
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
-from .linear_box import LinearResponse, rss_stackup
+from .linear_box import LinearDeviation, LinearResponse, rss_stackup
 from .metrics import SATURATION_FRACTION, metric_unit
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
                        standard_normal_samples, wilson_interval)
 from .sensitivity import response_jacobian
-from .records import MetricLimit, RollerMisalignment, misalignment_per_roller
-from .study import LinearDeviation, Study, study_on
-from .surrogate import Surrogate, SurrogateValidation, fit_surrogate
+from .records import MetricLimit, RollerMisalignment, SurrogateValidation, misalignment_per_roller
+from .study import Study, study_on
+from .surrogate import Surrogate, fit_surrogate
 
 FLIP_BAND = 0.10  # yield error bar: samples within this fraction of the limit are re-run one grid finer
 MIN_RECHECKED = 2  # ... and at least this many, the nearest (the metric's relative change)
@@ -69,7 +69,7 @@ class ReducedModelUse(Result):
     """Whether a reduced model stood in for the full runs of a sweep (:func:`run_sweep`).
     **Fields:** ``used``; ``reason`` why ``rom="auto"`` was refused (a steered machine's POD
     surrogate), else ``None``; ``validation`` the fitted surrogate's record
-    (:class:`~jaxbelt.design.surrogate.SurrogateValidation`, used or not), ``None`` without one.
+    (:class:`~jaxbelt.design.records.SurrogateValidation`, used or not), ``None`` without one.
 
     :meth:`to_dict` is one flat record: the validation's entries, ``used``, and ``reason`` where
     there is one."""
@@ -336,7 +336,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     ``rom="auto"`` (:func:`~jaxbelt.design.surrogate.fit_surrogate`'s ``method``: ``"response"``
     or ``"pod"``); ``with_form`` also the RSS stack-up, FORM and importance sampling
     (``importance_samples``); ``progress`` a progress bar; ``scene`` the scene's name, part of
-    the store's identity; ``linear`` the study's :class:`~jaxbelt.design.study.LinearDeviation`
+    the store's identity; ``linear`` the study's :class:`~jaxbelt.design.linear_box.LinearDeviation`
     (``make_study(..., jacobian=True)``): FORM, the RSS stack-up and a steady study's surrogate
     read the linear response from it instead of a run.
 

@@ -34,10 +34,10 @@ from ..infra.results import Result, to_json
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..steady import map_configurations
 from ..timeloop import RunOptions
-from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
+from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
 from .metrics import METRICS, aggregate, aligned_values, metric_unit, response_sizes
 from .records import RollerMisalignment, misalignment_per_roller
-from .study import LinearDeviation, Study, limit_values, study_on, with_limits
+from .study import Study, limit_values, study_on, with_limits
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -226,7 +226,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     ``vmap`` of :func:`jaxbelt.design.study.metric_value`; with ``limits``, each limit's value
     (m, n_limits)); ``limits`` further limits held at the same time, ``{metric: limit}`` in each
     metric's unit (max-type metrics; the study's metric must be one too); ``linear`` the study's
-    :class:`~jaxbelt.design.study.LinearDeviation` (``make_study(..., jacobian=True)``), the
+    :class:`~jaxbelt.design.linear_box.LinearDeviation` (``make_study(..., jacobian=True)``), the
     linear response read from it instead of a run.
 
     **Returns:** a :class:`ToleranceBox`.

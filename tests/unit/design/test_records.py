@@ -9,8 +9,7 @@ import numpy as np
 from jaxbelt.accuracy import Grid
 from jaxbelt.design import (ComponentGradient, MetricLimit, ReducedModelUse, RollerMisalignment, SensitivityReport,
                             StructuralZero, SweepResult, ToleranceBox, VerificationRun)
-from jaxbelt.design.records import misalignment_per_roller, sensitivity_per_roller
-from jaxbelt.design.surrogate import SurrogateValidation
+from jaxbelt.design.records import SurrogateValidation, misalignment_per_roller, sensitivity_per_roller
 from jaxbelt.design.tolerance import BoxDiscretisation, LimitCheck
 from jaxbelt.misalignment import ParameterSpace
 
