@@ -279,6 +279,21 @@ def _residual(solver, dt, n, sc, template, walking: bool):
     return fn_walk
 
 
+def _tangent_solver(pre, tangent_rtol, restart, cycles):
+    """The implicit function theorem's linear solve ``(∂F/∂y) dy = b`` (``tangent_solve(g, b)``, ``g``
+    the linearised residual): GMRES (:func:`jaxbelt.linalg.newton.krylov_solve`) preconditioned by
+    ``pre``, its transposed solve of reverse mode by the same GMRES on the transposed linearisation
+    (:func:`jax.lax.custom_linear_solve`). A tangent GMRES could not find is NaN, never a silent number."""
+
+    def tangent_solve(g, b):
+        def gm(mv, r, transpose=False):
+            x, missed = krylov_solve(mv, r, tangent_rtol, restart, cycles, _preconditioned(pre, r, transpose))
+            return jax.tree.map(lambda a: jnp.where(missed, jnp.nan, a), x)
+        return lax.custom_linear_solve(g, b, solve=gm, transpose_solve=lambda mv, r: gm(mv, r, True))
+
+    return tangent_solve
+
+
 class _Solution(eqx.Module):
     value: object  # the root, scaled unknowns
     residual: jax.Array  # max |F| at the root, µm
@@ -308,11 +323,7 @@ def _solve(fn, y0, model, solver, template, dt, n, tol, max_steps, restart, gmre
         # aux as floats: custom_root gives its aux float tangents, which integer outputs cannot take
         return y, (residual, steps.astype(residual.dtype), its.astype(residual.dtype), ok.astype(residual.dtype))
 
-    def tangent_solve(g, b):
-        def gm(mv, r, transpose=False):  # a tangent GMRES could not find is NaN, never a silent number
-            x, missed = krylov_solve(mv, r, tangent_rtol, restart, gmres_steps, _preconditioned(pre, r, transpose))
-            return jax.tree.map(lambda a: jnp.where(missed, jnp.nan, a), x)
-        return lax.custom_linear_solve(g, b, solve=gm, transpose_solve=lambda mv, r: gm(mv, r, True))
+    tangent_solve = _tangent_solver(pre, tangent_rtol, restart, gmres_steps)
 
     value, (residual, steps, its, ok) = lax.custom_root(f, y0, newton_solve, tangent_solve, has_aux=True)
     return _Solution(value, lax.stop_gradient(residual), lax.stop_gradient(steps).astype(jnp.int32),
@@ -404,6 +415,82 @@ def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, d
     solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
     return _walk(model, solver, dt, n, template, sc, tol, max_newton, restart, krylov_cycles, tangent_rtol,
                  precondition)
+
+
+def steady_states(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, chis, y0s=None,
+                  period_steps: int | None = None, **options) -> SteadyState:
+    """:func:`steady_state` of ``model`` at each row of ``chis`` (m, q) (its ``chi_static``), each
+    solve started at its row of ``y0s`` (a :class:`~jaxbelt.BeltState` with a leading axis m;
+    ``None``: the static equilibrium): one :class:`SteadyState` with a leading axis m. ``options``
+    as :func:`steady_state`'s.
+
+    On a CPU, called with arrays (not under a trace), each row is one call of the single solve's
+    compiled program: whichever batch or caller asks, the Newton–GMRES program of a model's shapes
+    is compiled once (a batch inside another compiled program would be a second copy of it, and
+    its compilation costs as much as the first), and a CPU runs a batch's solves one after
+    another anyway (:func:`map_configurations`). Elsewhere, or under a trace, the rows are one
+    :func:`map_configurations` batch."""
+    n = period_steps
+
+    def one(chi, y0):
+        return steady_state(model.replace(chi_static=chi), solver, dt=dt, y0=y0, period_steps=n, **options)
+
+    traced = any(isinstance(a, jax.core.Tracer) for a in jax.tree.leaves((chis, y0s, model)))
+    if traced or jax.default_backend() != "cpu":
+        return map_configurations(lambda a: one(*a), (chis, y0s))
+    chis = np.asarray(chis)
+    y0s = None if y0s is None else jax.tree.map(np.asarray, y0s)
+    rows = [one(chi, None if y0s is None else jax.tree.map(lambda a: a[i], y0s)) for i, chi in enumerate(chis)]
+    return jax.tree.map(lambda *a: np.stack([np.asarray(x) for x in a]), *rows)
+
+
+def steady_tangents(configure, theta, s: SteadyState, solver: AbstractIntegrator | None = None, *, dt,
+                    outputs=None, tangent_rtol: float = ADJOINT_KRYLOV_RTOL, restart: int = DEFAULT_GMRES_RESTART,
+                    krylov_cycles: int = DEFAULT_GMRES_CYCLES, precondition: bool = True):
+    """The derivatives at ``theta`` (P,) of a steady state with respect to the parameters of
+    ``configure(theta) -> BeltModel``, given that steady state ``s`` (:func:`steady_state` of
+    ``configure(theta)``, or :func:`steady_walk`'s where that model walks): ``jax.jacfwd`` of
+    ``outputs(steady_state(configure(θ)))`` at ``theta``, by the implicit function theorem
+    directly — per component one tangent solve ``(∂F/∂x) dx = −(∂F/∂θ) e_i`` at the known
+    solution (the same solve as :func:`steady_state`'s derivatives), no Newton iteration. A
+    program that holds this and not the nonlinear solve is a fraction of one that differentiates
+    through :func:`steady_state`.
+
+    ``outputs(model, state, walk_rate) -> pytree`` (default: the tracers' displacements
+    ``(tracer_u, tracer_v)``, the actuators' angles, :func:`state_fields` and the walk rate, m/s);
+    each output's derivative gets a trailing axis P. Pure, jit-able."""
+    model0 = configure(theta)
+    walking = model0.kind == "2d" and model0.control is None and _walks(model0)
+    solver, n, dt, template, sc = _setup(model0, solver, dt, s.state, s.period_steps)
+    outputs = _default_outputs if outputs is None else outputs
+    fn = _residual(solver, dt, n, sc, template, walking=walking)
+    y = _pack(s.state, sc)
+    y = lax.stop_gradient((y, s.walk_rate * (UNIT * n * dt)) if walking else y)
+
+    def F(y, th):
+        q = quiet(configure(th))
+        return fn(y, (q, lax.stop_gradient(solver.init(q, template, dt))))
+
+    def state_out(y, th):
+        v, c = y if walking else (y, jnp.zeros((), dt.dtype))
+        return outputs(configure(th), _unpack(v, template, sc), c / (UNIT * n * dt))
+
+    pre = mass_transport_preconditioner(quiet(model0), dt, n) if precondition else None
+    _, lin_y = jax.linearize(lambda v: F(v, theta), y)
+    _, lin_theta = jax.linearize(lambda th: F(y, th), theta)
+    tangent_solve = _tangent_solver(pre, tangent_rtol, restart, krylov_cycles)
+
+    def column(e):
+        dy = tangent_solve(lin_y, jax.tree.map(jnp.negative, lin_theta(e)))
+        return jax.jvp(state_out, (y, theta), (dy, e))[1]
+
+    columns = map_configurations(column, jnp.eye(theta.size, dtype=theta.dtype))
+    return jax.tree.map(lambda a: jnp.moveaxis(a, 0, -1), columns)
+
+
+def _default_outputs(model: BeltModel, state: BeltState, walk_rate):
+    tu, tv = tracer_values(model, state.u)
+    return tu, tv, None if model.control is None else state.control.angle, state_fields(state), walk_rate
 
 
 def map_configurations(fn, xs):

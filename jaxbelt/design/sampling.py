@@ -33,15 +33,15 @@ from jax.scipy.stats import norm
 
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
 from ..infra.programs import stored_jit
-from ..steady import map_configurations
 from .linear_box import LinearDeviation
-from .study import Study, evaluate, metric_value
+from .configurations import at_configurations
+from .study import Study, evaluate, evaluate_deviation, metric_value
 from .sensitivity import response_jacobian
 from ..infra.results import Result
 from ..infra.sharding import batched_map
 
 DISTRIBUTIONS = ("normal", "uniform")
-STEADY_CHUNK = 4  # steady solves per compiled block (they run in sequence: a block only bounds the padding)
+STEADY_CHUNK = 4  # steady solves per block (they run in sequence: a block only bounds the padding)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,17 +145,32 @@ def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=No
 def _map(study, thetas, chunk, progress=None):
     """:func:`~jaxbelt.infra.sharding.batched_map` with the rows padded to a whole number of
     chunks, so that every call with the same ``chunk`` reuses one compilation. Steady solves run
-    one after another (:func:`jaxbelt.steady.map_configurations`), where a padded row costs a whole
-    solve: their chunk is at most :data:`STEADY_CHUNK`."""
+    one after another, one compiled solve per row (:func:`_steady_chunks`), where a padded row
+    costs a whole solve: their chunk is at most :data:`STEADY_CHUNK`."""
     thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
     if study.steady:
         chunk = min(chunk or STEADY_CHUNK, STEADY_CHUNK)
     n = thetas.shape[0]
     if chunk is not None and n % chunk:
         thetas = np.concatenate([thetas, np.repeat(thetas[-1:], chunk - n % chunk, axis=0)])
-    out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=study,
-                      batch=map_configurations if study.steady else None)
+    if study.steady:
+        out = _steady_chunks(study, thetas, chunk or len(thetas), progress)
+    else:
+        out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=study)
     return jax.tree.map(lambda a: a[:n], out)
+
+
+def _steady_chunks(study, thetas, chunk, progress=None):
+    """A steady study's :func:`jaxbelt.design.study.evaluate` at the rows of ``thetas``, ``chunk``
+    rows at a time (:func:`jaxbelt.design.configurations.at_configurations`: one compiled solve
+    per row), ``progress(done, chunk_result)`` after each chunk."""
+    parts = []
+    for start in range(0, len(thetas), chunk):
+        part = jax.tree.map(np.asarray, at_configurations(study, thetas[start:start + chunk], evaluate_deviation))
+        parts.append(part)
+        if progress is not None:
+            progress(start + len(thetas[start:start + chunk]), part)
+    return jax.tree.map(lambda *a: np.concatenate(a), *parts)
 
 
 def passes(metric, limit_um: float, saturated=None) -> np.ndarray:

@@ -9,6 +9,8 @@ same question on another grid of the scene). The linear response of the runs at 
 
 from __future__ import annotations
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -20,7 +22,7 @@ from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
-                      map_configurations, period_steps, state_fields, steady_state)
+                      period_steps, steady_states, steady_tangents, steady_state)
 from ..timeloop import RunOptions, check_finite, simulate
 from .linear_box import LinearDeviation, linear_deviation
 from .metrics import (CLOSED_LOOP_WINDOW, METRICS, M_TO_UM, OPEN_LOOP_WINDOW, RAD_TO_MRAD, limit_values_from_deviation,
@@ -182,38 +184,25 @@ def _steady_rows(s):
     return row(s.tracer_u), row(s.tracer_v), row(s.angle)
 
 
+def _steady_rows_batch(s):
+    """:func:`_steady_rows` of a batch of steady states (leading axis m)."""
+    row = lambda a: None if a is None else a[:, None]  # noqa: E731
+    return row(s.tracer_u), row(s.tracer_v), row(s.angle)
+
+
 DESIGN_TANGENT_RTOL = 1e-6  # GMRES's relative residual of a steady study's tangents (a linear model
 # that nonlinear solves verify: its columns are then right to 1e-4 of their size, against 1e-8's)
 
 
 @stored_jit
-def _steady_reference_and_tangents(model, space, solver, dt, n_p):
-    """The steady state of ``model`` and the derivatives of its tracers and actuator angles, and of
-    the state itself (:func:`jaxbelt.steady.state_fields`), with respect to ``θ`` at ``θ = 0``
-    (implicit function theorem, one tangent solve per component)."""
-
-    def solve(theta):
-        s = steady_state(apply(model, space, theta), solver, dt=dt, period_steps=n_p,
-                         tangent_rtol=DESIGN_TANGENT_RTOL)
-        return (s.tracer_u, s.tracer_v, s.angle, state_fields(s.state)), s
-
-    J, ref = forward_jacobian(solve, jnp.zeros(space.size, model.chi_static.dtype), has_aux=True)
-    return ref, J[:3], J[3]
-
-
-@stored_jit
-def _steady_batch(model, space, solver, dt, n_p, chis, y0s):
-    """Steady states of ``model`` at each row of ``chis`` (m, q), as one batch
-    (:func:`jaxbelt.steady.map_configurations`), each solve started at its row of ``y0s`` (a
-    :class:`~jaxbelt.BeltState` with a leading axis m; ``None``: the static equilibrium):
-    ``((tracer rows and angles, converged (m,)), the SteadyStates)``."""
-
-    def one(args):
-        chi, y0 = args
-        s = steady_state(model.replace(chi_static=chi), solver, dt=dt, period_steps=n_p, y0=y0)
-        return (_steady_rows(s), s.converged), s
-
-    return map_configurations(one, (chis, y0s))
+def _steady_tangents(model, space, solver, dt, s):
+    """The derivatives of the steady state ``s`` of ``model`` (misalignment zero on the varied
+    components) — its tracers and actuator angles, and the state itself
+    (:func:`jaxbelt.steady.state_fields`) — with respect to ``θ`` at ``θ = 0``: one tangent solve
+    per component at the known solution (:func:`jaxbelt.steady.steady_tangents`)."""
+    J = steady_tangents(functools.partial(apply, model, space), jnp.zeros(space.size, model.chi_static.dtype), s,
+                        solver, dt=dt, tangent_rtol=DESIGN_TANGENT_RTOL)
+    return J[:3], J[3]
 
 
 def _steady_frame(model, metric, options, components) -> dict:
@@ -230,14 +219,12 @@ def _make_steady_study(model, metric, options, components, jacobian):
     if model.kind == "2d" and model.control is None and model.lateral_transport:
         raise ValueError("steady operation: this machine walks (lateral transport without a steering loop); "
                          "judge a time-stepped window instead (t_eval)")
-    args = (frame["space"], frame["solver"], frame["dt"], frame["period_steps"])
     base_is_zero = not np.any(np.asarray(frame["base"]))
-    if jacobian and base_is_zero:
-        s, (du, dv, dangle), tangents = _steady_reference_and_tangents(model, *args)
-    else:
-        tangents = None
-        s = steady_state(aligned(model), frame["solver"], dt=frame["dt"], period_steps=frame["period_steps"])
+    s = steady_state(aligned(model), frame["solver"], dt=frame["dt"], period_steps=frame["period_steps"])
     check_steady(s, model)
+    tangents = None
+    if jacobian and base_is_zero:
+        (du, dv, dangle), tangents = _steady_tangents(model, frame["space"], frame["solver"], frame["dt"], s)
     jitter = None if model.control is None else actuator_jitter(aligned(model), frame["solver"], frame["dt"], s)
     u, v, angle = _steady_rows(s)
     study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,
@@ -318,7 +305,7 @@ def make_study_at(model: BeltModel, metric: str, thetas, options: RunOptions, *,
     :func:`with_limits` (then the study is the one with the limits). **Returns:** ``(study,
     values)``: ``values`` (m,) the metric, or with ``limits`` (m, n_limits) each limit's value in
     its own unit (:func:`limit_values`). With ``steady``, the study of steady operation, its m + 1
-    steady solves one batch (:func:`jaxbelt.steady.map_configurations`), each from its row of
+    steady solves one batch (:func:`jaxbelt.steady.steady_states`), each from its row of
     ``starts`` (the aligned machine first; a :class:`~jaxbelt.BeltState` with a leading axis m + 1,
     e.g. another grid's steady states carried over by :func:`study_on`; default the static
     equilibrium); ``jitter_mrad`` its actuator jitter (default: measured here)."""
@@ -327,8 +314,9 @@ def make_study_at(model: BeltModel, metric: str, thetas, options: RunOptions, *,
         thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
         chis = jnp.concatenate([jnp.zeros_like(model.chi_static)[None],
                                 jax.vmap(lambda t: apply(model, frame["space"], t).chi_static)(thetas)])
-        ((u, v, angle), converged), first = _steady_batch(model, frame["space"], frame["solver"], frame["dt"],
-                                                          frame["period_steps"], chis, starts)
+        first = steady_states(model, frame["solver"], dt=frame["dt"], chis=chis, y0s=starts,
+                              period_steps=frame["period_steps"])
+        (u, v, angle), converged = _steady_rows_batch(first), first.converged
         if not np.all(np.asarray(converged)):
             raise NoSteadyStateError(f"no steady operation at {int(np.sum(~np.asarray(converged)))} of "
                                      f"{len(chis)} configurations: the fixed-point iteration did not converge")
@@ -428,16 +416,30 @@ def run_deviation(study: Study, theta):
     (n_steps, n_tr) µm (``d_v`` ``None`` in 1D), and the steering actuators' angles (n_steps,
     n_c), mrad (``None`` without a loop)."""
     if study.steady:
-        y0 = study.steady_start if study.steady_tangents is None else \
-            linear_start(study.steady_start, study.steady_tangents, theta)
         s = steady_state(study.configured(theta), study.solver, dt=study.dt, period_steps=study.period_steps,
-                         y0=y0)
-        u, v, angle = _steady_rows(s)
-        bad = jnp.where(s.converged, 0.0, jnp.nan)  # an unconverged solve is NaN, never a number
-        u = u + bad
-    else:
-        _, tr = simulate(study.configured(theta), study.solver, n_steps=study.n_steps, dt=study.dt)
-        u, v, angle = tr.tracer_u, tr.tracer_v, tr.control_u
+                         y0=steady_start(study, theta))
+        return steady_deviation(study, s)
+    _, tr = simulate(study.configured(theta), study.solver, n_steps=study.n_steps, dt=study.dt)
+    return _deviation(study, tr.tracer_u, tr.tracer_v, tr.control_u)
+
+
+def steady_start(study: Study, theta):
+    """Where a steady study's solve at ``theta`` starts: the aligned steady state, moved along its
+    derivatives where the study has them (:func:`jaxbelt.steady.linear_start`)."""
+    if study.steady_tangents is None:
+        return study.steady_start
+    return linear_start(study.steady_start, study.steady_tangents, theta)
+
+
+def steady_deviation(study: Study, s):
+    """:func:`run_deviation` of a steady study from the steady state ``s`` at a configuration (its
+    solve done elsewhere, e.g. :func:`jaxbelt.steady.steady_states`); an unconverged solve is
+    NaN, never a number."""
+    u, v, angle = _steady_rows(s)
+    return _deviation(study, u + jnp.where(s.converged, 0.0, jnp.nan), v, angle)
+
+
+def _deviation(study: Study, u, v, angle):
     du = (u - study.ref_u) * M_TO_UM
     dv = None if v is None else (v - study.ref_v) * M_TO_UM
     return du, dv, _mrad(angle)
@@ -472,7 +474,11 @@ def evaluate(study: Study, theta):
     at ``t_eval``, ``longitudinal_um`` and (2D) ``lateral_um`` (n_tr,); on a steered machine also
     ``steering_mrad`` () the largest actuator angle in the window and ``saturated`` () whether
     the actuator reached its range limit there (:func:`saturation`)."""
-    du, dv, angle = run_deviation(study, theta)
+    return evaluate_deviation(study, *run_deviation(study, theta))
+
+
+def evaluate_deviation(study: Study, du, dv, angle):
+    """:func:`evaluate` from a configuration's deviations (:func:`run_deviation`)."""
     out = {"metric": aggregate(study.aggregate, response_from_deviation(study, du, dv, angle)),
            "longitudinal_um": du[-1]}
     if dv is not None:

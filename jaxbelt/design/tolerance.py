@@ -24,20 +24,18 @@ from __future__ import annotations
 
 import dataclasses
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..accuracy import Grid
-from ..infra.programs import stored_jit
 from ..infra.results import Result, to_json
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
-from ..steady import map_configurations
 from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
-from .metrics import METRICS, aggregate, aligned_values, metric_unit, response_sizes
+from .metrics import METRICS, aggregate, aligned_values, limit_values_from_deviation, metric_unit, response_sizes
 from .records import RollerMisalignment, misalignment_per_roller
-from .study import Study, limit_values, study_on, with_limits
+from .configurations import at_configurations
+from .study import Study, study_on, with_limits
 from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
@@ -193,10 +191,9 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
     return h, worst, table, len(history), signs * h
 
 
-@stored_jit
 def _limit_values_batch(study: Study, thetas):
-    one = lambda t: limit_values(study, t)  # noqa: E731
-    return map_configurations(one, thetas) if study.steady else jax.vmap(one)(thetas)
+    """Every limited metric (:func:`~jaxbelt.design.study.limit_values`) at each row of ``thetas``."""
+    return at_configurations(study, thetas, limit_values_from_deviation)
 
 
 def _per_limit(lin, h, names, sizes, limit_um, table):

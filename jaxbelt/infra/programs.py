@@ -157,6 +157,18 @@ def _save(path: Path, exported, skeleton):
     os.replace(tmp, path)  # atomic: a concurrent process reads the old file or the new one
 
 
+def _committed(leaves):
+    """The arguments all placed on one device, where they are not spread over several: jit keys a
+    call on its arguments' placement, so a call whose arguments are NumPy arrays or fresh
+    (uncommitted) arrays and one with the results of earlier computations (committed to their
+    device) would otherwise be two signatures of the same program, compiled twice."""
+    devices = {d for x in leaves if isinstance(x, jax.Array) and getattr(x, "committed", False)
+               for d in x.devices()}
+    if len(devices) > 1:
+        return leaves
+    return jax.device_put(leaves, devices.pop() if devices else jax.devices()[0])
+
+
 def stored_jit(fn):
     """:func:`equinox.filter_jit` of ``fn`` whose traced programs are kept in the program store
     when it is on (module docstring)."""
@@ -186,7 +198,7 @@ def stored_jit(fn):
             _save(path, exported, box[0])
         _LOADED[key] = hit
         executable, skeleton = hit
-        return _fill(skeleton, executable(leaves))
+        return _fill(skeleton, executable(_committed(leaves)))
 
     call.jitted = jitted
     call.lower = jitted.lower

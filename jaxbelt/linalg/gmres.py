@@ -16,6 +16,9 @@ blocks filled so far: its cost grows with the iteration count, not with the rest
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import jax
 import jax.numpy as jnp
 from jax import lax
 from jax.scipy.linalg import solve_triangular
@@ -31,14 +34,15 @@ def _givens(a, b):
 BLOCK = 16  # Krylov vectors per block of the basis (the orthogonalisation skips the blocks not yet filled)
 
 
-def _project(V, w, k):
-    """``(Vᵀw restricted to the blocks holding vectors 0..k, w − V h)``: classical Gram–Schmidt
-    against the basis ``V`` (blocks, BLOCK, n) over its first ``k // BLOCK + 1`` blocks only, so an
-    iteration costs in proportion to the vectors it has, not to the restart length."""
-    used = k // BLOCK + 1
+def _project(V, w, k, used):
+    """``(Vᵀw, w − V h)`` against the basis vectors ``0..k`` of ``V`` (blocks, BLOCK, n): classical
+    Gram–Schmidt over the blocks filled so far only (``used`` of them; 0: nothing projected), so an
+    iteration costs in proportion to the vectors it has, not to the restart length. The slots
+    beyond ``k`` of the last block may hold an earlier cycle's vectors: their coefficients are zero."""
+    filled = jnp.arange(V.shape[0] * V.shape[1]).reshape(V.shape[:2]) <= k
 
     def dots(j, h):
-        return h.at[j].set(V[j] @ w)
+        return h.at[j].set(jnp.where(filled[j], V[j] @ w, 0.0))
 
     h = lax.fori_loop(0, used, dots, jnp.zeros(V.shape[:2], w.dtype))
 
@@ -48,53 +52,19 @@ def _project(V, w, k):
     return h, lax.fori_loop(0, used, subtract, w)
 
 
-def _cycle(matvec, precondition, x, b, tol_abs, restart: int):
-    """One GMRES(``restart``) cycle from ``x`` on ``A M⁻¹`` (right preconditioning: the residual
-    GMRES minimises is the true one): ``(x_new, iterations)``."""
-    n = b.shape[0]
-    dtype = b.dtype
-    r = b - matvec(x)
-    beta = jnp.linalg.norm(r)
-    blocks = (restart + 1 + BLOCK - 1) // BLOCK
-    V = jnp.zeros((blocks, BLOCK, n), dtype).at[0, 0].set(r / jnp.where(beta == 0, 1.0, beta))
-    R = jnp.zeros((restart + 1, restart), dtype)
-    cs = jnp.zeros((restart,), dtype)
-    sn = jnp.zeros((restart,), dtype)
-    g = jnp.zeros((restart + 1,), dtype).at[0].set(beta)
-
-    def cond(carry):
-        k, _, _, _, _, g, done = carry
-        return (k < restart) & (jnp.abs(g[k]) > tol_abs) & ~done
-
-    def body(carry):
-        k, V, R, cs, sn, g, _ = carry
-        w = matvec(precondition(V[k // BLOCK, k % BLOCK]))
-        h, w = _project(V, w, k)  # rows beyond k are zero
-        h2, w = _project(V, w, k)  # the second pass restores the orthogonality the first lost to rounding
-        h = (h + h2).reshape(-1)[: restart + 1]
-        hn = jnp.linalg.norm(w)
-        breakdown = hn <= 1e-14 * jnp.linalg.norm(h)  # the Krylov space is invariant: the solution lies in it
-        V = V.at[(k + 1) // BLOCK, (k + 1) % BLOCK].set(jnp.where(breakdown, 0.0, w / jnp.where(hn == 0, 1.0, hn)))
-        h = h.at[k + 1].set(hn)
-
-        def rotate(j, h):
-            hj, hj1 = h[j], h[j + 1]
-            return h.at[j].set(cs[j] * hj + sn[j] * hj1).at[j + 1].set(-sn[j] * hj + cs[j] * hj1)
-
-        h = lax.fori_loop(0, k, rotate, h)
-        c, s = _givens(h[k], h[k + 1])
-        h = h.at[k].set(c * h[k] + s * h[k + 1]).at[k + 1].set(0.0)
-        gk = g[k]
-        g = g.at[k].set(c * gk).at[k + 1].set(-s * gk)
-        R = R.at[:, k].set(h)
-        return k + 1, V, R, cs.at[k].set(c), sn.at[k].set(s), g, breakdown
-
-    k, V, R, _, _, g, _ = lax.while_loop(cond, body, (jnp.zeros((), jnp.int32), V, R, cs, sn, g, beta == 0))
-    idx = jnp.arange(restart)
-    used = idx < k
-    Rk = jnp.where(used[:, None] & used[None, :], R[:restart], jnp.eye(restart, dtype=dtype))
-    y = solve_triangular(Rk, jnp.where(used, g[:restart], 0.0), lower=False)
-    return x + precondition(y @ V.reshape(-1, n)[:restart]), k
+class _Carry(NamedTuple):
+    x: jax.Array  # the iterate
+    V: jax.Array  # the Krylov basis, (blocks, BLOCK, n)
+    R: jax.Array  # the Hessenberg matrix reduced to triangular by the rotations, (restart + 1, restart)
+    cs: jax.Array  # the Givens rotations so far
+    sn: jax.Array
+    g: jax.Array  # the rotated right-hand side: |g[k]| is the residual norm after k iterations
+    k: jax.Array  # Arnoldi iterations in this cycle
+    restarting: jax.Array  # the next product is the true residual's (a cycle starts or the solve ends)
+    cycles: jax.Array
+    iterations: jax.Array
+    residual: jax.Array  # the last true residual norm
+    done: jax.Array
 
 
 def gmres(matvec, b, *, rtol: float, restart: int = 64, max_cycles: int = 10, x0=None, precondition=None):
@@ -102,21 +72,72 @@ def gmres(matvec, b, *, rtol: float, restart: int = 64, max_cycles: int = 10, x0
     iterations)``. ``restart`` Krylov vectors per cycle, at most ``max_cycles`` cycles; each cycle
     starts from the true residual, so the reported residual is the true one (not the Givens
     estimate). ``precondition`` ``z ↦ M⁻¹ z``, applied on the right (GMRES on ``A M⁻¹``, ``x = M⁻¹ z``).
-    A zero ``b`` gives ``x = 0``. jit- and vmap-able."""
+    A zero ``b`` gives ``x = 0``. jit- and vmap-able.
+
+    The whole solve is one loop that applies ``matvec`` once per pass — to the next Arnoldi vector,
+    or to the iterate when a cycle starts (its true residual) — so the operator appears once in the
+    compiled program: when it is a linearised time-step map, the program's size, and XLA's
+    compilation time, is that of one copy of it."""
     precondition = (lambda v: v) if precondition is None else precondition
-    x = jnp.zeros_like(b) if x0 is None else x0
+    n = b.shape[0]
+    dtype = b.dtype
+    blocks = (restart + 1 + BLOCK - 1) // BLOCK
     bnorm = jnp.linalg.norm(b)
     tol_abs = rtol * bnorm
+    zero = jnp.zeros((), jnp.int32)
 
-    def cond(carry):
-        _, res, cycles, _ = carry
-        return (res > tol_abs) & (cycles < max_cycles)
+    def body(c: _Carry) -> _Carry:
+        k, rs = c.k, c.restarting
+        w = matvec(jnp.where(rs, c.x, precondition(c.V[k // BLOCK, k % BLOCK])))
+        # a cycle's start: the true residual, which ends the solve or becomes the first basis vector
+        r = b - w
+        beta = jnp.linalg.norm(r)
+        finished = rs & ((beta <= tol_abs) | (c.cycles >= max_cycles))
+        # an Arnoldi iteration: the second Gram–Schmidt pass restores the orthogonality the first lost
+        used = jnp.where(rs, 0, k // BLOCK + 1)
+        h, w = _project(c.V, w, k, used)  # rows beyond k are zero
+        h2, w = _project(c.V, w, k, used)
+        h = (h + h2).reshape(-1)[: restart + 1]
+        hn = jnp.linalg.norm(w)
+        breakdown = ~rs & (hn <= 1e-14 * jnp.linalg.norm(h))  # an invariant Krylov space holds the solution
+        v_new = jnp.where(rs, r / jnp.where(beta == 0, 1.0, beta),
+                          jnp.where(breakdown, 0.0, w / jnp.where(hn == 0, 1.0, hn)))
+        slot = jnp.where(rs, 0, k + 1)
+        V = c.V.at[slot // BLOCK, slot % BLOCK].set(v_new)
+        h = h.at[k + 1].set(hn)
 
-    def body(carry):
-        x, _, cycles, its = carry
-        x, k = _cycle(matvec, precondition, x, b, tol_abs, restart)
-        return x, jnp.linalg.norm(b - matvec(x)), cycles + 1, its + k
+        def rotate(j, h):
+            hj, hj1 = h[j], h[j + 1]
+            return h.at[j].set(c.cs[j] * hj + c.sn[j] * hj1).at[j + 1].set(-c.sn[j] * hj + c.cs[j] * hj1)
 
-    res0 = jnp.linalg.norm(b - matvec(x)) if x0 is not None else bnorm
-    x, res, _, its = lax.while_loop(cond, body, (x, res0, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32)))
-    return x, res / jnp.where(bnorm == 0, 1.0, bnorm), its
+        h = lax.fori_loop(0, jnp.where(rs, 0, k), rotate, h)
+        cg, sg = _givens(h[k], h[k + 1])
+        h = h.at[k].set(cg * h[k] + sg * h[k + 1]).at[k + 1].set(0.0)
+        gk = c.g[k]
+        g_arnoldi = c.g.at[k].set(cg * gk).at[k + 1].set(-sg * gk)
+        g = jnp.where(rs, jnp.zeros_like(c.g).at[0].set(beta), g_arnoldi)
+        kc = jnp.minimum(k, restart - 1)  # (a restart pass writes nothing: k is then 0 and the column is rewritten)
+        R = jnp.where(rs, c.R, c.R.at[:, kc].set(h))
+        cs = jnp.where(rs, c.cs, c.cs.at[kc].set(cg))
+        sn = jnp.where(rs, c.sn, c.sn.at[kc].set(sg))
+        k_next = jnp.where(rs, 0, k + 1)
+        cycle_end = ~rs & ((k_next == restart) | (jnp.abs(g[k_next]) <= tol_abs) | breakdown)
+
+        def update(x):  # the cycle's correction: the least-squares solution in its Krylov space
+            idx = jnp.arange(restart)
+            filled = idx < k_next
+            Rk = jnp.where(filled[:, None] & filled[None, :], R[:restart], jnp.eye(restart, dtype=dtype))
+            y = solve_triangular(Rk, jnp.where(filled, g[:restart], 0.0), lower=False)
+            return x + precondition(y @ V.reshape(-1, n)[:restart])
+
+        x = lax.cond(cycle_end, update, lambda x: x, c.x)
+        return _Carry(x, V, R, cs, sn, g, k_next, ~rs & cycle_end,
+                      c.cycles + (rs & ~finished), c.iterations + (~rs).astype(jnp.int32),
+                      jnp.where(rs, beta, c.residual), finished)
+
+    x = jnp.zeros_like(b) if x0 is None else x0
+    init = _Carry(x, jnp.zeros((blocks, BLOCK, n), dtype), jnp.zeros((restart + 1, restart), dtype),
+                  jnp.zeros((restart,), dtype), jnp.zeros((restart,), dtype), jnp.zeros((restart + 1,), dtype),
+                  zero, jnp.ones((), bool), zero, zero, bnorm, jnp.zeros((), bool))
+    out = lax.while_loop(lambda c: ~c.done, body, init)
+    return out.x, out.residual / jnp.where(bnorm == 0, 1.0, bnorm), out.iterations

@@ -56,18 +56,19 @@ def newton_krylov(f, y0, tol, max_steps: int, restart: int = DEFAULT_GMRES_RESTA
     F = lambda yf: jax.flatten_util.ravel_pytree(f(unravel(yf)))[0]  # noqa: E731
     rms = lambda v: jnp.sqrt(jnp.mean(v * v))  # noqa: E731
 
-    def cond(carry):
-        _, Fy, k, _ = carry
-        return (rms(Fy) > tol) & (k < max_steps) & jnp.all(jnp.isfinite(Fy))
-
     def body(carry):
-        y, Fy, k, its = carry
-        _, lin = jax.linearize(F, y)
+        # one linearisation per pass, its primal the residual that decides whether to step: the map
+        # appears once in the compiled program (and once more, linearised, inside GMRES)
+        y, _, k, its, _ = carry
+        Fy, lin = jax.linearize(F, y)
+        stop = ~(rms(Fy) > tol) | (k >= max_steps) | ~jnp.all(jnp.isfinite(Fy))
         rtol = jnp.clip(FORCING_SAFETY * tol / rms(Fy), NEWTON_KRYLOV_RTOL, 0.1)
-        dy, _, n_its = gmres(lin, -Fy, rtol=rtol, restart=restart, max_cycles=cycles, precondition=precondition)
-        y = y + dy
-        return y, F(y), k + 1, its + n_its
+        # a stopped pass solves for a zero right-hand side: GMRES returns at once
+        dy, _, n_its = gmres(lin, jnp.where(stop, 0.0, -Fy), rtol=rtol, restart=restart, max_cycles=cycles,
+                             precondition=precondition)
+        return jnp.where(stop, y, y + dy), Fy, k + (~stop).astype(k.dtype), its + n_its, stop
 
     zero = jnp.zeros((), jnp.int32)
-    y, Fy, k, its = lax.while_loop(cond, body, (y0f, F(y0f), zero, zero))
+    start = (y0f, jnp.zeros_like(y0f), zero, zero, jnp.zeros((), bool))
+    y, Fy, k, its, _ = lax.while_loop(lambda c: ~c[4], body, start)
     return unravel(y), rms(Fy), jnp.max(jnp.abs(Fy)), k, its

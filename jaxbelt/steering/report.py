@@ -44,7 +44,7 @@ from ..control import samples_per_update
 from ..infra.programs import stored_jit
 from ..infra.results import Result
 from ..misalignment import parameter_space
-from ..steady import forward_jacobian, steady_walk
+from ..steady import steady_tangents, steady_walk
 from ..timeloop import RunOptions, belt_speed, simulate
 from .plant import SteeringPlant, identify_plant
 from .response import DiscreteLoop, actuator_step
@@ -173,18 +173,17 @@ def _period_of(w):
 
 
 @stored_jit
+def _steady_walk_tangents(model, solver, dt, idx, s):
+    """The derivatives of the steady walk rate ``s`` of ``model`` with respect to its roller DOFs
+    ``idx`` (:func:`jaxbelt.steady.steady_tangents`)."""
+    configure = lambda theta: model.replace(chi_static=model.chi_static.at[idx].add(theta))  # noqa: E731
+    return steady_tangents(configure, jnp.zeros(idx.shape, model.chi_static.dtype), s, solver, dt=dt,
+                           outputs=lambda m, state, rate: rate)
+
+
 def _steady_walk_rate(model, solver, dt):
     """The open-loop steady walk rate (m/s) of ``model``."""
     return steady_walk(model, solver, dt=dt).walk_rate
-
-
-@stored_jit
-def _steady_walk_and_jacobian(model, solver, dt, idx):
-    def rate(theta):
-        r = steady_walk(model.replace(chi_static=model.chi_static.at[idx].add(theta)), solver, dt=dt).walk_rate
-        return r, r
-
-    return forward_jacobian(rate, jnp.zeros(idx.shape, model.chi_static.dtype), has_aux=True)
 
 
 def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, float]:
@@ -192,9 +191,10 @@ def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, 
     DOFs ``dofs`` (flat indices of ``chi_static``), at the model's own misalignment: one forward
     tangent of :func:`jaxbelt.steady.steady_walk` each (implicit function theorem). **Returns:**
     ``(derivatives, the walk rate itself)`` (the solve the tangents ride on)."""
-    J, rate = _steady_walk_and_jacobian(model.replace(control=None), options.solver,
-                                        jnp.asarray(options.dt, model.ell.dtype), jnp.asarray(dofs, jnp.int32))
-    return np.asarray(J), float(rate)
+    opened, dt = model.replace(control=None), jnp.asarray(options.dt, model.ell.dtype)
+    s = steady_walk(opened, options.solver, dt=dt)
+    J = _steady_walk_tangents(opened, options.solver, dt, jnp.asarray(dofs, jnp.int32), s)
+    return np.asarray(J), float(s.walk_rate)
 
 
 def walk_sensitivity(model, options: RunOptions, loop: int = 0, jacobian=None) -> dict:

@@ -9,7 +9,8 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.misalignment import apply, parameter_space
-from jaxbelt.steady import NoSteadyStateError, check_steady, period_steps, quiet, steady_state, steady_walk
+from jaxbelt.steady import (NoSteadyStateError, check_steady, period_steps, quiet, steady_state, steady_states,
+                            steady_tangents, steady_walk)
 
 SCENE = "two-roller-steered"  # drive skewed 0.15 mrad, PI loop on the idle roller (N = 180)
 
@@ -134,3 +135,55 @@ def test_mass_transport_preconditioner_changes_the_iterations_not_the_answer(mac
     np.testing.assert_allclose(np.asarray(steady.tracer_v), np.asarray(plain.tracer_v), rtol=0, atol=1e-9)
     np.testing.assert_allclose(np.asarray(steady.tracer_u), np.asarray(plain.tracer_u), rtol=0, atol=1e-9)
     assert int(steady.krylov_iterations) < int(plain.krylov_iterations)
+
+
+def test_steady_tangents_at_the_solution_equal_differentiating_the_solve(machine, steady):
+    """:func:`jaxbelt.steady.steady_tangents` (tangent solves at a known steady state, no Newton)
+    equals ``jacfwd`` through :func:`steady_state` — for the steered machine's tracers and angle,
+    and for the open-loop machine's steady walk rate."""
+    model, opts = machine
+    space = parameter_space(model, "idle:dz,drive:ay")
+    n_p = period_steps(model, opts.dt)
+    theta0 = jnp.zeros(space.size)
+
+    def through_solve(theta):
+        s = steady_state(apply(model, space, theta), opts.solver, dt=opts.dt, period_steps=n_p)
+        return jnp.concatenate([s.tracer_u, s.tracer_v, s.angle])
+
+    out = lambda m, state, rate: jnp.concatenate(steady_tangents_outputs(m, state))  # noqa: E731
+    J = jax.jit(lambda s: steady_tangents(lambda t: apply(model, space, t), theta0, s, opts.solver, dt=opts.dt,
+                                          outputs=out))(steady)
+    np.testing.assert_allclose(np.asarray(J), np.asarray(jax.jit(jax.jacfwd(through_solve))(theta0)),
+                               rtol=1e-6, atol=1e-12)
+
+    opened = model.replace(control=None)
+    idx = jnp.asarray(space.chi_index, jnp.int32)
+    configure = lambda t: opened.replace(chi_static=opened.chi_static.at[idx].add(t))  # noqa: E731
+    walk = steady_walk(opened, opts.solver, dt=opts.dt)
+    Jw = steady_tangents(configure, theta0, walk, opts.solver, dt=opts.dt, outputs=lambda m, state, rate: rate)
+    ref = jax.jacfwd(lambda t: steady_walk(configure(t), opts.solver, dt=opts.dt, period_steps=1).walk_rate)(theta0)
+    # to the tangents' own accuracy, against the column's size (the axial shift hardly walks the belt:
+    # its entry is solver noise, ~1e-5 of the tilt's)
+    scale = np.abs(np.asarray(ref)).max()
+    assert scale > 1e-3
+    np.testing.assert_allclose(np.asarray(Jw), np.asarray(ref), rtol=0, atol=1e-5 * scale)
+
+
+def steady_tangents_outputs(model, state):
+    tu, tv = jb.timeloop.tracer_values(model, state.u)
+    return tu, tv, state.control.angle
+
+
+def test_steady_states_of_a_batch_equal_one_solve_each(machine, steady):
+    """:func:`jaxbelt.steady.steady_states` (one compiled single solve per row on a CPU) gives each
+    row's :func:`steady_state`, and the same under ``jit`` (a ``lax.map`` batch)."""
+    model, opts = machine
+    space = parameter_space(model, "idle:dz,drive:ay")
+    chis = jnp.stack([apply(model, space, t).chi_static for t in (jnp.array([0.01, 0.0]), jnp.array([0.0, -0.02]))])
+    n_p = period_steps(model, opts.dt)
+    batch = steady_states(model, opts.solver, dt=opts.dt, chis=chis, period_steps=n_p)
+    for i in range(2):
+        one = steady_state(model.replace(chi_static=chis[i]), opts.solver, dt=opts.dt)
+        np.testing.assert_array_equal(np.asarray(batch.tracer_v[i]), np.asarray(one.tracer_v))
+    traced = jax.jit(lambda c: steady_states(model, opts.solver, dt=opts.dt, chis=c, period_steps=n_p).tracer_v)(chis)
+    np.testing.assert_allclose(np.asarray(traced), np.asarray(batch.tracer_v), rtol=0, atol=1e-11)

@@ -54,6 +54,17 @@ def test_stored_program_equals_filter_jit_and_is_loaded_without_tracing(store):
     assert TRACES == ["a"]
 
 
+def test_numpy_fresh_and_computed_arguments_run_one_compiled_program(store):
+    """A call with NumPy arguments, one with fresh arrays and one with the results of earlier
+    computations (committed to their device) are one program: one XLA compilation, not three."""
+    k, x = np.asarray(3.0), np.linspace(0.0, 1.0, 5)
+    energy(Spring(k, "b", 2), x)
+    energy(Spring(jnp.asarray(k), "b", 2), jnp.asarray(x))
+    energy(Spring(jnp.sin(jnp.asarray(k)), "b", 2), jnp.cos(jnp.asarray(x)))
+    (executable, _), = programs._LOADED.values()
+    assert executable._cache_size() == 1
+
+
 def test_every_static_value_and_array_signature_is_in_the_key(store):
     x = jnp.arange(4.0)
     energy(Spring(jnp.asarray(1.0), "a", 2), x)

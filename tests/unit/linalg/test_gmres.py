@@ -66,3 +66,27 @@ def test_vmap_over_right_hand_sides_equals_one_at_a_time():
     for k in range(4):
         np.testing.assert_allclose(np.asarray(X[k]), np.asarray(solve(jnp.asarray(B[k]))), atol=1e-10)
         np.testing.assert_allclose(np.asarray(X[k]), np.linalg.solve(A, B[k]), atol=1e-7)
+
+
+def test_the_operator_is_traced_once_per_solve():
+    """GMRES applies the operator at one place in its program (the restarts' true residuals and
+    the Arnoldi vectors alike), and Newton linearises its map once per step: a compiled solve
+    holds one copy of a linearised time-step map, not one per call site."""
+    from jaxbelt.linalg.newton import newton_krylov
+
+    A, b = _system()
+    traced = []
+
+    def matvec(v):
+        traced.append("A")
+        return jnp.asarray(A) @ v
+
+    jax.make_jaxpr(lambda r: gmres(matvec, r, rtol=1e-8, restart=20, max_cycles=5))(jnp.asarray(b))
+    assert traced == ["A"]
+
+    def f(y):
+        traced.append("f")
+        return jnp.asarray(A) @ y + 0.1 * y ** 3 - jnp.asarray(b)
+
+    y, rms, _, steps, _ = newton_krylov(f, jnp.zeros_like(jnp.asarray(b)), 1e-10, 20, 60, 4)
+    assert traced.count("f") == 1 and float(rms) <= 1e-10 and int(steps) >= 2
