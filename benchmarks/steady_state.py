@@ -9,7 +9,8 @@ time it needs until its lateral deviation from the aligned machine stays within 
 limit of the steady one, and the wall time of those steps. Also the steady deviation against the
 run's at its end. ``tangents``: the aligned machine's tracer derivatives with respect to all 18
 roller translations and rotations (forward mode, relative residual 1e-6 as a design study asks),
-best warm time with and without the preconditioner.
+best warm time with and without the preconditioner, at the known steady state (what a design
+study runs) and through the solve.
 
 Run: ``python benchmarks/steady_state.py [--t-end 80] [--repeat 3]``. Writes
 ``results/steady_state.json``.
@@ -25,8 +26,8 @@ import numpy as np
 import jaxbelt as jb
 from _common import load, timed, write
 from jaxbelt.misalignment import aligned, with_misalignment
-from jaxbelt.steady import forward_jacobian, period_steps, quiet, steady_state
-from jaxbelt.timeloop import compile_simulation
+from jaxbelt.steady import forward_jacobian, period_steps, quiet, steady_state, steady_tangents
+from jaxbelt.timeloop import compile_simulation, tracer_values
 
 LIMIT_UM = 20.0
 SETTLED = 0.005 * LIMIT_UM  # µm
@@ -52,18 +53,26 @@ def timed_solve(model, solver, dt, repeat, precondition=True):
 
 def tangents(model, solver, dt, repeat, precondition):
     """The aligned machine's tracer derivatives with respect to every roller translation and
-    rotation (the design study's tangents, relative residual 1e-6): best warm seconds."""
+    rotation (the design study's tangents, relative residual 1e-6): best warm seconds of the
+    tangent solves at the known steady state (:func:`jaxbelt.steady.steady_tangents`, what a design
+    study runs), and of ``jacfwd``-style differentiation through the solve
+    (:func:`jaxbelt.steady.forward_jacobian`: the nonlinear solve again, then the same tangents)."""
     n_p = period_steps(model, dt)
+    configure = lambda theta: with_misalignment(  # noqa: E731
+        model, translation=theta[:9].reshape(3, 3), rotation=theta[9:].reshape(3, 3))
+    theta = jnp.zeros(18)
+    s = steady_state(model, solver, dt=dt, period_steps=n_p, precondition=precondition)
+    at = jax.jit(lambda s: steady_tangents(configure, theta, s, solver, dt=dt, tangent_rtol=1e-6,
+                                           precondition=precondition, outputs=lambda m, st, r: tracer_values(m, st.u)[1]))
+    _, best_at, J = timed(at, s, repeat=repeat)
 
     def tracers(theta):
-        m = with_misalignment(model, translation=theta[:9].reshape(3, 3), rotation=theta[9:].reshape(3, 3))
-        s = steady_state(m, solver, dt=dt, period_steps=n_p, tangent_rtol=1e-6, precondition=precondition)
+        s = steady_state(configure(theta), solver, dt=dt, period_steps=n_p, tangent_rtol=1e-6, precondition=precondition)
         return s.tracer_v
 
     fn = jax.jit(lambda th: forward_jacobian(tracers, th))
-    theta = jnp.zeros(18)
-    _, best, J = timed(fn, theta, repeat=repeat)
-    return best, np.asarray(J)
+    _, best_through, J_through = timed(fn, theta, repeat=repeat)
+    return best_at, best_through, np.asarray(J), float(np.abs(np.asarray(J) - np.asarray(J_through)).max() / np.abs(J).max())
 
 
 def main():
@@ -114,9 +123,10 @@ def main():
             angle_mrad_steady=float(np.asarray(s.angle)[0] * 1e3),
             angle_mrad_run_end=float(np.asarray(tr.control_u)[-1, 0] * 1e3)))
         print(rows[-1])
-    tangent_s, J = tangents(model, solver, dt, args.repeat, True)
-    tangent_plain_s, J_plain = tangents(model, solver, dt, args.repeat, False)
+    tangent_s, through_s, J, through_gap = tangents(model, solver, dt, args.repeat, True)
+    tangent_plain_s, _, J_plain, _ = tangents(model, solver, dt, args.repeat, False)
     tangent_rows = dict(parameters=18, preconditioned_s=tangent_s, unpreconditioned_s=tangent_plain_s,
+                        through_the_solve_s=through_s, through_the_solve_relative_difference=through_gap,
                         relative_difference=float(np.abs(J - J_plain).max() / np.abs(J).max()))
     print(tangent_rows)
     write("steady_state", dict(tangents=tangent_rows,

@@ -7,8 +7,9 @@ directory: the first process fills it, the second reads it). Stages: imports and
 model build (mesh, static solve), the aligned steady state and its Jacobian as one
 forward-mode program with the actuator jitter's run (first call: compile and run; second call:
 run alone), the linear response with the limits read from it, one batch of eight verification
-steady solves (first and second call; in the warm-cache process also the same batch as one
-``vmap``, against which :func:`jaxbelt.steady.map_configurations` runs the solves in sequence),
+steady solves at the corners of a small box (first and second call: one compiled solve per corner,
+:func:`jaxbelt.design.configurations.at_configurations`; in the warm-cache process also the same
+batch as one ``vmap``),
 the whole box (optimisation and verification), then the error bars: the scene one level finer
 built, and its aligned reference and the box's worst corners run as one batch. ``command``: the
 wall time of ``jaxbelt tolerance --json`` (error bars on, the default) and of ``--no-error-bars``,
@@ -16,7 +17,8 @@ each with an empty cache and again with the cache it filled, and of the default 
 XLA:CPU's MLIR fusion emitters on (the command line switches them off: :data:`jaxbelt.cli.CLI_XLA_FLAGS`).
 ``other_commands``: ``jaxbelt steering`` and a 1000-sample ``jaxbelt sweep`` (the distribution
 ``data/three-roller-steered-dist.toml``; with and without its error bar) on the same scene,
-each with an empty cache and again with the cache it filled. ``--tolerance-again N`` measures the
+each with an empty cache and again with the cache it filled. ``--stages-only`` measures the stages
+again, into the existing results. ``--tolerance-again N`` measures the
 tolerance command again, once cold and ``N`` times warm (the median kept, every run listed).
 The stages run with the command line's process settings (:func:`jaxbelt.cli.configure_process`). Run:
 ``OPENBLAS_NUM_THREADS=1 python benchmarks/tolerance_latency.py``. Writes
@@ -63,7 +65,8 @@ jax.block_until_ready(linear); mark("aligned_steady_jacobian_and_jitter_again_s"
 limits = {"longitudinal_max": 20.0, "steering_max": 3.0}
 work = with_limits(study, (("lateral_max", 20.0),) + tuple(limits.items()))
 response_jacobian(work, linear=linear); mark("linear_response_s")
-th = jnp.zeros((8, study.space.size))
+# eight corners of a small box (every component ±0.005 mm or mrad): real solves, each from its linear start
+th = jnp.asarray(np.random.default_rng(0).choice([-1.0, 1.0], (8, study.space.size)) * 0.005)
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_first_s")
 np.asarray(tol._limit_values_batch(work, th)); mark("verification_batch_again_s")
 if os.environ.get("VMAP_BATCH") == "1":  # the same batch as one vmap (compiled by the first child's run)
@@ -108,6 +111,16 @@ def _remeasure():
     return out, cache, env
 
 
+def _stages(out, env):
+    """The stages with an empty cache and again with the cache that run filled, into ``out``."""
+    for label in ("empty_cache", "warm_cache"):
+        vmap = {"VMAP_BATCH": "1" if label == "warm_cache" else "0"}
+        r = subprocess.run([sys.executable, "-c", CHILD], env={**env, **vmap}, capture_output=True, text=True,
+                           check=True)
+        out[label] = json.loads(r.stdout.strip().splitlines()[-1])
+        print(label, json.dumps(out[label]["stages"]), flush=True)
+
+
 def main():
     import argparse
 
@@ -116,6 +129,8 @@ def main():
                     help="only the whole command with error bars, empty and warm cache (no stages, no variants)")
     ap.add_argument("--only", choices=[name for name, _ in OTHER_COMMANDS], default=None,
                     help="measure one of the other commands again, into the existing results")
+    ap.add_argument("--stages-only", action="store_true",
+                    help="only the stages (empty and warm cache), into the existing results")
     ap.add_argument("--tolerance-again", type=int, default=0, metavar="N",
                     help="measure the tolerance command with error bars again: once with an empty cache, then N "
                          "times warm (median and spread), into the existing results")
@@ -139,16 +154,18 @@ def main():
         print(args.only, out["other_commands"][args.only], flush=True)
         write("tolerance_latency", out)
         return
+    base = {**os.environ, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1"}
+    if args.stages_only:
+        out, cache, env = _remeasure()
+        with cache:
+            _stages(out, env)
+        write("tolerance_latency", out)
+        return
     out = {"command_only": args.command_only}
     base = {**os.environ, "JAXBELT_COMPILATION_CACHE": "1", "OPENBLAS_NUM_THREADS": "1"}
-    with tempfile.TemporaryDirectory() as cache:
-        env = {**base, "JAXBELT_CACHE_DIR": cache}
-        for label in () if args.command_only else ("empty_cache", "warm_cache"):
-            vmap = {"VMAP_BATCH": "1" if label == "warm_cache" else "0"}
-            r = subprocess.run([sys.executable, "-c", CHILD], env={**env, **vmap}, capture_output=True, text=True,
-                               check=True)
-            out[label] = json.loads(r.stdout.strip().splitlines()[-1])
-            print(label, json.dumps(out[label]["stages"]), flush=True)
+    if not args.command_only:
+        with tempfile.TemporaryDirectory() as cache:
+            _stages(out, {**base, "JAXBELT_CACHE_DIR": cache})
     out["command"] = {}
     # the last pair: the command with XLA:CPU's MLIR fusion emitters, which it otherwise switches off
     # (the user's XLA_FLAGS win), to measure what that switch saves

@@ -54,8 +54,8 @@ own slow modes are left to GMRES. Newton takes three steps from the static equil
 removes the start guess's large velocity residual, the response is nearly linear after it, and
 each step's GMRES is asked for no more reduction than ends the iteration
 (:func:`jaxbelt.linalg.newton.newton_krylov`). Measured on the design scene
-(``benchmarks/steady_state.py``): about 60
-GMRES iterations per solve (one linearised period each), about 90 without the preconditioner,
+(``benchmarks/steady_state.py``): 60–75
+GMRES iterations per solve (one linearised period each), 100–130 without the preconditioner,
 and 0.1–0.2 s per solve. No preconditioner from the step's factors: it would act on the fast
 modes, which GMRES resolves in its first iterations anyway.
 """

@@ -1,6 +1,7 @@
 """The README's answer to the 20 µm question, generated from ``benchmarks/results/design_steady.json``
 (and docs/tolerance.md's comparison of the steady box with the window box, from
-``steady_box_check.json``).
+``steady_box_check.json``; docs/speed.md's figures of what the design commands cost, from
+``tolerance_latency.json`` and ``steady_state.json``).
 
 ``benchmarks/design_steady.py`` runs the main job (``jaxbelt tolerance --json`` on the default
 scene, and on the source's variant ``three-roller-tolerance``) and keeps both outputs; this script
@@ -103,6 +104,62 @@ WINDOW_S, BLOCK_S = 4.0, 20.0
 DOC_BEGIN, DOC_END = "<!-- steady-vs-window:begin -->", "<!-- steady-vs-window:end -->"
 
 
+LATENCY = ROOT / "benchmarks" / "results" / "tolerance_latency.json"
+STEADY = ROOT / "benchmarks" / "results" / "steady_state.json"
+SPEED_DOC = ROOT / "docs" / "speed.md"
+COST_BEGIN, COST_END = "<!-- design-cost:begin -->", "<!-- design-cost:end -->"
+
+
+def _span(values, fmt: str) -> str:
+    lo, hi = format(min(values), fmt), format(max(values), fmt)
+    return lo if lo == hi else f"{lo}–{hi}"
+
+
+def render_costs(lat: dict, ss: dict) -> str:
+    """docs/speed.md's figures of what the design commands cost, from ``tolerance_latency.json``
+    and ``steady_state.json``."""
+    c, o = lat["command"], lat["other_commands"]
+    eb, nb = c["error_bars"], c["no_error_bars"]
+    runs = eb.get("warm_cache_runs_s") or [eb["warm_cache_s"]]
+    warm_runs = (f"median of {len(runs)} warm runs, {_span(runs, '.1f')} s; " if len(runs) > 1 else "")
+    cold, warm = lat["empty_cache"]["stages"], lat["warm_cache"]["stages"]
+    cases, t = ss["cases"], ss["tangents"]
+    steps = [r["newton_steps"] for r in cases]
+    its = [r["krylov_iterations"] for r in cases]
+    plain = [r["unpreconditioned"]["krylov_iterations"] for r in cases]
+    solve = [r["solve_warm_s"] for r in cases]
+    sw, swn = o["sweep_1000"], o["sweep_1000_no_error_bars"]
+    return "\n".join([
+        f"On the default design scene (`{lat['empty_cache']['scene']}`, N = {lat['empty_cache']['n_unknowns']}, "
+        f"this 2-core machine; [measured](benchmarks.md#tolerance_latency)): `jaxbelt tolerance` takes "
+        f"{eb['empty_cache_s']:.0f} s with an empty compilation cache and {eb['warm_cache_s']:.1f} s with a warm "
+        f"one ({warm_runs}error bars on; {nb['empty_cache_s']:.0f} s and {nb['warm_cache_s']:.1f} s without "
+        f"them), `jaxbelt steering` {o['steering']['empty_cache_s']:.0f} s and {o['steering']['warm_cache_s']:.1f} s, "
+        f"a 1000-sample `jaxbelt sweep` {sw['empty_cache_s']:.0f} s and {sw['warm_cache_s']:.0f} s "
+        f"({swn['empty_cache_s']:.0f} s and {swn['warm_cache_s']:.0f} s without its error bar).",
+        "",
+        f"A steady solve is Newton's method with GMRES on the linearised period map ({_span(steps, 'd')} Newton "
+        f"steps, {_span(its, 'd')} Krylov iterations of one linearised period each, {_span(plain, 'd')} without the "
+        f"mass-transport preconditioner; {_span(solve, '.2f')} s per solve on the design scene; "
+        "[Steady operation](tolerance.md#steady-operation) says why, [measured](benchmarks.md#steady_state)). "
+        f"The aligned machine's {t['parameters']} derivatives, tangent solves at its known steady state, take "
+        f"{t['preconditioned_s']:.2f} s ({t['through_the_solve_s']:.2f} s differentiating through the solve, which "
+        "solves it again first). In a warm process the tolerance box's own arithmetic is a few seconds: the "
+        "aligned steady state, its derivatives and the actuator jitter's run "
+        f"{warm['aligned_steady_jacobian_and_jitter_again_s']:.1f} s, the verification solves and the box search "
+        f"{warm['tolerance_box_s']:.1f} s, the finer grid's solves of the error bars {warm['error_bars_s']:.1f} s. "
+        f"What a warm command spends beyond that is fixed cost: {warm['imports_s']:.1f} s of imports, "
+        f"{warm['model_build_s'] + warm['finer_model_build_s']:.1f} s for the two grids' model builds, and loading "
+        "the compiled programs from the cache (the aligned machine's programs take "
+        f"{warm['aligned_steady_jacobian_and_jitter_s']:.1f} s on their first call, "
+        f"{warm['aligned_steady_jacobian_and_jitter_again_s']:.1f} s on the second). With an empty cache most of "
+        "the time is XLA compiling: the aligned machine's steady solve, its tangents and the jitter's run "
+        f"{cold['aligned_steady_jacobian_and_jitter_s']:.0f} s (with their tracing and first run), the finer grid's "
+        f"error bars {cold['error_bars_s']:.0f} s; the verification solves reuse the compiled solve "
+        f"({cold['verification_batch_first_s']:.1f} s for eight of them, the first time).",
+    ])
+
+
 def block(text: str, begin: str = BEGIN, end: str = END) -> str:
     """A file's current block between the markers."""
     i, j = text.index(begin) + len(begin), text.index(end)
@@ -122,7 +179,9 @@ def expected() -> dict:
     """``{(path, begin, end): block}`` for every generated block."""
     data = json.loads(RESULTS.read_text())
     return {(README, BEGIN, END): render(data),
-            (TOLERANCE_DOC, DOC_BEGIN, DOC_END): render_comparison(data, json.loads(CHECK.read_text()))}
+            (TOLERANCE_DOC, DOC_BEGIN, DOC_END): render_comparison(data, json.loads(CHECK.read_text())),
+            (SPEED_DOC, COST_BEGIN, COST_END): render_costs(json.loads(LATENCY.read_text()),
+                                                            json.loads(STEADY.read_text()))}
 
 
 def write() -> bool:
