@@ -44,10 +44,11 @@ def test_steady_state_is_where_a_long_run_settles(machine, steady):
     np.testing.assert_allclose(np.asarray(tr.control_u[-1]), np.asarray(steady.angle), rtol=1e-3)
 
 
-def test_steady_state_gradient_matches_central_differences(machine):
+def test_steady_state_gradient_matches_central_differences(machine, steady):
     """The implicit-function-theorem tangents of the steady tracers and angle with respect to a
-    roller translation and tilt equal central differences of converged steady solves, and reverse
-    mode (one transposed solve) equals the forward tangents."""
+    roller translation and tilt equal central differences of converged steady solves, reverse
+    mode (one transposed solve) equals the forward tangents, and so do the tangent solves at the
+    known steady state (:func:`jaxbelt.steady.steady_tangents`)."""
     model, opts = machine
     space = parameter_space(model, "idle:dz,drive:ay")
     n_p = period_steps(model, opts.dt)
@@ -59,6 +60,11 @@ def test_steady_state_gradient_matches_central_differences(machine):
 
     theta0 = jnp.zeros(space.size)
     J = np.asarray(jax.jacfwd(outputs)(theta0))
+    # the same derivatives from tangent solves at the known steady state (no Newton iteration)
+    at_solution = steady_tangents(lambda t: apply(model, space, t), theta0, steady, opts.solver, dt=opts.dt,
+                                  outputs=lambda m, state, rate: jnp.concatenate(
+                                      [*jb.timeloop.tracer_values(m, state.u), state.control.angle]) * 1e6)
+    np.testing.assert_allclose(np.asarray(at_solution), J, rtol=0, atol=1e-5 * np.abs(J).max())
     h = 1e-2  # mm / mrad: the response is nearly linear, and the solves' own error stays far below h J
     # reverse mode (one transposed solve) gives the same derivatives as the forward tangents
     weights = jnp.linspace(-1.0, 1.0, J.shape[0])
@@ -137,41 +143,24 @@ def test_mass_transport_preconditioner_changes_the_iterations_not_the_answer(mac
     assert int(steady.krylov_iterations) < int(plain.krylov_iterations)
 
 
-def test_steady_tangents_at_the_solution_equal_differentiating_the_solve(machine, steady):
-    """:func:`jaxbelt.steady.steady_tangents` (tangent solves at a known steady state, no Newton)
-    equals ``jacfwd`` through :func:`steady_state` — for the steered machine's tracers and angle,
-    and for the open-loop machine's steady walk rate."""
+def test_steady_walk_tangents_at_the_solution_equal_central_differences(machine):
+    """:func:`jaxbelt.steady.steady_tangents` of the open-loop machine's steady walk rate (tangent
+    solves at the known walk, no Newton) equal central differences of converged walk solves."""
     model, opts = machine
-    space = parameter_space(model, "idle:dz,drive:ay")
-    n_p = period_steps(model, opts.dt)
-    theta0 = jnp.zeros(space.size)
-
-    def through_solve(theta):
-        s = steady_state(apply(model, space, theta), opts.solver, dt=opts.dt, period_steps=n_p)
-        return jnp.concatenate([s.tracer_u, s.tracer_v, s.angle])
-
-    out = lambda m, state, rate: jnp.concatenate(steady_tangents_outputs(m, state))  # noqa: E731
-    J = jax.jit(lambda s: steady_tangents(lambda t: apply(model, space, t), theta0, s, opts.solver, dt=opts.dt,
-                                          outputs=out))(steady)
-    np.testing.assert_allclose(np.asarray(J), np.asarray(jax.jit(jax.jacfwd(through_solve))(theta0)),
-                               rtol=1e-6, atol=1e-12)
-
     opened = model.replace(control=None)
+    space = parameter_space(model, "idle:dz,drive:ay")
     idx = jnp.asarray(space.chi_index, jnp.int32)
     configure = lambda t: opened.replace(chi_static=opened.chi_static.at[idx].add(t))  # noqa: E731
+    theta0 = jnp.zeros(space.size)
     walk = steady_walk(opened, opts.solver, dt=opts.dt)
-    Jw = steady_tangents(configure, theta0, walk, opts.solver, dt=opts.dt, outputs=lambda m, state, rate: rate)
-    ref = jax.jacfwd(lambda t: steady_walk(configure(t), opts.solver, dt=opts.dt, period_steps=1).walk_rate)(theta0)
-    # to the tangents' own accuracy, against the column's size (the axial shift hardly walks the belt:
-    # its entry is solver noise, ~1e-5 of the tilt's)
-    scale = np.abs(np.asarray(ref)).max()
+    J = np.asarray(steady_tangents(configure, theta0, walk, opts.solver, dt=opts.dt,
+                                   outputs=lambda m, state, rate: rate))
+    h = 1e-6  # m / rad: the walk rate is linear in the misalignment far beyond this
+    rate = lambda t: float(steady_walk(configure(t), opts.solver, dt=opts.dt, tol=1e-9).walk_rate)  # noqa: E731
+    fd = np.array([(rate(theta0.at[k].set(h)) - rate(theta0.at[k].set(-h))) / (2 * h) for k in range(space.size)])
+    scale = np.abs(fd).max()  # the tilt walks the belt; the axial shift hardly does (its entry is solver noise)
     assert scale > 1e-3
-    np.testing.assert_allclose(np.asarray(Jw), np.asarray(ref), rtol=0, atol=1e-5 * scale)
-
-
-def steady_tangents_outputs(model, state):
-    tu, tv = jb.timeloop.tracer_values(model, state.u)
-    return tu, tv, state.control.angle
+    np.testing.assert_allclose(J, fd, rtol=0, atol=1e-5 * scale)
 
 
 def test_steady_states_of_a_batch_equal_one_solve_each(machine, steady):
