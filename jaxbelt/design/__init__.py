@@ -51,6 +51,7 @@ from .study import evaluate as evaluate
 from .study import linearise as linearise
 from .study import make_study as make_study
 from .study import make_study_at as make_study_at
+from .configurations import at_configurations as at_configurations
 from .study import metric_value as metric_value
 from .study import response as response
 from .study import run_deviation as run_deviation
