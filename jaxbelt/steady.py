@@ -440,6 +440,9 @@ def steady_states(model: BeltModel, solver: AbstractIntegrator | None = None, *,
         return map_configurations(lambda a: one(*a), (chis, y0s))
     chis = np.asarray(chis)
     y0s = None if y0s is None else jax.tree.map(np.asarray, y0s)
+    if chis.shape[0] == 0:  # no configuration: the outputs' shapes without a solve
+        shapes = jax.eval_shape(lambda c, y: map_configurations(lambda a: one(*a), (c, y)), chis, y0s)
+        return jax.tree.map(lambda a: np.empty(a.shape, a.dtype), shapes)
     rows = [one(chi, None if y0s is None else jax.tree.map(lambda a: a[i], y0s)) for i, chi in enumerate(chis)]
     return jax.tree.map(lambda *a: np.stack([np.asarray(x) for x in a]), *rows)
 

@@ -165,7 +165,7 @@ def _steady_chunks(study, thetas, chunk, progress=None):
     rows at a time (:func:`jaxbelt.design.configurations.at_configurations`: one compiled solve
     per row), ``progress(done, chunk_result)`` after each chunk."""
     parts = []
-    for start in range(0, len(thetas), chunk):
+    for start in range(0, max(len(thetas), 1), chunk):  # (no configuration: one empty part)
         part = jax.tree.map(np.asarray, at_configurations(study, thetas[start:start + chunk], evaluate_deviation))
         parts.append(part)
         if progress is not None:

@@ -33,3 +33,17 @@ def test_batch_equals_each_configuration_alone(machine, steady):
     assert batch.shape == (len(THETAS), 2) and np.all(np.isfinite(batch))
     np.testing.assert_allclose(batch, alone, rtol=1e-9, atol=1e-9)
     assert np.max(np.abs(batch[:, 0])) > 0.01  # the configurations move the belt
+
+
+def test_no_configuration_gives_empty_outputs(machine):
+    """An empty batch (e.g. a sweep chunk whose surrogate leaves nothing to run in full) gives
+    outputs with no rows, and no solve."""
+    from jaxbelt.design.sampling import evaluate_configs
+
+    model, opts = machine
+    study = make_study(model, "lateral_max", opts, components=COMPONENTS, steady=True)
+    none = np.zeros((0, len(COMPONENTS)))
+    limited = with_limits(study, (("lateral_max", 20.0), ("steering_max", 1.0)))
+    assert np.asarray(at_configurations(limited, none, limit_values_from_deviation)).shape == (0, 2)
+    out = evaluate_configs(study, none)
+    assert out["metric"].shape == (0,) and out["lateral_um"].shape[0] == 0
