@@ -393,7 +393,7 @@ def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, 
     whether GMRES runs with :class:`MassTransportPreconditioner` (same answer to the tolerances,
     fewer iterations).
     """
-    if model.kind == "2d" and model.control is None and _walks(model):
+    if walks(model):
         raise ValueError("steady_state: this machine walks (lateral transport without a steering loop); "
                          "its steady operation is steady_walk's")
     solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
@@ -463,7 +463,7 @@ def steady_tangents(configure, theta, s: SteadyState, solver: AbstractIntegrator
     ``(tracer_u, tracer_v)``, the actuators' angles, :func:`state_fields` and the walk rate, m/s);
     each output's derivative gets a trailing axis P. Pure, jit-able."""
     model0 = configure(theta)
-    walking = model0.kind == "2d" and model0.control is None and _walks(model0)
+    walking = walks(model0)
     solver, n, dt, template, sc = _setup(model0, solver, dt, s.state, s.period_steps)
     outputs = _default_outputs if outputs is None else outputs
     fn = _residual(solver, dt, n, sc, template, walking=walking)
@@ -522,8 +522,10 @@ def forward_jacobian(fn, theta, has_aux: bool = False):
     return (J, out[2]) if has_aux else J
 
 
-def _walks(model: BeltModel) -> bool:
-    return bool(model.lateral_transport)
+def walks(model: BeltModel) -> bool:
+    """Whether the machine walks: a 2D belt with lateral transport and no steering loop, whose
+    steady operation is :func:`steady_walk`'s (stationary only up to a uniform lateral drift)."""
+    return model.kind == "2d" and model.control is None and bool(model.lateral_transport)
 
 
 def state_fields(state: BeltState):

@@ -22,7 +22,7 @@ from ..misalignment import ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
-                      period_steps, steady_states, steady_tangents, steady_state)
+                      period_steps, steady_states, steady_tangents, steady_state, walks)
 from ..timeloop import RunOptions, check_finite, simulate
 from .linear_box import LinearDeviation, linear_deviation
 from .metrics import (CLOSED_LOOP_WINDOW, METRICS, M_TO_UM, OPEN_LOOP_WINDOW, RAD_TO_MRAD, limit_values_from_deviation,
@@ -184,12 +184,6 @@ def _steady_rows(s):
     return row(s.tracer_u), row(s.tracer_v), row(s.angle)
 
 
-def _steady_rows_batch(s):
-    """:func:`_steady_rows` of a batch of steady states (leading axis m)."""
-    row = lambda a: None if a is None else a[:, None]  # noqa: E731
-    return row(s.tracer_u), row(s.tracer_v), row(s.angle)
-
-
 DESIGN_TANGENT_RTOL = 1e-6  # GMRES's relative residual of a steady study's tangents (a linear model
 # that nonlinear solves verify: its columns are then right to 1e-4 of their size, against 1e-8's)
 
@@ -216,7 +210,7 @@ def _steady_frame(model, metric, options, components) -> dict:
 def _make_steady_study(model, metric, options, components, jacobian):
     """:func:`make_study` of steady operation (module docstring)."""
     frame = _steady_frame(model, metric, options, components)
-    if model.kind == "2d" and model.control is None and model.lateral_transport:
+    if walks(model):
         raise ValueError("steady operation: this machine walks (lateral transport without a steering loop); "
                          "judge a time-stepped window instead (t_eval)")
     base_is_zero = not np.any(np.asarray(frame["base"]))
@@ -316,7 +310,7 @@ def make_study_at(model: BeltModel, metric: str, thetas, options: RunOptions, *,
                                 jax.vmap(lambda t: apply(model, frame["space"], t).chi_static)(thetas)])
         first = steady_states(model, frame["solver"], dt=frame["dt"], chis=chis, y0s=starts,
                               period_steps=frame["period_steps"])
-        (u, v, angle), converged = _steady_rows_batch(first), first.converged
+        (u, v, angle), converged = jax.vmap(_steady_rows)(first), first.converged
         if not np.all(np.asarray(converged)):
             raise NoSteadyStateError(f"no steady operation at {int(np.sum(~np.asarray(converged)))} of "
                                      f"{len(chis)} configurations: the fixed-point iteration did not converge")

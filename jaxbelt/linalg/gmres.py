@@ -116,7 +116,7 @@ def gmres(matvec, b, *, rtol: float, restart: int = 64, max_cycles: int = 10, x0
         gk = c.g[k]
         g_arnoldi = c.g.at[k].set(cg * gk).at[k + 1].set(-sg * gk)
         g = jnp.where(rs, jnp.zeros_like(c.g).at[0].set(beta), g_arnoldi)
-        kc = jnp.minimum(k, restart - 1)  # (a restart pass writes nothing: k is then 0 and the column is rewritten)
+        kc = jnp.minimum(k, restart - 1)  # (k may equal restart on a restart pass, which writes nothing)
         R = jnp.where(rs, c.R, c.R.at[:, kc].set(h))
         cs = jnp.where(rs, c.cs, c.cs.at[kc].set(cg))
         sn = jnp.where(rs, c.sn, c.sn.at[kc].set(sg))
