@@ -109,4 +109,4 @@ def test_source_digest_reads_the_whole_package():
     """A stored program is keyed on every module it may have traced, not only the store's own
     package: a change to the steady solver or the time step must give new keys."""
     names = {p.relative_to(programs.PACKAGE_ROOT).as_posix() for p in programs.source_files()}
-    assert {"__init__.py", "steady.py", "timeloop.py", "linalg/gmres.py", "infra/programs.py"} <= names
+    assert {"__init__.py", "steady/fixed_point.py", "timeloop.py", "linalg/gmres.py", "infra/programs.py"} <= names

@@ -73,19 +73,18 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from .control import ControllerState, samples_per_update, sensor_displacement
-from .integrators import AbstractIntegrator, make_solver
-from .model import BeltModel
-from .infra.programs import stored_jit
-from .linalg.newton import DEFAULT_GMRES_CYCLES, DEFAULT_GMRES_RESTART, krylov_solve, newton_krylov
-from .state import BeltState, initial_state
-from .transport import transport_masses, upwind_weights
-from .timeloop import SaveAt, belt_speed, check_time_step, edge_margin, make_step, simulate, tracer_values
+from ..control import ControllerState, samples_per_update, sensor_displacement
+from ..integrators import AbstractIntegrator, make_solver
+from ..model import BeltModel
+from ..infra.programs import stored_jit
+from ..linalg.newton import DEFAULT_GMRES_CYCLES, DEFAULT_GMRES_RESTART, krylov_solve, newton_krylov
+from ..state import BeltState, initial_state
+from ..transport import transport_masses, upwind_weights
+from ..timeloop import check_time_step, edge_margin, make_step, tracer_values
 
 UNIT = 1e6  # m → µm, rad → µrad: the scaled unknowns' unit
 DEFAULT_TOL_UM = 1e-6  # the residual RMS that ends Newton, µm: its solutions agree with a 1e-9 solve to ~1e-5 µm
 UNBOUNDED = 1e30  # the lifted actuator range and rate limit of the steady map (rad, rad/s)
-JITTER_TURNS = 2.0  # belt turns of the time-stepped run that measures the actuator jitter
 DEFAULT_MAX_NEWTON = 8
 ADJOINT_KRYLOV_RTOL = 1e-8  # per tangent (implicit function theorem)
 
@@ -147,6 +146,14 @@ def period_steps(model: BeltModel, dt) -> int:
                          "(jaxbelt.steady.period_steps of the concrete model) under jit/vmap/grad")
     n = np.asarray(samples_per_update(model.control, float(dt)))
     return int(math.lcm(*(int(k) for k in n)))
+
+
+def state_fields(state: BeltState):
+    """The fields of a state that steady operation solves for (module docstring, *The unknowns*), as
+    a tuple: what :func:`linear_start` takes derivatives of."""
+    c = state.control
+    ctrl = None if c is None else (c.integral, c.error, c.command, c.angle)
+    return state.u, state.u_dot, state.chi, state.chi_dot, state.m_e, ctrl
 
 
 class _Scales(eqx.Module):
@@ -417,36 +424,6 @@ def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, d
                  precondition)
 
 
-def steady_states(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, chis, y0s=None,
-                  period_steps: int | None = None, **options) -> SteadyState:
-    """:func:`steady_state` of ``model`` at each row of ``chis`` (m, q) (its ``chi_static``), each
-    solve started at its row of ``y0s`` (a :class:`~jaxbelt.BeltState` with a leading axis m;
-    ``None``: the static equilibrium): one :class:`SteadyState` with a leading axis m. ``options``
-    as :func:`steady_state`'s.
-
-    On a CPU, called with arrays (not under a trace), each row is one call of the single solve's
-    compiled program: whichever batch or caller asks, the Newton–GMRES program of a model's shapes
-    is compiled once (a batch inside another compiled program would be a second copy of it, and
-    its compilation costs as much as the first), and a CPU runs a batch's solves one after
-    another anyway (:func:`map_configurations`). Elsewhere, or under a trace, the rows are one
-    :func:`map_configurations` batch."""
-    n = period_steps
-
-    def one(chi, y0):
-        return steady_state(model.replace(chi_static=chi), solver, dt=dt, y0=y0, period_steps=n, **options)
-
-    traced = any(isinstance(a, jax.core.Tracer) for a in jax.tree.leaves((chis, y0s, model)))
-    if traced or jax.default_backend() != "cpu":
-        return map_configurations(lambda a: one(*a), (chis, y0s))
-    chis = np.asarray(chis)
-    y0s = None if y0s is None else jax.tree.map(np.asarray, y0s)
-    if chis.shape[0] == 0:  # no configuration: the outputs' shapes without a solve
-        shapes = jax.eval_shape(lambda c, y: map_configurations(lambda a: one(*a), (c, y)), chis, y0s)
-        return jax.tree.map(lambda a: np.empty(a.shape, a.dtype), shapes)
-    rows = [one(chi, None if y0s is None else jax.tree.map(lambda a: a[i], y0s)) for i, chi in enumerate(chis)]
-    return jax.tree.map(lambda *a: np.stack([np.asarray(x) for x in a]), *rows)
-
-
 def steady_tangents(configure, theta, s: SteadyState, solver: AbstractIntegrator | None = None, *, dt,
                     outputs=None, tangent_rtol: float = ADJOINT_KRYLOV_RTOL, restart: int = DEFAULT_GMRES_RESTART,
                     krylov_cycles: int = DEFAULT_GMRES_CYCLES, precondition: bool = True):
@@ -510,78 +487,7 @@ def map_configurations(fn, xs):
     return jax.vmap(fn)(xs)
 
 
-def forward_jacobian(fn, theta, has_aux: bool = False):
-    """``jax.jacfwd(fn, has_aux=has_aux)(theta)`` for functions that solve for a steady state: the
-    primal solve once (:func:`jax.linearize`), then one tangent solve per component through
-    :func:`map_configurations` (``jacfwd`` would batch the tangents' GMRES loops in lockstep). Each output gets
-    a trailing axis of ``theta``'s length."""
-    out = jax.linearize(fn, theta, has_aux=has_aux)
-    lin = out[1]
-    columns = map_configurations(lin, jnp.eye(theta.size, dtype=theta.dtype))
-    J = jax.tree.map(lambda a: jnp.moveaxis(a, 0, -1), columns)
-    return (J, out[2]) if has_aux else J
-
-
 def walks(model: BeltModel) -> bool:
     """Whether the machine walks: a 2D belt with lateral transport and no steering loop, whose
     steady operation is :func:`steady_walk`'s (stationary only up to a uniform lateral drift)."""
     return model.kind == "2d" and model.control is None and bool(model.lateral_transport)
-
-
-def state_fields(state: BeltState):
-    """The fields of a state that steady operation solves for (module docstring, *The unknowns*), as
-    a tuple: what :func:`linear_start` takes derivatives of."""
-    c = state.control
-    ctrl = None if c is None else (c.integral, c.error, c.command, c.angle)
-    return state.u, state.u_dot, state.chi, state.chi_dot, state.m_e, ctrl
-
-
-def linear_start(state: BeltState, tangents, theta) -> BeltState:
-    """``x* + (dx*/dθ) θ``: a steady state moved along its derivatives (``tangents``: the
-    :func:`state_fields` of ``dx*/dθ``, each with a trailing axis P; ``theta`` (P,)) — the start of
-    a nearby steady solve, whose Newton iteration then only removes the nonlinear remainder."""
-    u, ud, chi, chid, m, ctrl = jax.tree.map(lambda a, d: a + d @ theta, state_fields(state), tangents)
-    control = state.control
-    if ctrl is not None:
-        control = dataclasses.replace(control, integral=ctrl[0], error=ctrl[1], command=ctrl[2], angle=ctrl[3])
-    return dataclasses.replace(state, u=u, u_dot=ud, chi=chi, chi_dot=chid, m_e=m, control=control)
-
-
-def check_steady(s, model: BeltModel, what: str = "the aligned machine"):
-    """:class:`NoSteadyStateError` unless ``s`` (concrete) is a steady operation the
-    machine can hold: converged, its actuators within their range, the belt on its rollers."""
-    if not bool(s.converged) or not np.all(np.isfinite(np.asarray(s.tracer_u))):
-        raise NoSteadyStateError(f"no steady operation of {what}: the fixed-point iteration did not converge "
-                                 f"(residual {float(s.residual):.3g} µm after {int(s.newton_steps)} Newton steps)")
-    if s.angle is not None:
-        need, limit = np.abs(np.asarray(s.angle)), np.asarray(model.control.limit)
-        for label, a, lim in zip(model.control.labels, need, limit):
-            if a > lim:
-                raise NoSteadyStateError(f"no steady operation of {what}: the loop on {label} needs {a * 1e3:.4g} mrad "
-                                         f"to hold the belt, beyond its ±{lim * 1e3:.4g} mrad range")
-    if s.edge_margin is not None and np.min(np.asarray(s.edge_margin)) < 0:
-        raise NoSteadyStateError(f"no steady operation of {what}: the belt edge runs off a roller "
-                                 f"({-np.min(np.asarray(s.edge_margin)) * 1e3:.3g} mm beyond its face)")
-
-
-def actuator_jitter(model: BeltModel, integrator, dt, s: SteadyState, turns: float = JITTER_TURNS):
-    """The aligned machine's actuator jitter around its steady angle, mrad (n_c,): the largest
-    ``|angle − steady angle|`` of a time-stepped run of ``model`` (sensor noise and edge profile
-    on) from its steady state ``s`` over ``turns`` belt turns. A loop whose steady state is not
-    stable shows here: the deviation growing from the first turn to the last is named
-    (:class:`NoSteadyStateError`)."""
-    loops = model.control
-    n = max(2, int(np.ceil(turns * float(loops.loop_length) / belt_speed(model) / float(dt))))
-    y0 = dataclasses.replace(s.state, control=dataclasses.replace(s.state.control, travel=jnp.zeros((), dt.dtype)))
-    _, tr = simulate(model, integrator, n_steps=n, dt=dt, y0=y0, saveat=SaveAt(), check=False)
-    dev = np.abs(np.asarray(tr.control_u) - np.asarray(s.angle)[None])
-    if not np.all(np.isfinite(dev)):
-        raise NoSteadyStateError("no steady operation: the aligned machine's run from its steady state diverged "
-                                 "(an unstable loop)")
-    half = n // 2
-    first, last = dev[:half].max(axis=0), dev[half:].max(axis=0)
-    if np.any((last > 4 * first) & (last > 0.05 * np.asarray(loops.limit))):
-        raise NoSteadyStateError(f"no steady operation: the steady state is unstable (actuator deviation grows from "
-                                 f"{first.max() * 1e3:.3g} to {last.max() * 1e3:.3g} mrad over {turns:g} belt turns: "
-                                 "a growing loop mode; lower the gains)")
-    return jnp.asarray(dev.max(axis=0) * 1e3, dt.dtype)
