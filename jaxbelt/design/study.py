@@ -9,7 +9,6 @@ same question on another grid of the scene). The linear response of the runs at 
 
 from __future__ import annotations
 
-import functools
 
 import equinox as eqx
 import jax
@@ -18,11 +17,11 @@ import numpy as np
 
 from ..infra.programs import stored_jit
 from ..integrators import AbstractIntegrator
-from ..misalignment import ParameterSpace, aligned, apply, parameter_space
+from ..misalignment import TO_SI, ParameterSpace, aligned, apply, parameter_space
 from ..model import BeltModel
 from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
-                      period_steps, steady_states, steady_tangents, steady_state, walks)
+                      period_steps, steady_states, steady_state, steady_with_tangents, walks)
 from ..timeloop import RunOptions, check_finite, simulate
 from .linear_box import LinearDeviation, linear_deviation
 from .metrics import (CLOSED_LOOP_WINDOW, METRICS, M_TO_UM, OPEN_LOOP_WINDOW, RAD_TO_MRAD, limit_values_from_deviation,
@@ -188,17 +187,6 @@ DESIGN_TANGENT_RTOL = 1e-6  # GMRES's relative residual of a steady study's tang
 # that nonlinear solves verify: its columns are then right to 1e-4 of their size, against 1e-8's)
 
 
-@stored_jit
-def _steady_tangents(model, space, solver, dt, s):
-    """The derivatives of the steady state ``s`` of ``model`` (misalignment zero on the varied
-    components) — its tracers and actuator angles, and the state itself
-    (:func:`jaxbelt.steady.state_fields`) — with respect to ``θ`` at ``θ = 0``: one tangent solve
-    per component at the known solution (:func:`jaxbelt.steady.steady_tangents`)."""
-    J = steady_tangents(functools.partial(apply, model, space), jnp.zeros(space.size, model.chi_static.dtype), s,
-                        solver, dt=dt, tangent_rtol=DESIGN_TANGENT_RTOL)
-    return J[:3], J[3]
-
-
 def _steady_frame(model, metric, options, components) -> dict:
     _check_metric(model, metric)
     dt = jnp.asarray(options.dt, model.ell.dtype)
@@ -214,11 +202,19 @@ def _make_steady_study(model, metric, options, components, jacobian):
         raise ValueError("steady operation: this machine walks (lateral transport without a steering loop); "
                          "judge a time-stepped window instead (t_eval)")
     base_is_zero = not np.any(np.asarray(frame["base"]))
-    s = steady_state(aligned(model), frame["solver"], dt=frame["dt"], period_steps=frame["period_steps"])
-    check_steady(s, model)
     tangents = None
     if jacobian and base_is_zero:
-        (du, dv, dangle), tangents = _steady_tangents(model, frame["space"], frame["solver"], frame["dt"], s)
+        # derivatives along the varied components (θ in design units), in the program every steady
+        # solve of this model's shapes runs (jaxbelt.steady.steady_with_tangents)
+        q, P = model.chi_static.shape[0], frame["space"].size
+        directions = jnp.zeros((q, q), model.chi_static.dtype).at[
+            jnp.arange(P), jnp.asarray(frame["space"].chi_index, jnp.int32)].set(TO_SI)
+        s, J = steady_with_tangents(model, frame["solver"], dt=frame["dt"], directions=directions, n_tangents=P,
+                                    period_steps=frame["period_steps"], tangent_rtol=DESIGN_TANGENT_RTOL)
+        (du, dv, dangle), tangents = jax.tree.map(lambda a: a[..., :P], (J[:3], J[3]))
+    else:
+        s = steady_state(aligned(model), frame["solver"], dt=frame["dt"], period_steps=frame["period_steps"])
+    check_steady(s, model)
     jitter = None if model.control is None else actuator_jitter(aligned(model), frame["solver"], frame["dt"], s)
     u, v, angle = _steady_rows(s)
     study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,

@@ -64,6 +64,7 @@ class _Carry(NamedTuple):
     cycles: jax.Array
     iterations: jax.Array
     residual: jax.Array  # the last true residual norm
+    bnorm: jax.Array  # ‖b‖₂ (NaN until the first true residual, for a start from zero)
     done: jax.Array
 
 
@@ -78,20 +79,41 @@ def gmres(matvec, b, *, rtol: float, restart: int = 64, max_cycles: int = 10, x0
     or to the iterate when a cycle starts (its true residual) — so the operator appears once in the
     compiled program: when it is a linearised time-step map, the program's size, and XLA's
     compilation time, is that of one copy of it."""
-    precondition = (lambda v: v) if precondition is None else precondition
-    n = b.shape[0]
-    dtype = b.dtype
-    blocks = (restart + 1 + BLOCK - 1) // BLOCK
     bnorm = jnp.linalg.norm(b)
-    tol_abs = rtol * bnorm
+    x = jnp.zeros_like(b) if x0 is None else x0
+    return _gmres(lambda v, s: matvec(v) - jnp.where(s, b, 0.0), x, bnorm, rtol, restart, max_cycles, precondition)
+
+
+def gmres_affine(affine, n: int, dtype, *, rtol, restart: int = 64, max_cycles: int = 10, precondition=None):
+    """:func:`gmres` for a right-hand side known only through the operator: ``affine(x, s) = A x − s b``
+    (``s`` 0 or 1) solved for ``A x = b`` from ``x = 0``, to ``‖b − A x‖₂ ≤ rtol ‖b‖₂`` (``‖b‖`` is
+    the first true residual's norm). ``(x, relative residual, iterations)``.
+
+    For ``A`` and ``b`` that come from one linearisation — ``A = ∂F/∂y`` and ``b = −(∂F/∂θ) e`` of a
+    linearised ``F(y, θ)``, ``affine(x, s) = lin(x, s e)`` — the linearisation is applied at one place
+    in the loop, so it appears once in the compiled program (the right-hand side is the restart
+    pass's product, not a second copy of the operator)."""
+    nan = jnp.full((), jnp.nan, dtype)
+    return _gmres(affine, jnp.zeros((n,), dtype), nan, rtol, restart, max_cycles, precondition)
+
+
+def _gmres(apply, x, bnorm, rtol, restart, max_cycles, precondition):
+    """The loop of :func:`gmres` and :func:`gmres_affine`: ``apply(v, s) = A v − s b``; ``bnorm``
+    ``‖b‖₂``, or NaN for the first true residual's norm (a start from ``x = 0``)."""
+    precondition = (lambda v: v) if precondition is None else precondition
+    n = x.shape[0]
+    dtype = x.dtype
+    blocks = (restart + 1 + BLOCK - 1) // BLOCK
     zero = jnp.zeros((), jnp.int32)
 
     def body(c: _Carry) -> _Carry:
         k, rs = c.k, c.restarting
-        w = matvec(jnp.where(rs, c.x, precondition(c.V[k // BLOCK, k % BLOCK])))
+        w = apply(jnp.where(rs, c.x, precondition(c.V[k // BLOCK, k % BLOCK])), rs.astype(dtype))
         # a cycle's start: the true residual, which ends the solve or becomes the first basis vector
-        r = b - w
+        r = -w
         beta = jnp.linalg.norm(r)
+        bnorm = jnp.where(jnp.isnan(c.bnorm), beta, c.bnorm)
+        tol_abs = rtol * bnorm
         finished = rs & ((beta <= tol_abs) | (c.cycles >= max_cycles))
         # an Arnoldi iteration: the second Gram–Schmidt pass restores the orthogonality the first lost
         used = jnp.where(rs, 0, k // BLOCK + 1)
@@ -133,11 +155,10 @@ def gmres(matvec, b, *, rtol: float, restart: int = 64, max_cycles: int = 10, x0
         x = lax.cond(cycle_end, update, lambda x: x, c.x)
         return _Carry(x, V, R, cs, sn, g, k_next, ~rs & cycle_end,
                       c.cycles + (rs & ~finished), c.iterations + (~rs).astype(jnp.int32),
-                      jnp.where(rs, beta, c.residual), finished)
+                      jnp.where(rs, beta, c.residual), bnorm, finished)
 
-    x = jnp.zeros_like(b) if x0 is None else x0
     init = _Carry(x, jnp.zeros((blocks, BLOCK, n), dtype), jnp.zeros((restart + 1, restart), dtype),
                   jnp.zeros((restart,), dtype), jnp.zeros((restart,), dtype), jnp.zeros((restart + 1,), dtype),
-                  zero, jnp.ones((), bool), zero, zero, bnorm, jnp.zeros((), bool))
+                  zero, jnp.ones((), bool), zero, zero, jnp.zeros((), dtype), bnorm, jnp.zeros((), bool))
     out = lax.while_loop(lambda c: ~c.done, body, init)
-    return out.x, out.residual / jnp.where(bnorm == 0, 1.0, bnorm), out.iterations
+    return out.x, out.residual / jnp.where(out.bnorm == 0, 1.0, out.bnorm), out.iterations

@@ -22,6 +22,7 @@ from .fixed_point import state_fields as state_fields
 from .fixed_point import steady_state as steady_state
 from .fixed_point import steady_tangents as steady_tangents
 from .fixed_point import steady_walk as steady_walk
+from .fixed_point import steady_with_tangents as steady_with_tangents
 from .fixed_point import walks as walks
 from .checks import JITTER_TURNS as JITTER_TURNS
 from .checks import actuator_jitter as actuator_jitter

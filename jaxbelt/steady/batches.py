@@ -15,7 +15,7 @@ import numpy as np
 from ..integrators import AbstractIntegrator
 from ..model import BeltModel
 from ..state import BeltState
-from .fixed_point import SteadyState, map_configurations, state_fields, steady_state
+from .fixed_point import SteadyState, map_configurations, state_fields, steady_state, steady_with_tangents, walks
 
 
 def steady_states(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, chis, y0s=None,
@@ -25,9 +25,9 @@ def steady_states(model: BeltModel, solver: AbstractIntegrator | None = None, *,
     ``None``: the static equilibrium): one :class:`SteadyState` with a leading axis m. ``options``
     as :func:`steady_state`'s.
 
-    On a CPU, called with arrays (not under a trace), each row is one call of the single solve's
-    compiled program: whichever batch or caller asks, the Newton–GMRES program of a model's shapes
-    is compiled once (a batch inside another compiled program would be a second copy of it, and
+    On a CPU, called with arrays (not under a trace), each row is one call of
+    :func:`steady_with_tangents`'s compiled program, without tangents: whichever batch or caller
+    asks, the Newton–GMRES program of a model's shapes is compiled once (a batch inside another compiled program would be a second copy of it, and
     its compilation costs as much as the first), and a CPU runs a batch's solves one after
     another anyway (:func:`map_configurations`). Elsewhere, or under a trace, the rows are one
     :func:`map_configurations` batch."""
@@ -44,7 +44,12 @@ def steady_states(model: BeltModel, solver: AbstractIntegrator | None = None, *,
     if chis.shape[0] == 0:  # no configuration: the outputs' shapes without a solve
         shapes = jax.eval_shape(lambda c, y: map_configurations(lambda a: one(*a), (c, y)), chis, y0s)
         return jax.tree.map(lambda a: np.empty(a.shape, a.dtype), shapes)
-    rows = [one(chi, None if y0s is None else jax.tree.map(lambda a: a[i], y0s)) for i, chi in enumerate(chis)]
+    if walks(model):
+        raise ValueError("steady_states: this machine walks (lateral transport without a steering loop); "
+                         "its steady operation is steady_walk's")
+    rows = [steady_with_tangents(model.replace(chi_static=chi), solver, dt=dt, n_tangents=0, period_steps=n,
+                                 y0=None if y0s is None else jax.tree.map(lambda a: a[i], y0s), **options)[0]
+            for i, chi in enumerate(chis)]
     return jax.tree.map(lambda *a: np.stack([np.asarray(x) for x in a]), *rows)
 
 

@@ -77,7 +77,8 @@ from ..control import ControllerState, samples_per_update, sensor_displacement
 from ..integrators import AbstractIntegrator, make_solver
 from ..model import BeltModel
 from ..infra.programs import stored_jit
-from ..linalg.newton import DEFAULT_GMRES_CYCLES, DEFAULT_GMRES_RESTART, krylov_solve, newton_krylov
+from ..linalg.newton import (DEFAULT_GMRES_CYCLES, DEFAULT_GMRES_RESTART, krylov_solve, newton_krylov,
+                            newton_krylov_tangents)
 from ..state import BeltState, initial_state
 from ..transport import transport_masses, upwind_weights
 from ..timeloop import check_time_step, edge_margin, make_step, tracer_values
@@ -424,48 +425,93 @@ def steady_walk(model: BeltModel, solver: AbstractIntegrator | None = None, *, d
                  precondition)
 
 
+def steady_with_tangents(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, directions=None,
+                         n_tangents=None, y0: BeltState | None = None, period_steps: int | None = None,
+                         tol: float = DEFAULT_TOL_UM, max_newton: int = DEFAULT_MAX_NEWTON,
+                         tangent_rtol: float = ADJOINT_KRYLOV_RTOL, restart: int = DEFAULT_GMRES_RESTART,
+                         krylov_cycles: int = DEFAULT_GMRES_CYCLES, precondition: bool = True):
+    """The steady operation of ``model`` (:func:`steady_state`'s, or :func:`steady_walk`'s where the
+    machine walks) and its derivatives along the rows of ``directions`` (k, q) in ``chi_static``:
+    ``(SteadyState, tangents)``, ``tangents`` the derivatives at ``t = 0`` of the steady state of
+    ``model.replace(chi_static=chi_static + t @ directions)`` — its tracers' displacements
+    ``(tracer_u, tracer_v)``, the actuators' angles, :func:`state_fields` and the walk rate, m/s —
+    each with a trailing axis k.
+
+    One loop (:func:`jaxbelt.linalg.newton.newton_krylov_tangents`): the Newton iteration, then per
+    direction one tangent solve ``(∂F/∂x) dx = −(∂F/∂t) eᵢ`` at the solution (implicit function
+    theorem; the same solve as :func:`steady_state`'s derivatives), every pass on one joint
+    linearisation of the period map. Its compiled program holds the period map once as a primal and
+    once linearised (a solve and a separate tangent program hold it six times between them;
+    ``benchmarks/steady_state.py`` measures both compilations), and it is the one program of a
+    model's shapes: ``n_tangents`` (traced,
+    default k) takes the first so many directions, the others' tangents are NaN, and ``0`` makes it
+    a plain solve (:func:`jaxbelt.steady.steady_states` on a CPU calls it so, with ``directions``
+    its default, zeros (q, q)). ``y0`` the start (default the static equilibrium); other arguments
+    as :func:`steady_state`. A tangent whose GMRES failed is NaN."""
+    solver, n, dt, template, sc = _setup(model, solver, dt, y0, period_steps)
+    q = model.chi_static.shape[0]
+    directions = jnp.zeros((q, q), model.chi_static.dtype) if directions is None else jnp.asarray(directions)
+    count = directions.shape[0] if n_tangents is None else n_tangents
+    # the tolerances and counts as arrays: a call with other values runs the same compiled program
+    real = lambda a: jnp.asarray(a, dt.dtype)  # noqa: E731
+    return _steady_with_tangents(model, solver, dt, n, template, sc, directions, jnp.asarray(count, jnp.int32),
+                                 real(tol), jnp.asarray(max_newton, jnp.int32), real(tangent_rtol), restart,
+                                 jnp.asarray(krylov_cycles, jnp.int32), precondition)
+
+
+@stored_jit
+def _steady_with_tangents(model, solver, dt, n, template, sc, directions, count, tol, max_newton, tangent_rtol,
+                          restart, cycles, precondition):
+    walking = walks(model)
+    configure = lambda t: model.replace(chi_static=model.chi_static + t @ directions)  # noqa: E731
+    start = _pack(template, sc)
+    return _with_tangents(configure, jnp.zeros(directions.shape[0], directions.dtype), solver, n, dt, template,
+                          sc, (start, jnp.zeros((), dt.dtype)) if walking else start, walking, None, tol,
+                          max_newton, tangent_rtol, restart, cycles, precondition, count)
+
+
 def steady_tangents(configure, theta, s: SteadyState, solver: AbstractIntegrator | None = None, *, dt,
                     outputs=None, tangent_rtol: float = ADJOINT_KRYLOV_RTOL, restart: int = DEFAULT_GMRES_RESTART,
                     krylov_cycles: int = DEFAULT_GMRES_CYCLES, precondition: bool = True):
-    """The derivatives at ``theta`` (P,) of a steady state with respect to the parameters of
-    ``configure(theta) -> BeltModel``, given that steady state ``s`` (:func:`steady_state` of
-    ``configure(theta)``, or :func:`steady_walk`'s where that model walks): ``jax.jacfwd`` of
-    ``outputs(steady_state(configure(θ)))`` at ``theta``, by the implicit function theorem
-    directly — per component one tangent solve ``(∂F/∂x) dx = −(∂F/∂θ) e_i`` at the known
-    solution (the same solve as :func:`steady_state`'s derivatives), no Newton iteration. A
-    program that holds this and not the nonlinear solve is a fraction of one that differentiates
-    through :func:`steady_state`.
-
-    ``outputs(model, state, walk_rate) -> pytree`` (default: the tracers' displacements
-    ``(tracer_u, tracer_v)``, the actuators' angles, :func:`state_fields` and the walk rate, m/s);
-    each output's derivative gets a trailing axis P. Pure, jit-able."""
+    """The derivatives at ``theta`` (P,) of a known steady state ``s`` (:func:`steady_state` of
+    ``configure(theta)``, or :func:`steady_walk`'s where that model walks) with respect to the
+    parameters of ``configure(theta) -> BeltModel``, any parameterisation of the machine: the tangent
+    solves of :func:`steady_with_tangents`, in the same loop, started at ``s`` (whose Newton
+    iteration ends at once where ``s`` meets the default tolerance). ``outputs(model, state,
+    walk_rate) -> pytree`` (default :func:`steady_with_tangents`'s outputs); each output's
+    derivative gets a trailing axis P. Pure, jit-able."""
     model0 = configure(theta)
-    walking = walks(model0)
     solver, n, dt, template, sc = _setup(model0, solver, dt, s.state, s.period_steps)
-    outputs = _default_outputs if outputs is None else outputs
-    fn = _residual(solver, dt, n, sc, template, walking=walking)
+    walking = walks(model0)
     y = _pack(s.state, sc)
     y = lax.stop_gradient((y, s.walk_rate * (UNIT * n * dt)) if walking else y)
+    return _with_tangents(configure, theta, solver, n, dt, template, sc, y, walking, outputs, DEFAULT_TOL_UM,
+                          DEFAULT_MAX_NEWTON, tangent_rtol, restart, krylov_cycles, precondition, None)[1]
+
+
+def _with_tangents(configure, theta, solver, n, dt, template, sc, start, walking, outputs, tol, max_newton,
+                   tangent_rtol, restart, cycles, precondition, count):
+    outputs = _default_outputs if outputs is None else outputs
+    fn = _residual(solver, dt, n, sc, template, walking=walking)
+    q0 = quiet(configure(theta))
+    run_data = lax.stop_gradient(solver.init(q0, template, dt))
+    pre = mass_transport_preconditioner(q0, dt, n) if precondition else None
 
     def F(y, th):
-        q = quiet(configure(th))
-        return fn(y, (q, lax.stop_gradient(solver.init(q, template, dt))))
+        return fn(y, (quiet(configure(th)), run_data))
+
+    y, rms, mx, steps, its, dys, _ = newton_krylov_tangents(F, start, theta, tol, max_newton, tangent_rtol,
+                                                            restart, cycles, _preconditioned(pre, start), count)
 
     def state_out(y, th):
         v, c = y if walking else (y, jnp.zeros((), dt.dtype))
         return outputs(configure(th), _unpack(v, template, sc), c / (UNIT * n * dt))
 
-    pre = mass_transport_preconditioner(quiet(model0), dt, n) if precondition else None
-    _, lin_y = jax.linearize(lambda v: F(v, theta), y)
-    _, lin_theta = jax.linearize(lambda th: F(y, th), theta)
-    tangent_solve = _tangent_solver(pre, tangent_rtol, restart, krylov_cycles)
-
-    def column(e):
-        dy = tangent_solve(lin_y, jax.tree.map(jnp.negative, lin_theta(e)))
-        return jax.jvp(state_out, (y, theta), (dy, e))[1]
-
-    columns = map_configurations(column, jnp.eye(theta.size, dtype=theta.dtype))
-    return jax.tree.map(lambda a: jnp.moveaxis(a, 0, -1), columns)
+    columns = jax.vmap(lambda dy, e: jax.jvp(state_out, (y, theta), (dy, e))[1])(
+        dys, jnp.eye(theta.size, dtype=theta.dtype))
+    sol = _Solution(y, mx, steps, its, rms <= tol)
+    v, c = y if walking else (y, jnp.zeros((), dt.dtype))
+    return _result(q0, dt, n, v, sc, template, c, sol, tol), jax.tree.map(lambda a: jnp.moveaxis(a, 0, -1), columns)
 
 
 def _default_outputs(model: BeltModel, state: BeltState, walk_rate):

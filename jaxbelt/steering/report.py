@@ -44,7 +44,7 @@ from ..control import samples_per_update
 from ..infra.programs import stored_jit
 from ..infra.results import Result
 from ..misalignment import parameter_space
-from ..steady import steady_tangents, steady_walk
+from ..steady import check_steady, steady_with_tangents
 from ..timeloop import RunOptions, belt_speed, simulate
 from .plant import SteeringPlant, identify_plant
 from .response import DiscreteLoop, actuator_step
@@ -172,29 +172,22 @@ def _period_of(w):
     return float(2 * np.pi / w) if np.isfinite(w) else float("nan")
 
 
-@stored_jit
-def _steady_walk_tangents(model, solver, dt, idx, s):
-    """The derivatives of the steady walk rate ``s`` of ``model`` with respect to its roller DOFs
-    ``idx`` (:func:`jaxbelt.steady.steady_tangents`)."""
-    configure = lambda theta: model.replace(chi_static=model.chi_static.at[idx].add(theta))  # noqa: E731
-    return steady_tangents(configure, jnp.zeros(idx.shape, model.chi_static.dtype), s, solver, dt=dt,
-                           outputs=lambda m, state, rate: rate)
-
-
-def _steady_walk_rate(model, solver, dt):
-    """The open-loop steady walk rate (m/s) of ``model``."""
-    return steady_walk(model, solver, dt=dt).walk_rate
+def _walk_directions(model, dofs):
+    """Unit directions (k, q) along the roller DOFs ``dofs`` (flat indices of ``chi_static``)."""
+    q = model.chi_static.shape[0]
+    return jnp.zeros((len(dofs), q), model.chi_static.dtype).at[jnp.arange(len(dofs)), jnp.asarray(dofs, jnp.int32)].set(1.0)
 
 
 def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, float]:
     """The open-loop steady walk rate's derivatives (m/s per m or rad) with respect to the roller
-    DOFs ``dofs`` (flat indices of ``chi_static``), at the model's own misalignment: one forward
-    tangent of :func:`jaxbelt.steady.steady_walk` each (implicit function theorem). **Returns:**
-    ``(derivatives, the walk rate itself)`` (the solve the tangents ride on)."""
+    DOFs ``dofs`` (flat indices of ``chi_static``), at the model's own misalignment: the steady walk
+    and one tangent solve per DOF (implicit function theorem) in one program
+    (:func:`jaxbelt.steady.steady_with_tangents`). **Returns:** ``(derivatives, the walk rate
+    itself)``."""
     opened, dt = model.replace(control=None), jnp.asarray(options.dt, model.ell.dtype)
-    s = steady_walk(opened, options.solver, dt=dt)
-    J = _steady_walk_tangents(opened, options.solver, dt, jnp.asarray(dofs, jnp.int32), s)
-    return np.asarray(J), float(s.walk_rate)
+    s, J = steady_with_tangents(opened, options.solver, dt=dt, directions=_walk_directions(opened, dofs))
+    check_steady(s, opened, "the open-loop machine")
+    return np.asarray(J[-1]), float(s.walk_rate)
 
 
 def walk_sensitivity(model, options: RunOptions, loop: int = 0, jacobian=None) -> dict:
@@ -231,8 +224,12 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     space = parameter_space(model)
     dofs = list(space.chi_index) + [model.control.actuator_dof[loop]]
     J, walk = steady_walk_jacobian(opened, options, dofs)
-    walk_aligned = float(_steady_walk_rate(aligned.replace(control=None), options.solver,
-                                           jnp.asarray(options.dt, model.ell.dtype)))
+    # the aligned machine's walk by the same program, without tangents
+    opened_aligned = aligned.replace(control=None)
+    s0, _ = steady_with_tangents(opened_aligned, options.solver, dt=jnp.asarray(options.dt, model.ell.dtype),
+                                 directions=_walk_directions(opened_aligned, dofs), n_tangents=0)
+    check_steady(s0, opened_aligned, "the aligned open-loop machine")
+    walk_aligned = float(s0.walk_rate)
     disturbance = (walk - walk_aligned) * 1e3  # mm/s
     coeff = float(J[-1])  # m/s per rad = mm/s per mrad
     hold = -disturbance / coeff

@@ -10,7 +10,7 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.misalignment import apply, parameter_space
 from jaxbelt.steady import (NoSteadyStateError, check_steady, period_steps, quiet, steady_state, steady_states,
-                            steady_tangents, steady_walk)
+                            steady_tangents, steady_walk, steady_with_tangents)
 
 SCENE = "two-roller-steered"  # drive skewed 0.15 mrad, PI loop on the idle roller (N = 180)
 
@@ -176,3 +176,35 @@ def test_steady_states_of_a_batch_equal_one_solve_each(machine, steady):
         np.testing.assert_array_equal(np.asarray(batch.tracer_v[i]), np.asarray(one.tracer_v))
     traced = jax.jit(lambda c: steady_states(model, opts.solver, dt=opts.dt, chis=c, period_steps=n_p).tracer_v)(chis)
     np.testing.assert_allclose(np.asarray(traced), np.asarray(batch.tracer_v), rtol=0, atol=1e-11)
+
+
+def test_solve_with_tangents_equals_solve_then_tangents(machine, steady):
+    """:func:`jaxbelt.steady.steady_with_tangents` (Newton and the tangent solves in one loop on one
+    linearisation) gives :func:`steady_state`'s solution and :func:`steady_tangents`' derivatives at
+    it, for the steered machine and for the open-loop machine's walk rate; asked for no tangents
+    (the same compiled program) it is the solve alone."""
+    model, opts = machine
+    space = parameter_space(model, "idle:dz,drive:ay")
+    theta0 = jnp.zeros(space.size)
+    idx = jnp.asarray(space.chi_index, jnp.int32)
+    directions = jnp.zeros((space.size, model.chi_static.size)).at[jnp.arange(space.size), idx].set(1.0)
+    s, J = steady_with_tangents(model, opts.solver, dt=opts.dt, directions=directions)
+    assert bool(s.converged) and int(s.newton_steps) == int(steady.newton_steps)
+    np.testing.assert_allclose(np.asarray(s.tracer_v), np.asarray(steady.tracer_v), rtol=0, atol=1e-12)
+    configure = lambda t: model.replace(chi_static=model.chi_static.at[idx].add(t))  # noqa: E731
+    tracers = lambda m, state, rate: jb.timeloop.tracer_values(m, state.u)  # noqa: E731
+    J_at = np.asarray(jnp.concatenate(steady_tangents(configure, theta0, steady, opts.solver, dt=opts.dt,
+                                                      outputs=tracers)))
+    J = np.asarray(jnp.concatenate(J[:2]))
+    assert np.abs(J_at).max() > 1e-3
+    np.testing.assert_allclose(J, J_at, rtol=0, atol=1e-6 * np.abs(J_at).max())
+    alone, none = steady_with_tangents(model, opts.solver, dt=opts.dt, directions=directions, n_tangents=0)
+    assert np.all(np.isnan(np.asarray(none[1])))
+    np.testing.assert_array_equal(np.asarray(alone.tracer_v), np.asarray(s.tracer_v))
+    opened = model.replace(control=None)
+    w, Jw = steady_with_tangents(opened, opts.solver, dt=opts.dt, directions=directions)
+    walk = steady_walk(opened, opts.solver, dt=opts.dt)
+    np.testing.assert_allclose(float(w.walk_rate), float(walk.walk_rate), rtol=1e-6)
+    walk_of = lambda t: opened.replace(chi_static=opened.chi_static.at[idx].add(t))  # noqa: E731
+    Jw_at = np.asarray(steady_tangents(walk_of, theta0, walk, opts.solver, dt=opts.dt, outputs=lambda m, state, rate: rate))
+    np.testing.assert_allclose(np.asarray(Jw[-1]), Jw_at, rtol=0, atol=1e-6 * np.abs(Jw_at).max())
