@@ -9,8 +9,9 @@ time it needs until its lateral deviation from the aligned machine stays within 
 limit of the steady one, and the wall time of those steps. Also the steady deviation against the
 run's at its end. ``tangents``: the aligned machine's tracer derivatives with respect to all 18
 roller translations and rotations (forward mode, relative residual 1e-6 as a design study asks),
-best warm time with and without the preconditioner, at the known steady state (what a design
-study runs) and through the solve.
+best warm time with and without the preconditioner, at the known steady state and through the
+solve. ``solve_with_tangents``: the solve and those tangents in one program (what a design study
+runs), first call (compilation) and warm, against the solve's and the tangents' own programs.
 
 Run: ``python benchmarks/steady_state.py [--t-end 80] [--repeat 3]``. Writes
 ``results/steady_state.json``.
@@ -26,7 +27,7 @@ import numpy as np
 import jaxbelt as jb
 from _common import load, timed, write
 from jaxbelt.misalignment import aligned, with_misalignment
-from jaxbelt.steady import forward_jacobian, period_steps, quiet, steady_state, steady_tangents
+from jaxbelt.steady import forward_jacobian, period_steps, quiet, steady_state, steady_tangents, steady_with_tangents
 from jaxbelt.timeloop import compile_simulation, tracer_values
 
 LIMIT_UM = 20.0
@@ -54,8 +55,7 @@ def timed_solve(model, solver, dt, repeat, precondition=True):
 def tangents(model, solver, dt, repeat, precondition):
     """The aligned machine's tracer derivatives with respect to every roller translation and
     rotation (the design study's tangents, relative residual 1e-6): best warm seconds of the
-    tangent solves at the known steady state (:func:`jaxbelt.steady.steady_tangents`, what a design
-    study runs), and of ``jacfwd``-style differentiation through the solve
+    tangent solves at the known steady state (:func:`jaxbelt.steady.steady_tangents`), and of ``jacfwd``-style differentiation through the solve
     (:func:`jaxbelt.steady.forward_jacobian`: the nonlinear solve again, then the same tangents)."""
     n_p = period_steps(model, dt)
     configure = lambda theta: with_misalignment(  # noqa: E731
@@ -73,6 +73,28 @@ def tangents(model, solver, dt, repeat, precondition):
     fn = jax.jit(lambda th: forward_jacobian(tracers, th))
     _, best_through, J_through = timed(fn, theta, repeat=repeat)
     return best_at, best_through, np.asarray(J), float(np.abs(np.asarray(J) - np.asarray(J_through)).max() / np.abs(J).max())
+
+
+def one_program(model, solver, dt, repeat):
+    """The steady solve and the 18 tangents in one program (:func:`jaxbelt.steady.steady_with_tangents`,
+    what a design study runs) against the solve's program and the tangents' program at the known
+    solution: first-call seconds (tracing, compilation and one run) and best warm seconds of each,
+    and the one program's largest difference from the separate tangents, relative."""
+    n_p = period_steps(model, dt)
+    q = model.chi_static.size
+    configure = lambda theta: model.replace(chi_static=model.chi_static + theta)  # noqa: E731
+    tracers = lambda m, st, r: tracer_values(m, st.u)[1]  # noqa: E731
+    both = jax.jit(lambda m: steady_with_tangents(m, solver, dt=dt, directions=jnp.eye(q), period_steps=n_p,
+                                                  tangent_rtol=1e-6))
+    solve = jax.jit(lambda m: steady_state(m, solver, dt=dt, period_steps=n_p))
+    at = jax.jit(lambda s: steady_tangents(configure, jnp.zeros(q), s, solver, dt=dt, tangent_rtol=1e-6, outputs=tracers))
+    first_both, best_both, (s, J) = timed(both, model, repeat=repeat)
+    first_solve, best_solve, s_alone = timed(solve, model, repeat=repeat)
+    first_at, best_at, J_at = timed(at, s_alone, repeat=repeat)
+    J_at = np.asarray(J_at)
+    return dict(parameters=q, one_program_first_s=first_both, one_program_s=best_both,
+                solve_first_s=first_solve, tangents_first_s=first_at, solve_s=best_solve, tangents_s=best_at,
+                relative_difference=float(np.abs(np.asarray(J[1]) - J_at).max() / np.abs(J_at).max()))
 
 
 def main():
@@ -129,7 +151,9 @@ def main():
                         through_the_solve_s=through_s, through_the_solve_relative_difference=through_gap,
                         relative_difference=float(np.abs(J - J_plain).max() / np.abs(J).max()))
     print(tangent_rows)
-    write("steady_state", dict(tangents=tangent_rows,
+    program_rows = one_program(model, solver, dt, args.repeat)
+    print(program_rows)
+    write("steady_state", dict(tangents=tangent_rows, solve_with_tangents=program_rows,
         scene=args.scene, unknowns=model.n_unknowns, dt_s=dt, period_steps=int(ref_s.period_steps),
         t_end_s=args.t_end, run_s=run_s, aligned_solve_first_s=first, aligned_solve_warm_s=warm,
         limit_um=LIMIT_UM, device=jax.devices()[0].device_kind, cases=rows))
