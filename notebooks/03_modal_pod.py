@@ -211,7 +211,7 @@ axs[1].legend(fontsize=8)
 axs[1].grid(alpha=0.3, which="both")
 r_show = min([r for r in rs if max(pod2[r][:2]) < TOL] or [rs[-1]])
 e_t = np.sqrt(np.mean((np.asarray(ref_u) - np.asarray(pod2[r_show][2].tracer_u)) ** 2, axis=1)) * 1e3
-plot.plot_rmse_over_time(t2, e_t, TOL, ax=axs[2])
+plot.plot_rmse_over_time(t2, e_t * 1e3, TOL * 1e3, ax=axs[2])  # µm
 axs[2].set_title(f"RMSE (x) over time, {r_show} modes (Fig. 7.5)")
 show(fig)
 

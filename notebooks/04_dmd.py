@@ -167,7 +167,7 @@ axs[0].set(xlabel="snapshots (first steps of the run)", ylabel="RMSE over the pr
 axs[0].legend(fontsize=8)
 axs[0].grid(alpha=0.3, which="both")
 tt = np.arange(SNAPSHOTS + 1, STEPS + 1) * DT
-plot.plot_rmse_over_time(tt, ex10, TOL, ax=axs[1])
+plot.plot_rmse_over_time(tt, ex10 * 1e3, TOL * 1e3, ax=axs[1])  # µm
 axs[1].semilogy(tt, np.maximum(ez10, 1e-16), lw=1, color="tab:green", label="z")
 axs[1].legend(fontsize=8)
 axs[1].set_title(f"{SNAPSHOTS} snapshots, 10 modes: RMSE over time (Fig. 7.17)")

@@ -297,9 +297,9 @@ for ax, i in zip(axs, picks):
     est = error_rom(m, pod.basis, coords, dt=DT, z_true0=rom.state_to_z(m, st, dt=DT), stride=stride, solver=reuse)
     ind = residual_indicator(m, pod.fields(coords), dt=DT, stride=stride, solver=reuse)
     e_t = np.sqrt(np.mean((np.asarray(truth[i, :, :n_tr]) - np.asarray(out.tracer_u)) ** 2, 1)) * 1e3
-    plot.plot_rmse_over_time(tt, e_t, TOL, estimate_mm=np.asarray(est.error_um) / 1e3, ax=ax,
+    plot.plot_rmse_over_time(tt, e_t * 1e3, TOL * 1e3, estimate_um=np.asarray(est.error_um), ax=ax,  # µm
                              estimate_label="error ROM estimate")
-    ax.semilogy((np.asarray(ind.step) + 1) * DT, np.asarray(ind.estimate_um) / 1e3, "x:", ms=3, lw=1,
+    ax.semilogy((np.asarray(ind.step) + 1) * DT, np.asarray(ind.estimate_um), "x:", ms=3, lw=1,
                 color="tab:gray", label="triangle-inequality indicator")
     ax.legend(fontsize=8)
     ax.set_title(f"POD, {labels[i]}", fontsize=9)

@@ -123,7 +123,7 @@ def render_costs(lat: dict, ss: dict) -> str:
     runs = eb.get("warm_cache_runs_s") or [eb["warm_cache_s"]]
     warm_runs = (f"median of {len(runs)} warm runs, {_span(runs, '.1f')} s; " if len(runs) > 1 else "")
     cold, warm = lat["empty_cache"]["stages"], lat["warm_cache"]["stages"]
-    cases, t = ss["cases"], ss["tangents"]
+    cases, t, w = ss["cases"], ss["tangents"], ss["solve_with_tangents"]
     steps = [r["newton_steps"] for r in cases]
     its = [r["krylov_iterations"] for r in cases]
     plain = [r["unpreconditioned"]["krylov_iterations"] for r in cases]
@@ -142,9 +142,12 @@ def render_costs(lat: dict, ss: dict) -> str:
         f"steps, {_span(its, 'd')} Krylov iterations of one linearised period each, {_span(plain, 'd')} without the "
         f"mass-transport preconditioner; {_span(solve, '.2f')} s per solve on the design scene; "
         "[Steady operation](tolerance.md#steady-operation) says why, [measured](benchmarks.md#steady_state)). "
-        f"The aligned machine's {t['parameters']} derivatives, tangent solves at its known steady state, take "
-        f"{t['preconditioned_s']:.2f} s ({t['through_the_solve_s']:.2f} s differentiating through the solve, which "
-        "solves it again first). In a warm process the tolerance box's own arithmetic is a few seconds: the "
+        f"The aligned machine's steady state with its {w['parameters']} derivatives is one program (Newton's steps, "
+        "then one tangent solve per component, on one linearisation of the period map): "
+        f"{w['one_program_s']:.2f} s, against {w['solve_s'] + w['tangents_s']:.2f} s for the solve and a separate "
+        f"tangent program, and {w['one_program_first_s']:.0f} s to compile and run it the first time, against "
+        f"{w['solve_first_s'] + w['tangents_first_s']:.0f} s for the two "
+        f"({t['through_the_solve_s']:.2f} s differentiating through the solve instead). In a warm process the tolerance box's own arithmetic is a few seconds: the "
         "aligned steady state, its derivatives and the actuator jitter's run "
         f"{warm['aligned_steady_jacobian_and_jitter_again_s']:.1f} s, the verification solves and the box search "
         f"{warm['tolerance_box_s']:.1f} s, the finer grid's solves of the error bars {warm['error_bars_s']:.1f} s. "
@@ -153,9 +156,9 @@ def render_costs(lat: dict, ss: dict) -> str:
         "the compiled programs from the cache (the aligned machine's programs take "
         f"{warm['aligned_steady_jacobian_and_jitter_s']:.1f} s on their first call, "
         f"{warm['aligned_steady_jacobian_and_jitter_again_s']:.1f} s on the second). With an empty cache most of "
-        "the time is XLA compiling: the aligned machine's steady solve, its tangents and the jitter's run "
+        "the time is XLA compiling: the aligned machine's steady program and the jitter's run "
         f"{cold['aligned_steady_jacobian_and_jitter_s']:.0f} s (with their tracing and first run), the finer grid's "
-        f"error bars {cold['error_bars_s']:.0f} s; the verification solves reuse the compiled solve "
+        f"error bars {cold['error_bars_s']:.0f} s; the verification solves reuse the compiled program "
         f"({cold['verification_batch_first_s']:.1f} s for eight of them, the first time).",
     ])
 

@@ -93,7 +93,7 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
         s = list(sc.step(*s, permc_spec=order))
     _, ref = runs["exact"]()
     tu, _ = tracer_values(model, jax.numpy.asarray(s[0]))
-    ref_diff_mm = float(np.abs(np.asarray(tu) - np.asarray(ref.tracer_u[scipy_steps - 1])).max() * 1e3)
+    ref_diff_um = float(np.abs(np.asarray(tu) - np.asarray(ref.tracer_u[scipy_steps - 1])).max() * 1e6)
 
     def scipy_steps_fn(kept_factor):
         def go():
@@ -133,7 +133,7 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
     return {"ms_per_step": ms, "ratios": ratios, "ms_per_run_init": {k: 1e3 * t for k, t in init_s.items()},
             "superlu_ordering": order,
             "superlu_factor_s_by_ordering": factor_t, "rounds": rounds, "jaxbelt_steps_per_call": steps,
-            "scipy_reference_max_tracer_diff_vs_jaxbelt_mm": ref_diff_mm, "scipy_reference_steps_checked": scipy_steps}
+            "scipy_reference_max_tracer_diff_vs_jaxbelt_um": ref_diff_um, "scipy_reference_steps_checked": scipy_steps}
 
 
 def whole_run(model, n_steps: int, dt, repeat: int) -> dict:

@@ -307,10 +307,10 @@ def _plot(r: rom.ReductionResult, report: dict, path):
     """The --plot figure: singular values (modes marked), DMD eigenvalues, the error over time with
     the estimate."""
     s = r.spectra
-    est = {} if r.estimate is None else dict(estimate_t=r.t, estimate_mm=r.estimate.error_um / 1e3)
+    est = {} if r.estimate is None else dict(estimate_t=r.t, estimate_um=r.estimate.error_um)
     eigs = {} if s.eigs is None else dict(eigs=s.eigs, eig_weights=s.eig_weights)
-    plot.plot_reduction(dict(report, modes=r.modes if s.marked is None else s.marked, rmse_mm=r.rmse_um / 1e3), r.t,
-                        r.error_um / 1e3, path, singular_values=s.singular_values, **eigs, **est)
+    plot.plot_reduction(dict(report, modes=r.modes if s.marked is None else s.marked, rmse_um=r.rmse_um), r.t,
+                        r.error_um, path, singular_values=s.singular_values, **eigs, **est)
     report["plot"] = str(path)
 
 

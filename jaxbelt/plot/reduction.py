@@ -58,39 +58,38 @@ def plot_dmd_eigenvalues(eigs, weights=None, ax=None):
     return ax
 
 
-def plot_rmse_over_time(t, rmse_mm, tol_mm=0.02, estimate_mm=None, ax=None, estimate_t=None,
+def plot_rmse_over_time(t, rmse_um, tol_um=20.0, estimate_um=None, ax=None, estimate_t=None,
                         estimate_label="error estimate"):
-    """Tracer RMSE of a reduced model against the full one at every time step (mm, semilog), the
-    tolerance ``tol_mm`` and, optionally, an error estimate ``estimate_mm``
-    in mm (:func:`jaxbelt.rom.error_estimate.error_rom`'s ``error_um / 1e3``, or the
-    triangle-inequality :func:`~jaxbelt.rom.error_estimate.residual_indicator`'s ``estimate_um / 1e3``)
-    at times ``estimate_t``
-    (default ``t``), labelled ``estimate_label``. Returns the axes."""
+    """Tracer RMSE of a reduced model against the full one at every time step (µm, semilog), the
+    tolerance ``tol_um`` and, optionally, an error estimate ``estimate_um`` in µm
+    (:func:`jaxbelt.rom.error_estimate.error_rom`'s ``error_um``, or the triangle-inequality
+    :func:`~jaxbelt.rom.error_estimate.residual_indicator`'s ``estimate_um``) at times
+    ``estimate_t`` (default ``t``), labelled ``estimate_label``. Returns the axes."""
     _, ax = axes_or_new(ax)
     t = np.asarray(t, float)
-    e = np.asarray(rmse_mm, float)
+    e = np.asarray(rmse_um, float)
     ax.semilogy(t, np.where(e > 0, e, np.nan), lw=1, color="tab:blue", label="RMSE vs full model")
-    if tol_mm is not None:
-        ax.axhline(tol_mm, color="tab:red", lw=1, ls="--", label=f"tolerance {tol_mm:g} mm")
-    if estimate_mm is not None:
-        est = np.asarray(estimate_mm, float)
+    if tol_um is not None:
+        ax.axhline(tol_um, color="tab:red", lw=1, ls="--", label=f"tolerance {tol_um:g} µm")
+    if estimate_um is not None:
+        est = np.asarray(estimate_um, float)
         te = t if estimate_t is None else np.asarray(estimate_t, float)
         ax.semilogy(te, np.where(est > 0, est, np.nan), "o-", ms=3, lw=1, color="tab:orange",
                     label=estimate_label)
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("tracer RMSE [mm]")
+    ax.set_ylabel("tracer RMSE [µm]")
     ax.set_title("error over time")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, which="both")
     return ax
 
 
-def plot_reduction(report, t, rmse_mm, path=None, singular_values=None, eigs=None, eig_weights=None,
-                   estimate_t=None, estimate_mm=None, tol_mm=0.02):
+def plot_reduction(report, t, rmse_um, path=None, singular_values=None, eigs=None, eig_weights=None,
+                   estimate_t=None, estimate_um=None, tol_um=20.0):
     """The figure of ``jaxbelt reduce --plot``: singular values of the training snapshots (with
     ``report["modes"]`` marked), the DMD eigenvalues when ``eigs`` is given (DMD-type methods),
-    and the RMSE over time ``t`` (s) with the indicator estimate — a 1 × 3 figure, or 1 × 2
-    without eigenvalues. ``report``: the dict the command prints (scene, method, modes, rmse_mm).
+    and the RMSE over time ``t`` (s, µm) with the indicator estimate — a 1 × 3 figure, or 1 × 2
+    without eigenvalues. ``report``: the dict the command prints (scene, method, modes, rmse_um).
     Returns ``path``, or the figure when ``path`` is ``None``."""
     plt = pyplot()
     panels = (singular_values is not None) + (eigs is not None) + 1
@@ -103,10 +102,10 @@ def plot_reduction(report, t, rmse_mm, path=None, singular_values=None, eigs=Non
     if eigs is not None:
         plot_dmd_eigenvalues(eigs, eig_weights, ax=axes[k])
         k += 1
-    plot_rmse_over_time(t, rmse_mm, tol_mm, estimate_mm, ax=axes[k], estimate_t=estimate_t)
-    rm = report.get("rmse_mm")
+    plot_rmse_over_time(t, rmse_um, tol_um, estimate_um, ax=axes[k], estimate_t=estimate_t)
+    rm = report.get("rmse_um")
     fig.suptitle(f"{report.get('scene', '')}: {report.get('method', '')}, {report.get('modes')} modes"
-                 + (f", RMSE {rm:.3g} mm" if isinstance(rm, (int, float)) else ""))
+                 + (f", RMSE {rm:.3g} µm" if isinstance(rm, (int, float)) else ""))
     return finish_figure(fig, path)
 
 

@@ -145,14 +145,14 @@ def test_plot_functions_on_synthetic_data(tmp_path):
     s = 10.0 ** -np.arange(30.0)
     lam = 0.99 * np.exp(1j * np.linspace(-1, 1, 9))
     t = np.arange(1, 101) * 0.005
-    err = 1e-4 * (1 + t)
+    err = 0.1 * (1 + t)  # µm
     assert plot_singular_values(s, n_modes=5).get_ylabel()
     ax = plot_dmd_eigenvalues(lam, weights=np.logspace(-8, 0, 9))
     assert len(ax.figure.axes) == 2  # the eigenvalue plane and its colorbar
     plot_dmd_eigenvalues(lam)
-    plot_rmse_over_time(t, err, estimate_mm=np.cumsum(err[::10]) * 10, estimate_t=t[::10])
+    plot_rmse_over_time(t, err, estimate_um=np.cumsum(err[::10]) * 10, estimate_t=t[::10])
     png = tmp_path / "pod-like.png"  # 1 × 2: no eigenvalues
-    plot_reduction(dict(scene="s", method="pod", modes=5, rmse_mm=1e-4), t, err, png, singular_values=s)
+    plot_reduction(dict(scene="s", method="pod", modes=5, rmse_um=0.1), t, err, png, singular_values=s)
     assert png.stat().st_size > 10_000
     import matplotlib.pyplot as plt
 

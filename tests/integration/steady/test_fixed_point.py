@@ -1,7 +1,6 @@
-"""Steady operation solved directly (:mod:`jaxbelt.steady`) against long time-stepped runs, its
-implicit derivatives against central differences, and the machines without one."""
+"""The fixed point of the period map (:mod:`jaxbelt.steady.fixed_point`) against long time-stepped
+runs, its implicit derivatives against central differences, and the machines without one."""
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -9,22 +8,7 @@ import pytest
 
 import jaxbelt as jb
 from jaxbelt.misalignment import apply, parameter_space
-from jaxbelt.steady import (NoSteadyStateError, check_steady, period_steps, quiet, steady_state, steady_states,
-                            steady_tangents, steady_walk, steady_with_tangents)
-
-SCENE = "two-roller-steered"  # drive skewed 0.15 mrad, PI loop on the idle roller (N = 180)
-
-
-@pytest.fixture(scope="module")
-def machine():
-    scene = jb.load_scene(SCENE)
-    return jb.build_model(scene), jb.RunOptions.from_scene(scene)
-
-
-@pytest.fixture(scope="module")
-def steady(machine):
-    model, opts = machine
-    return steady_state(model, opts.solver, dt=opts.dt)
+from jaxbelt.steady import period_steps, quiet, steady_state, steady_tangents, steady_walk, steady_with_tangents
 
 
 def test_steady_state_is_where_a_long_run_settles(machine, steady):
@@ -78,15 +62,6 @@ def test_steady_state_gradient_matches_central_differences(machine, steady):
         np.testing.assert_allclose(J[:, k], fd, rtol=0, atol=1e-5 * scale)
 
 
-def test_hold_angle_beyond_the_range_is_named(machine):
-    """The loop needs more than its range to hold the skewed belt: one line saying how much."""
-    model, opts = machine
-    narrow = eqx.tree_at(lambda m: m.control.limit, model, jnp.full_like(model.control.limit, 1e-6))
-    s = steady_state(narrow, opts.solver, dt=opts.dt)
-    with pytest.raises(NoSteadyStateError, match=r"needs .* mrad .* beyond its ±0.001 mrad range"):
-        check_steady(s, narrow)
-
-
 def test_steady_walk_rate_matches_an_open_loop_run(machine):
     """The open-loop machine's walk, solved as a fixed point up to a uniform lateral drift, equals
     the slope of the belt's lateral position in a long open-loop run after its transient."""
@@ -106,29 +81,6 @@ def test_a_walking_machine_has_no_stationary_steady_state(machine):
     model, opts = machine
     with pytest.raises(ValueError, match="walks"):
         steady_state(model.replace(control=None), opts.solver, dt=opts.dt)
-
-
-def test_prolongate_carries_a_state_onto_another_grid(machine, steady):
-    """:func:`jaxbelt.state.prolongate`: onto the same grid it is the identity; onto the grid with
-    twice the columns and rows, the shared nodes keep their values, the new ones are the means of
-    their neighbours, and the element masses keep their relative deviation."""
-    from jaxbelt.accuracy import refine
-    from jaxbelt.state import prolongate
-
-    model, _ = machine
-    same = prolongate(steady.state, model, model)
-    for a, b in ((same.u, steady.state.u), (same.u_dot, steady.state.u_dot), (same.m_e, steady.state.m_e)):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-12, atol=1e-18)
-    fine = jb.build_model(refine(jb.load_scene(SCENE), n_xi=2.0, n_eta=2.0))
-    assert fine.x.shape[0] == 2 * model.x.shape[0] and fine.n_eta == 2 * model.n_eta - 1
-    f = prolongate(steady.state, model, fine)
-    u, uf = np.asarray(steady.state.u).reshape(len(model.x), model.n_eta, 2), \
-        np.asarray(f.u).reshape(len(fine.x), fine.n_eta, 2)
-    np.testing.assert_allclose(uf[::2, ::2], u, rtol=1e-12, atol=1e-18)
-    np.testing.assert_allclose(uf[1::2, ::2], 0.5 * (u + np.roll(u, -1, axis=0)), rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(uf[::2, 1::2], 0.5 * (u[:, :-1] + u[:, 1:]), rtol=1e-9, atol=1e-15)
-    rel, rel_f = np.asarray(steady.state.m_e) / np.asarray(model.m_e0), np.asarray(f.m_e) / np.asarray(fine.m_e0)
-    assert abs(np.mean(rel_f) - np.mean(rel)) < 1e-12 + 1e-3 * np.ptp(rel)
 
 
 def test_mass_transport_preconditioner_changes_the_iterations_not_the_answer(machine, steady):
@@ -161,21 +113,6 @@ def test_steady_walk_tangents_at_the_solution_equal_central_differences(machine)
     scale = np.abs(fd).max()  # the tilt walks the belt; the axial shift hardly does (its entry is solver noise)
     assert scale > 1e-3
     np.testing.assert_allclose(J, fd, rtol=0, atol=1e-5 * scale)
-
-
-def test_steady_states_of_a_batch_equal_one_solve_each(machine, steady):
-    """:func:`jaxbelt.steady.steady_states` (one compiled single solve per row on a CPU) gives each
-    row's :func:`steady_state`, and the same under ``jit`` (a ``lax.map`` batch)."""
-    model, opts = machine
-    space = parameter_space(model, "idle:dz,drive:ay")
-    chis = jnp.stack([apply(model, space, t).chi_static for t in (jnp.array([0.01, 0.0]), jnp.array([0.0, -0.02]))])
-    n_p = period_steps(model, opts.dt)
-    batch = steady_states(model, opts.solver, dt=opts.dt, chis=chis, period_steps=n_p)
-    for i in range(2):
-        one = steady_state(model.replace(chi_static=chis[i]), opts.solver, dt=opts.dt)
-        np.testing.assert_array_equal(np.asarray(batch.tracer_v[i]), np.asarray(one.tracer_v))
-    traced = jax.jit(lambda c: steady_states(model, opts.solver, dt=opts.dt, chis=c, period_steps=n_p).tracer_v)(chis)
-    np.testing.assert_allclose(np.asarray(traced), np.asarray(batch.tracer_v), rtol=0, atol=1e-11)
 
 
 def test_solve_with_tangents_equals_solve_then_tangents(machine, steady):
