@@ -4,7 +4,8 @@
 GMRES(m): Arnoldi with classical Gram–Schmidt applied twice, "CGS2", which keeps the basis
 orthogonal to working precision; the Hessenberg matrix reduced by Givens rotations as it grows, so
 the residual norm of every iterate is known without a least-squares solve; restarted from the true
-residual after ``restart`` iterations).
+residual after ``restart`` iterations). :func:`gmres_affine` is the same loop for a right-hand side
+known only through the operator (``x, s ↦ A x − s b``).
 
 Why not :func:`jax.scipy.sparse.linalg.gmres`: its iteration copies the whole Krylov basis (a
 pytree carried through nested loops), which on a CPU costs more than the operator itself when the

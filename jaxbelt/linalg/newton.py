@@ -2,8 +2,9 @@
 (:mod:`jaxbelt.steady`), written for programs whose operator is a linearised time-step map.
 
 :func:`newton_krylov` solves ``f(y) = 0`` by inexact Newton steps on :func:`jax.linearize`'s
-linearisation, :func:`krylov_solve` one linear system ``A x = b`` with pytree unknowns; both call
-:func:`jaxbelt.linalg.gmres.gmres`.
+linearisation, :func:`newton_krylov_tangents` the same and then the root's derivatives with
+respect to a parameter vector in the same loop, :func:`krylov_solve` one linear system ``A x = b``
+with pytree unknowns; all call :mod:`jaxbelt.linalg.gmres`.
 """
 
 from __future__ import annotations

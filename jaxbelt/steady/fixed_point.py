@@ -14,7 +14,9 @@ is the time stepper's own map, a long time-stepped run settles onto ``x*`` to th
 tolerance, not to a discretisation error. Derivatives come from the implicit function theorem
 (``jax.lax.custom_root``): ``dx*/dθ = (I − ∂Φ/∂x)⁻¹ ∂Φ/∂θ``, one linear solve per tangent
 (forward mode) or one transposed solve (reverse mode), never through the iterations; the solve
-is jit- and vmap-able over misalignments and gains.
+is jit- and vmap-able over misalignments and gains. Where the tangents along given directions
+are wanted with the solve, :func:`steady_with_tangents` takes them in the same loop as Newton's
+steps, on one linearisation of ``Φ`` (one compiled program for the solve with and without them).
 
 **What is solved, and decisions where the specification is silent:**
 

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxbelt.linalg.gmres import BLOCK, gmres
+from jaxbelt.linalg.gmres import BLOCK, gmres, gmres_affine
 
 
 def _system(n=120, seed=0, spread=0.9):
@@ -90,3 +90,43 @@ def test_the_operator_is_traced_once_per_solve():
 
     y, rms, _, steps, _ = newton_krylov(f, jnp.zeros_like(jnp.asarray(b)), 1e-10, 20, 60, 4)
     assert traced.count("f") == 1 and float(rms) <= 1e-10 and int(steps) >= 2
+
+
+def test_affine_gmres_equals_the_dense_solve_of_the_operator_it_is_given():
+    """:func:`jaxbelt.linalg.gmres.gmres_affine`: ``A x = b`` known only through ``x, s ↦ A x − s b``;
+    the relative residual is against ``‖b‖`` (the first true residual's norm), a zero ``b`` returns
+    at once."""
+    A, b = _system()
+    Aj, bj = jnp.asarray(A), jnp.asarray(b)
+    x, res, its = jax.jit(lambda: gmres_affine(lambda v, s: Aj @ v - s * bj, len(b), jnp.float64, rtol=1e-10,
+                                               restart=100))()
+    assert float(res) <= 1e-10 and abs(float(res) - np.linalg.norm(A @ np.asarray(x) - b) / np.linalg.norm(b)) < 1e-12
+    np.testing.assert_allclose(np.asarray(x), np.linalg.solve(A, b), atol=1e-8)
+    x0, res0, its0 = gmres_affine(lambda v, s: Aj @ v, len(b), jnp.float64, rtol=1e-10)
+    assert np.all(np.asarray(x0) == 0) and int(its0) == 0 and float(res0) == 0
+
+
+def test_newton_with_tangents_gives_the_root_and_the_implicit_derivatives():
+    """:func:`jaxbelt.linalg.newton.newton_krylov_tangents` on ``f(y, θ) = A y + 0.1 y³ − B θ − c``:
+    the root :func:`newton_krylov` finds, tangents equal to the dense implicit-function-theorem
+    ``−(∂f/∂y)⁻¹ ∂f/∂θ`` at it, ``count`` of them (the rest NaN), ``f`` traced once."""
+    from jaxbelt.linalg.newton import newton_krylov, newton_krylov_tangents
+
+    A, c = _system(n=50, spread=0.5)
+    B = np.random.default_rng(5).standard_normal((50, 3))
+    traced = []
+
+    def f(y, th):
+        traced.append("f")
+        return jnp.asarray(A) @ y + 0.1 * y ** 3 - jnp.asarray(B) @ th - jnp.asarray(c)
+
+    theta = jnp.asarray([0.3, -0.2, 0.1])
+    y, rms, _, steps, _, T, t_its = newton_krylov_tangents(f, jnp.zeros(50), theta, 1e-11, 20, 1e-11, 60, 4)
+    assert traced == ["f"] and float(rms) <= 1e-11 and int(t_its) > 0
+    y_alone = newton_krylov(lambda y: f(y, theta), jnp.zeros(50), 1e-11, 20, 60, 4)[0]
+    np.testing.assert_allclose(np.asarray(y), np.asarray(y_alone), atol=1e-12)
+    Jy = A + np.diag(0.3 * np.asarray(y) ** 2)
+    np.testing.assert_allclose(np.asarray(T).T, np.linalg.solve(Jy, B), atol=1e-9)
+    _, _, _, _, _, T2, _ = newton_krylov_tangents(f, jnp.zeros(50), theta, 1e-11, 20, 1e-11, 60, 4, count=2)
+    np.testing.assert_allclose(np.asarray(T2[:2]), np.asarray(T[:2]), atol=1e-12)
+    assert np.all(np.isnan(np.asarray(T2[2])))
