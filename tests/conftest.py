@@ -75,13 +75,15 @@ MODULE_SECONDS = json.loads((TESTS / "module_seconds.json").read_text())
 
 # The measured half of the slow/fast split: a test of the default run whose one-process seconds,
 # as benchmarks/suite_cost.py measured them (tests/test_seconds.json), exceed SLOW_TEST_S is
-# slow; the hand-placed ``@pytest.mark.slow`` marks are the other half (coverage: a test whose
+# slow, unless it is marked ``reference`` (a check against an independent reference: a dense
+# solve, an analytic solution, python-control — the default run keeps one of each, whatever it
+# costs); the hand-placed ``@pytest.mark.slow`` marks are the other half (coverage: a test whose
 # code cheaper tests already reach).
 TEST_SECONDS_FILE = TESTS / "test_seconds.json"
 TEST_SECONDS = json.loads(TEST_SECONDS_FILE.read_text()) if TEST_SECONDS_FILE.exists() else {}
 if os.environ.get("JAXBELT_MEASURED_SPLIT", "1") == "0":  # suite_cost.py measures every test
     TEST_SECONDS = {}
-SLOW_TEST_S = 5.0  # so that the default run takes about two minutes on two cores
+SLOW_TEST_S = 3.0  # so that the default run takes about two minutes on two cores
 
 
 @pytest.hookimpl(tryfirst=True)  # before the mark plugin deselects by ``-m``
@@ -89,7 +91,7 @@ def pytest_collection_modifyitems(config, items):
     """Tests over :data:`SLOW_TEST_S` marked slow; modules in decreasing ``MODULE_SECONDS`` (a
     stable sort: each module's own order stays)."""
     for item in items:
-        if TEST_SECONDS.get(item.nodeid, 0.0) > SLOW_TEST_S:
+        if TEST_SECONDS.get(item.nodeid, 0.0) > SLOW_TEST_S and item.get_closest_marker("reference") is None:
             item.add_marker(pytest.mark.slow)
     items.sort(key=lambda item: -MODULE_SECONDS.get(module_key(item.path), 5))
 

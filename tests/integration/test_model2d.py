@@ -62,6 +62,7 @@ def test_default_scene_count_via_info(capsys):
     assert info["n_unknowns"] == 3762 and info["n_xi"] == 104 and info["n_eta"] == 18
 
 
+@pytest.mark.reference
 def test_structured_solve_equals_dense_2d():
     base, opts = small(n_eta=4)
     m = with_variant(base, {0: dict(translation=(0, 2e-3, 1e-3)), 1: dict(rotation=(4e-4, 2e-4))})

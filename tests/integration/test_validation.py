@@ -208,6 +208,7 @@ def test_wave_speed_1d_at_rest_and_moving(wave_1d):
     assert (down - up) / 2 == pytest.approx(V, rel=0.05)  # the moving frame: arrivals shifted by V
 
 
+@pytest.mark.reference
 def test_wave_speed_2d_bar_and_plate_limits(wave_1d):
     model_1d, _, mesh_1d, opts_1d = wave_1d
     *_, history_1d = wave_speeds(model_1d, mesh_1d, opts_1d, REST)

@@ -104,6 +104,7 @@ def test_lever_columns_and_dynamic_rows(walking):
     assert rows == (d + walking.dofs.index("ax"),)  # roller 2's torque-loaded x tilt
 
 
+@pytest.mark.reference
 def test_kept_factors_solve_as_a_full_factorisation(walking, dt, moved):
     """At a state whose lever arms have moved, the kept interior with the step's border solves
     the step's matrix as its full factorisation and a dense solve do; the reference's factors

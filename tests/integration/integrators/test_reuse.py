@@ -35,6 +35,7 @@ def test_factor_solve_equals_structured_solve(m, dt):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-9, atol=1e-12 * float(jnp.max(jnp.abs(b))))
 
 
+@pytest.mark.reference
 def test_matrix_free_products_equal_assembled(m, state4):
     s = state4
     R = roller_R(m, s.u)

@@ -81,6 +81,7 @@ def test_plant_reproduces_step_response(report):
     assert np.max(np.abs(fit - y)) / np.ptp(y) < 0.02  # within 2 % of the response's range
 
 
+@pytest.mark.reference
 def test_p_boundary_against_the_gain_margin(scene, report):
     """The P loop's stability boundary from closed-loop runs (3.30 mrad/mm) against the gain
     margin: of the discrete loop on the model's step response (the loop's own timing: sample,
