@@ -454,6 +454,12 @@ def steady_with_tangents(model: BeltModel, solver: AbstractIntegrator | None = N
     q = model.chi_static.shape[0]
     directions = jnp.zeros((q, q), model.chi_static.dtype) if directions is None else jnp.asarray(directions)
     count = directions.shape[0] if n_tangents is None else n_tangents
+    if not isinstance(count, jax.core.Tracer) and not 0 <= int(count) <= directions.shape[0]:
+        raise ValueError(f"steady_with_tangents: n_tangents = {count}: must lie in 0..{directions.shape[0]} "
+                         "(the rows of directions)")
+    if directions.ndim != 2 or directions.shape[1] != q:
+        raise ValueError(f"steady_with_tangents: directions of shape {directions.shape}: must be (k, {q}) "
+                         "(one row per direction in chi_static)")
     # the tolerances and counts as arrays: a call with other values runs the same compiled program
     real = lambda a: jnp.asarray(a, dt.dtype)  # noqa: E731
     return _steady_with_tangents(model, solver, dt, n, template, sc, directions, jnp.asarray(count, jnp.int32),

@@ -145,3 +145,12 @@ def test_solve_with_tangents_equals_solve_then_tangents(machine, steady):
     walk_of = lambda t: opened.replace(chi_static=opened.chi_static.at[idx].add(t))  # noqa: E731
     Jw_at = np.asarray(steady_tangents(walk_of, theta0, walk, opts.solver, dt=opts.dt, outputs=lambda m, state, rate: rate))
     np.testing.assert_allclose(np.asarray(Jw[-1]), Jw_at, rtol=0, atol=1e-6 * np.abs(Jw_at).max())
+
+
+def test_solve_with_tangents_refuses_directions_it_cannot_take(machine):
+    model, opts = machine
+    q = model.chi_static.size
+    with pytest.raises(ValueError, match="n_tangents = 3: must lie in 0..2"):
+        steady_with_tangents(model, opts.solver, dt=opts.dt, directions=jnp.zeros((2, q)), n_tangents=3)
+    with pytest.raises(ValueError, match=r"must be \(k, %d\)" % q):
+        steady_with_tangents(model, opts.solver, dt=opts.dt, directions=jnp.zeros((2, q + 1)))
