@@ -272,7 +272,9 @@ BENCHMARKS = {
                      "per solve, Krylov iterations with and without the mass-transport preconditioner, the design "
                      "tangents' time, aligned and misaligned, beside a time-stepped run of the same noise-free machine, "
                      "when it settles within 0.5 % of a 20 µm limit of the steady deviation, and what those steps "
-                     "cost ([tolerance design](tolerance.md#steady-operation))."),
+                     "cost; `solve_with_tangents`: the solve and the 18 tangents in one program "
+                     "(`jaxbelt.steady.steady_with_tangents`) against the solve's and the tangents' own programs, "
+                     "first call and warm ([tolerance design](tolerance.md#steady-operation))."),
     "call_path": ("How a sweep's study travels through the design package", "The module stops of "
                   "`jaxbelt sweep` on a small scene: every Python call into a `jaxbelt.design` module recorded "
                   "(tracing included), consecutive calls in one module one stop, a stop in a module the path "
