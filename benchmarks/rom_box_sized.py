@@ -30,7 +30,7 @@ import jaxbelt as jb
 from _common import RESULTS, load, machine, write
 from jaxbelt.misalignment import aligned, apply, parameter_space
 from jaxbelt.rom import belt_inputs, error_rom, parameters, rmse, state_to_z, tracer_operator, train_over_box
-from jaxbelt.rom.box import held_out_configurations
+from jaxbelt.rom.sizing import held_out_configurations
 from jaxbelt.rom.dmdc import prediction_trajectory
 
 SCENE, STEPS, N_FRESH, FRESH_SEED = "three-roller", 1500, 12, 1

@@ -60,9 +60,9 @@ from .snapshots import first_order as first_order
 from .snapshots import state_to_z as state_to_z
 from .snapshots import tracer_operator as tracer_operator
 from .snapshots import z_to_state as z_to_state
-from .box import BoxTraining as BoxTraining
-from .box import SizingLevel as SizingLevel
-from .box import train_over_box as train_over_box
+from .sizing import BoxTraining as BoxTraining
+from .sizing import SizingLevel as SizingLevel
+from .sizing import train_over_box as train_over_box
 from .training import axial_design as axial_design
 from .training import box_from_distribution as box_from_distribution
 from .training import position_in_box as position_in_box

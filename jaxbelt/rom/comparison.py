@@ -76,8 +76,8 @@ class ReductionResult(Result):
     (:class:`ReductionEstimate`, ``None`` with ``stride = 0``); ``cost``
     (:class:`ReductionCost`, ``None`` where nothing was timed); ``spectra``
     (:class:`~jaxbelt.rom.reduced_model.Spectra`, where asked for); ``sizing`` the sizing loop's
-    levels (:class:`~jaxbelt.rom.box.SizingLevel`) where the training was sized to a tolerance
-    (:func:`~jaxbelt.rom.box.train_over_box`), else ``None``.
+    levels (:class:`~jaxbelt.rom.sizing.SizingLevel`) where the training was sized to a tolerance
+    (:func:`~jaxbelt.rom.sizing.train_over_box`), else ``None``.
     """
 
     method: AbstractReduction

@@ -346,7 +346,7 @@ class DMDc(AbstractReduction):
 
     def fitted(self, trajectories, training: TrainingRuns, fit: DMDcModel | None = None) -> DMDcReducedModel:
         """The reduced model of the training runs' post-transport ``trajectories``: ``fit`` where
-        given (a sized training's, :func:`~jaxbelt.rom.box.train_over_box`), else fitted here."""
+        given (a sized training's, :func:`~jaxbelt.rom.sizing.train_over_box`), else fitted here."""
         params = tuple(parameters(m) for m in training.models)
         if fit is None:
             fit = fit_dmdc(*_controlled_pairs(trajectories, params), rank=self.modes)

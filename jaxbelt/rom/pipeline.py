@@ -83,7 +83,7 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     (same mesh; pod is linearised at the first; dmdc/pdmd need at least two: the nominal
     configuration plus one run per varied parameter); ``config`` (:class:`ReduceConfig`);
     ``train_solvers`` each training model's own solver (default ``config.solver``);
-    ``trained`` (dmdc only) a :class:`~jaxbelt.rom.box.BoxTraining` sized to a tolerance: its
+    ``trained`` (dmdc only) a :class:`~jaxbelt.rom.sizing.BoxTraining` sized to a tolerance: its
     training runs and fit are used as they are (``train`` is then its models, the training steps
     and modes its own), and its loop's time, compilation included, is the offline time;
     ``full_trajectory`` the predicted configuration's full run (:func:`full_run`; run here when

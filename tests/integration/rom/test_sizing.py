@@ -14,7 +14,7 @@ from helpers import TWO_ROLLER_BOX
 from jaxbelt.cli import main
 from jaxbelt.misalignment import aligned, apply, parameter_space
 from jaxbelt.rom import belt_inputs, error_rom, fit_dmdc, parameters, rmse, state_to_z, tracer_operator, train_over_box
-from jaxbelt.rom.box import held_out_configurations
+from jaxbelt.rom.sizing import held_out_configurations
 from jaxbelt.rom.dmdc import prediction_trajectory
 from jaxbelt.rom.dmdc import fit_dmdc_in_basis
 
