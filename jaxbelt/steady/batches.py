@@ -1,6 +1,6 @@
-"""Steady states at many configurations (:func:`steady_states`), the derivatives of a function
-that solves for one (:func:`forward_jacobian`), and a nearby solve's start moved along a steady
-state's derivatives (:func:`linear_start`). The fixed point itself and its derivatives are
+"""Steady states at many configurations (:func:`steady_states`, :func:`map_configurations`), the
+derivatives of a function that solves for one (:func:`forward_jacobian`), and a nearby solve's
+start moved along a steady state's derivatives (:func:`linear_start`). The fixed point itself and its derivatives are
 :mod:`jaxbelt.steady.fixed_point`'s.
 """
 
@@ -11,11 +11,12 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import lax
 
 from ..integrators import AbstractIntegrator
 from ..model import BeltModel
 from ..state import BeltState
-from .fixed_point import SteadyState, map_configurations, state_fields, steady_state, steady_with_tangents, walks
+from .fixed_point import SteadyState, state_fields, steady_state, steady_with_tangents, walks
 
 
 def steady_states(model: BeltModel, solver: AbstractIntegrator | None = None, *, dt, chis, y0s=None,
@@ -74,3 +75,17 @@ def linear_start(state: BeltState, tangents, theta) -> BeltState:
     if ctrl is not None:
         control = dataclasses.replace(control, integral=ctrl[0], error=ctrl[1], command=ctrl[2], angle=ctrl[3])
     return dataclasses.replace(state, u=u, u_dot=ud, chi=chi, chi_dot=chid, m_e=m, control=control)
+
+
+def map_configurations(fn, xs):
+    """``fn`` over the leading axis of ``xs`` for functions that solve for a steady state: on a CPU
+    one configuration after another (:func:`jax.lax.map`), elsewhere side by side (``vmap``).
+
+    A batched Newton–GMRES runs its members' loops in lockstep: every GMRES iteration and Newton
+    step is taken by the whole batch until its slowest member is done, and the Krylov basis's
+    update at a batched iteration index is a scatter into the whole basis instead of an in-place
+    write; on a CPU the cores a batch could fill are already busy with each solve's own linear
+    algebra."""
+    if jax.default_backend() == "cpu":
+        return lax.map(fn, xs)
+    return jax.vmap(fn)(xs)

@@ -51,7 +51,8 @@ masses carried round the loop (eigenvalues of ``∂Φ/∂x`` near the unit circl
 travels round the belt, damped only by the upwind diffusion), the loop's lateral modes and the
 lightly damped low belt modes. GMRES's iterations go to those slow directions. The mass
 transport is known in closed form (the transport step's upwind matrix, eq. 3.57), so it is
-inverted exactly as a right preconditioner (:class:`MassTransportPreconditioner`); the belt's
+inverted exactly as a right preconditioner
+(:class:`~jaxbelt.steady.preconditioner.MassTransportPreconditioner`); the belt's
 own slow modes are left to GMRES. Newton takes three steps from the static equilibrium: the first
 removes the start guess's large velocity residual, the response is nearly linear after it, and
 each step's GMRES is asked for no more reduction than ends the iteration
@@ -69,8 +70,6 @@ import math
 
 import equinox as eqx
 import jax
-import jax.flatten_util
-import jax.scipy.linalg
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
@@ -82,8 +81,8 @@ from ..infra.programs import stored_jit
 from ..linalg.newton import (DEFAULT_GMRES_CYCLES, DEFAULT_GMRES_RESTART, krylov_solve, newton_krylov,
                             newton_krylov_tangents)
 from ..state import BeltState, initial_state
-from ..transport import transport_masses, upwind_weights
 from ..timeloop import check_time_step, edge_margin, make_step, tracer_values
+from .preconditioner import mass_transport_preconditioner, preconditioned
 
 UNIT = 1e6  # m → µm, rad → µrad: the scaled unknowns' unit
 DEFAULT_TOL_UM = 1e-6  # the residual RMS that ends Newton, µm: its solutions agree with a 1e-9 solve to ~1e-5 µm
@@ -193,66 +192,6 @@ def _period_map(model: BeltModel, solver: AbstractIntegrator, dt, n: int, run_da
     return lax.scan(lambda s, _: (step(s)[0], None), state, None, length=n)[0]
 
 
-class MassTransportPreconditioner(eqx.Module):
-    """The right preconditioner of the steady solves: the period map's element-mass transport
-    inverted exactly, the identity elsewhere (module docstring, *Iterations*).
-
-    The slow directions of ``Φ`` are the element masses carried around the loop: the transport step
-    (eq. 3.57) moves each element row's masses by one cyclic upwind matrix ``C`` per step, so over a
-    period ``T = Cⁿᵖ``, whose eigenvalues lie close to the unit circle (a mass pattern travels
-    round the belt, damped only by the upwind diffusion). With the belt's nominal shift per step
-    (its speed times ``Δt``) ``C`` is the same for every element row (the shift rule's uniform
-    weights), so ``M = I − T + 𝟙𝟙ᵀ/n`` is one small dense matrix (``n`` elements round the loop),
-    factorised once; the rank-one term regularises the row's conserved total mass, the direction
-    ``I − T`` leaves singular. ``M⁻¹`` is applied to the mass block (in its scaled units, rows
-    ``m_e0``-weighted), the other blocks are passed through."""
-
-    lu: tuple
-    scale: jax.Array  # (n,) m_e0 along the loop (one element row)
-
-    def solve(self, r_m, transpose: bool = False):
-        """``M⁻¹ r_m`` (or ``M⁻ᵀ r_m``) for the scaled mass block ``r_m`` ((n,) or (n, rows))."""
-        d = self.scale if r_m.ndim == 1 else self.scale[:, None]
-        if transpose:  # (D⁻¹ M D)⁻ᵀ = D Mᵀ⁻¹ D⁻¹
-            return jax.scipy.linalg.lu_solve(self.lu, r_m / d, trans=1) * d
-        return jax.scipy.linalg.lu_solve(self.lu, r_m * d) / d
-
-
-def mass_transport_preconditioner(model: BeltModel, dt, n: int) -> MassTransportPreconditioner:
-    """:class:`MassTransportPreconditioner` of ``model``'s period map (``n`` steps of ``dt``)."""
-    ell = model.ell
-    v = jnp.einsum("nbq,q->nb", model.R, model.omega)
-    v = v[:, 0::2] if model.kind == "2d" else v
-    v = v.reshape(-1)[jnp.argmax(jnp.abs(v))]  # the drive's surface speed, signed
-    shift = lax.stop_gradient(v * dt)
-    a, fwd = upwind_weights(jnp.full((ell.shape[0], 1), shift), ell)
-    C = transport_masses(jnp.eye(ell.shape[0], dtype=ell.dtype), a, fwd)
-    eye = jnp.eye(ell.shape[0], dtype=ell.dtype)
-    M = eye - jnp.linalg.matrix_power(C, n) + 1.0 / ell.shape[0]
-    M = jnp.where(shift == 0, eye, M)  # a belt no drive moves (torque-driven, at rest): no transport to invert
-    m0 = model.m_e0 if model.m_e0.ndim == 1 else model.m_e0[:, 0]
-    return MassTransportPreconditioner(lu=lax.stop_gradient(jax.scipy.linalg.lu_factor(M)),
-                                       scale=lax.stop_gradient(m0))
-
-
-def _preconditioned(pre: MassTransportPreconditioner | None, y_template, transpose: bool = False):
-    """``None`` without a preconditioner, else ``z ↦ M⁻¹ z`` on flat vectors shaped like
-    ``y_template`` (the unknowns, or the walk system's ``(unknowns, c)``): the mass block
-    (``state_fields``' fifth) preconditioned, the rest passed."""
-    if pre is None:
-        return None
-    _, unravel = jax.flatten_util.ravel_pytree(y_template)
-    walking = isinstance(y_template[0], tuple)
-
-    def apply(z):
-        tree = unravel(z)
-        fields = tree[0] if walking else tree
-        fields = fields[:4] + (pre.solve(fields[4], transpose),) + fields[5:]
-        return jax.flatten_util.ravel_pytree((fields, tree[1]) if walking else fields)[0]
-
-    return apply
-
-
 def _lateral_direction(y):
     """``e_v`` in the scaled unknowns: a uniform unit lateral shift of every belt node."""
     e = jax.tree.map(jnp.zeros_like, y)
@@ -297,7 +236,7 @@ def _tangent_solver(pre, tangent_rtol, restart, cycles):
 
     def tangent_solve(g, b):
         def gm(mv, r, transpose=False):
-            x, missed = krylov_solve(mv, r, tangent_rtol, restart, cycles, _preconditioned(pre, r, transpose))
+            x, missed = krylov_solve(mv, r, tangent_rtol, restart, cycles, preconditioned(pre, r, transpose))
             return jax.tree.map(lambda a: jnp.where(missed, jnp.nan, a), x)
         return lax.custom_linear_solve(g, b, solve=gm, transpose_solve=lambda mv, r: gm(mv, r, True))
 
@@ -328,7 +267,7 @@ def _solve(fn, y0, model, solver, template, dt, n, tol, max_steps, restart, gmre
 
     def newton_solve(f, guess):
         y, rms, residual, steps, its = newton_krylov(f, guess, tol, max_steps, restart, gmres_steps,
-                                                     _preconditioned(pre, guess))
+                                                     preconditioned(pre, guess))
         ok = rms <= tol
         # aux as floats: custom_root gives its aux float tangents, which integer outputs cannot take
         return y, (residual, steps.astype(residual.dtype), its.astype(residual.dtype), ok.astype(residual.dtype))
@@ -400,8 +339,9 @@ def steady_state(model: BeltModel, solver: AbstractIntegrator | None = None, *, 
     ``tangent_rtol`` GMRES's relative residual in each derivative's solve (forward tangent or
     transposed solve; the default's derivatives equal central differences to 1e-5 and better; a
     linear model that nonlinear solves verify needs far less: 1e-6 gives 1e-4); ``precondition``
-    whether GMRES runs with :class:`MassTransportPreconditioner` (same answer to the tolerances,
-    fewer iterations).
+    whether GMRES runs with
+    :class:`~jaxbelt.steady.preconditioner.MassTransportPreconditioner` (same answer to the
+    tolerances, fewer iterations).
     """
     if walks(model):
         raise ValueError("steady_state: this machine walks (lateral transport without a steering loop); "
@@ -509,7 +449,7 @@ def _with_tangents(configure, theta, solver, n, dt, template, sc, start, walking
         return fn(y, (quiet(configure(th)), run_data))
 
     y, rms, mx, steps, its, dys, _ = newton_krylov_tangents(F, start, theta, tol, max_newton, tangent_rtol,
-                                                            restart, cycles, _preconditioned(pre, start), count)
+                                                            restart, cycles, preconditioned(pre, start), count)
 
     def state_out(y, th):
         v, c = y if walking else (y, jnp.zeros((), dt.dtype))
@@ -525,20 +465,6 @@ def _with_tangents(configure, theta, solver, n, dt, template, sc, start, walking
 def _default_outputs(model: BeltModel, state: BeltState, walk_rate):
     tu, tv = tracer_values(model, state.u)
     return tu, tv, None if model.control is None else state.control.angle, state_fields(state), walk_rate
-
-
-def map_configurations(fn, xs):
-    """``fn`` over the leading axis of ``xs`` for functions that solve for a steady state: on a CPU
-    one configuration after another (:func:`jax.lax.map`), elsewhere side by side (``vmap``).
-
-    A batched Newton–GMRES runs its members' loops in lockstep: every GMRES iteration and Newton
-    step is taken by the whole batch until its slowest member is done, and the Krylov basis's
-    update at a batched iteration index is a scatter into the whole basis instead of an in-place
-    write; on a CPU the cores a batch could fill are already busy with each solve's own linear
-    algebra."""
-    if jax.default_backend() == "cpu":
-        return lax.map(fn, xs)
-    return jax.vmap(fn)(xs)
 
 
 def walks(model: BeltModel) -> bool:
