@@ -134,6 +134,15 @@ def apply(model, space: ParameterSpace, theta, base=None):
     return model.replace(chi_static=chi)
 
 
+def dof_directions(model, dofs, scale: float = 1.0, rows: int | None = None):
+    """Directions in ``chi_static`` along roller DOFs: (rows, q), row ``i`` ``scale`` at ``dofs[i]``
+    (flat indices of ``chi_static``) and zero elsewhere, the rows beyond ``len(dofs)`` zero (``rows``
+    default ``len(dofs)``): what :func:`jaxbelt.steady.steady_with_tangents` differentiates along."""
+    q, k = model.chi_static.shape[0], len(dofs)
+    rows = k if rows is None else rows
+    return jnp.zeros((rows, q), model.chi_static.dtype).at[jnp.arange(k), jnp.asarray(dofs, jnp.int32)].set(scale)
+
+
 def aligned(model):
     """The same machine with every misalignment set to zero (the metrics' reference)."""
     return model.replace(chi_static=jnp.zeros_like(model.chi_static))

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..infra.programs import stored_jit
 from ..integrators import AbstractIntegrator
-from ..misalignment import TO_SI, ParameterSpace, aligned, apply, parameter_space
+from ..misalignment import TO_SI, ParameterSpace, aligned, apply, dof_directions, parameter_space
 from ..model import BeltModel
 from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
@@ -207,8 +207,7 @@ def _make_steady_study(model, metric, options, components, jacobian):
         # derivatives along the varied components (θ in design units), in the program every steady
         # solve of this model's shapes runs (jaxbelt.steady.steady_with_tangents)
         q, P = model.chi_static.shape[0], frame["space"].size
-        directions = jnp.zeros((q, q), model.chi_static.dtype).at[
-            jnp.arange(P), jnp.asarray(frame["space"].chi_index, jnp.int32)].set(TO_SI)
+        directions = dof_directions(model, frame["space"].chi_index, TO_SI, rows=q)
         s, J = steady_with_tangents(model, frame["solver"], dt=frame["dt"], directions=directions, n_tangents=P,
                                     period_steps=frame["period_steps"], tangent_rtol=DESIGN_TANGENT_RTOL)
         (du, dv, dangle), tangents = jax.tree.map(lambda a: a[..., :P], (J[:3], J[3]))

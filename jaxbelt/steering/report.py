@@ -43,7 +43,7 @@ import numpy as np
 from ..control import samples_per_update
 from ..infra.programs import stored_jit
 from ..infra.results import Result
-from ..misalignment import parameter_space
+from ..misalignment import dof_directions, parameter_space
 from ..steady import check_steady, steady_with_tangents
 from ..timeloop import RunOptions, belt_speed, simulate
 from .plant import SteeringPlant, identify_plant
@@ -172,12 +172,6 @@ def _period_of(w):
     return float(2 * np.pi / w) if np.isfinite(w) else float("nan")
 
 
-def _walk_directions(model, dofs):
-    """Unit directions (k, q) along the roller DOFs ``dofs`` (flat indices of ``chi_static``)."""
-    q = model.chi_static.shape[0]
-    return jnp.zeros((len(dofs), q), model.chi_static.dtype).at[jnp.arange(len(dofs)), jnp.asarray(dofs, jnp.int32)].set(1.0)
-
-
 def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, float]:
     """The open-loop steady walk rate's derivatives (m/s per m or rad) with respect to the roller
     DOFs ``dofs`` (flat indices of ``chi_static``), at the model's own misalignment: the steady walk
@@ -185,7 +179,7 @@ def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, 
     (:func:`jaxbelt.steady.steady_with_tangents`). **Returns:** ``(derivatives, the walk rate
     itself)``."""
     opened, dt = model.replace(control=None), jnp.asarray(options.dt, model.ell.dtype)
-    s, J = steady_with_tangents(opened, options.solver, dt=dt, directions=_walk_directions(opened, dofs))
+    s, J = steady_with_tangents(opened, options.solver, dt=dt, directions=dof_directions(opened, dofs))
     check_steady(s, opened, "the open-loop machine")
     return np.asarray(J[-1]), float(s.walk_rate)
 
@@ -227,7 +221,7 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     # the aligned machine's walk by the same program, without tangents
     opened_aligned = aligned.replace(control=None)
     s0, _ = steady_with_tangents(opened_aligned, options.solver, dt=jnp.asarray(options.dt, model.ell.dtype),
-                                 directions=_walk_directions(opened_aligned, dofs), n_tangents=0)
+                                 directions=dof_directions(opened_aligned, dofs), n_tangents=0)
     check_steady(s0, opened_aligned, "the aligned open-loop machine")
     walk_aligned = float(s0.walk_rate)
     disturbance = (walk - walk_aligned) * 1e3  # mm/s
