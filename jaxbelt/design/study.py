@@ -211,8 +211,9 @@ def _make_steady_study(model, metric, options, components, jacobian):
         s, J = steady_with_tangents(model, frame["solver"], dt=frame["dt"], directions=directions, n_tangents=P,
                                     period_steps=frame["period_steps"], tangent_rtol=DESIGN_TANGENT_RTOL)
         (du, dv, dangle), tangents = jax.tree.map(lambda a: a[..., :P], (J[:3], J[3]))
-    else:
-        s = steady_state(aligned(model), frame["solver"], dt=frame["dt"], period_steps=frame["period_steps"])
+    else:  # the same compiled program, asked for no tangents (the verification solves' program)
+        s = steady_with_tangents(aligned(model), frame["solver"], dt=frame["dt"], n_tangents=0,
+                                 period_steps=frame["period_steps"])[0]
     check_steady(s, model)
     jitter = None if model.control is None else actuator_jitter(aligned(model), frame["solver"], frame["dt"], s)
     u, v, angle = _steady_rows(s)
