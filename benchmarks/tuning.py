@@ -12,7 +12,7 @@ import argparse
 import numpy as np
 
 from _common import load, write
-from jaxbelt.steering import tuning
+from jaxbelt.steering import response as loop_response, tuning
 
 
 def main():
@@ -21,7 +21,7 @@ def main():
     ap.add_argument("--iterations", type=int, default=40)
     args = ap.parse_args()
     model, opts = load(args.scene)
-    response = tuning.open_loop_response(model, opts, t_end=max(opts.t_end, 30.0))
+    response = loop_response.open_loop_response(model, opts, t_end=max(opts.t_end, 30.0))
     g = np.array([float(model.control.kp[0]), float(model.control.ki[0])])
     _, grad = tuning.objective_and_grad(model, g, opts)
     fd = []

@@ -8,8 +8,8 @@ Beside :mod:`jaxbelt.design` (tolerance design), above :mod:`jaxbelt.steady` and
 - :mod:`~jaxbelt.steering.plant`: the identified plant (:class:`SteeringPlant`), its step response,
   and its fits to the model's step response (:func:`identify_plant`, :func:`fit_plant`);
 - :mod:`~jaxbelt.steering.response`: the model's measured response as a transfer in continuous time
-  (:class:`MeasuredResponse`) and as the sampled loop (:class:`DiscreteLoop`), and the one
-  actuator step (:func:`actuator_step`);
+  (:class:`MeasuredResponse`) and as the sampled loop (:class:`DiscreteLoop`), the one measured
+  step response (:func:`open_loop_response`) and the one actuator step (:func:`actuator_step`);
 - :mod:`~jaxbelt.steering.report`: ``jaxbelt steering``'s report (coefficient, disturbance, hold
   angle, walk sensitivity from steady walks; the plant; the P loop's stability boundary);
 - :mod:`~jaxbelt.steering.tuning`: ``jaxbelt tune`` (PI gains by gradient descent through the run).
@@ -29,6 +29,8 @@ from .report import steering_report as steering_report
 from .response import DiscreteLoop as DiscreteLoop
 from .response import MeasuredResponse as MeasuredResponse
 from .response import actuator_step as actuator_step
+from .response import open_loop_response as open_loop_response
+from .response import run_batch as run_batch
 from .transfer import Transfer as Transfer
 from .transfer import loop_response as loop_response
 from .transfer import margins as margins

@@ -36,18 +36,16 @@ import time
 import warnings
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..control import samples_per_update
-from ..infra.programs import stored_jit
+from ..control import samples_per_update, walk_rate
 from ..infra.results import Result
 from ..misalignment import dof_directions, parameter_space
 from ..steady import check_steady, steady_with_tangents
-from ..timeloop import RunOptions, belt_speed, simulate
+from ..timeloop import RunOptions, belt_speed
 from .plant import SteeringPlant, identify_plant
-from .response import DiscreteLoop, actuator_step
+from .response import DiscreteLoop, open_loop_response, open_loops, run_batch
 from .transfer import margins
 
 STEP_MRAD = 0.1  # default actuator step, mrad (linear range)
@@ -55,38 +53,6 @@ STEP_MRAD = 0.1  # default actuator step, mrad (linear range)
 
 class SteeringWarning(UserWarning):
     """A steering loop cannot hold the belt within its range."""
-
-
-def _open(model, loop=0):
-    """All loops open (gains 0)."""
-    return model.replace(control=model.control.with_gains(0.0, 0.0, 0.0))
-
-
-@stored_jit
-def _batch_sensor(models, solver, n_steps, dt, loop):
-    """Sensor displacement and actuator angle of loop ``loop`` for a stacked batch of models."""
-    def one(m):
-        _, tr = simulate(m, solver, n_steps=n_steps, dt=dt, check=False)
-        return tr.t, tr.sensor_v[:, loop], tr.control_u[:, loop], tr.edge_margin
-    return jax.vmap(one, in_axes=(_axes(models),))(models)
-
-
-def _axes(models):
-    return jax.tree.map(lambda a: 0 if eqx.is_array(a) else None, models)
-
-
-def _stack(models):
-    arrays = [eqx.filter(m, eqx.is_array) for m in models]
-    static = eqx.filter(models[0], eqx.is_array, inverse=True)
-    stacked = jax.tree.map(lambda *xs: jnp.stack(xs), *arrays)
-    return eqx.combine(stacked, static)
-
-
-def run_batch(models, options: RunOptions, loop: int = 0):
-    """Closed- or open-loop runs of a list of models that differ in array values only (vmapped):
-    ``(t (n,), sensor_v (b, n) m, control_u (b, n) rad, edge_margin (b, n, p) m)``."""
-    t, v, u, em = _batch_sensor(_stack(models), options.solver, int(options.n_steps), float(options.dt), loop)
-    return np.asarray(t[0]), np.asarray(v), np.asarray(u), np.asarray(em)
 
 
 def _require_loop(model, loop):
@@ -212,9 +178,10 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     _require_loop(model, loop)
     start = time.perf_counter()
     a = step_mrad * 1e-3
-    opened = _open(model, loop)
+    opened = open_loops(model)
     aligned = opened.replace(chi_static=jnp.zeros_like(model.chi_static))
-    t, v, _, _ = run_batch([opened, opened.replace(control=actuator_step(opened.control, a, loop)), aligned], options, loop)
+    step = open_loop_response(model, options, amplitude=a, loop=loop)
+    t, resp = step.t, step.step  # m per rad
     space = parameter_space(model)
     dofs = list(space.chi_index) + [model.control.actuator_dof[loop]]
     J, walk = steady_walk_jacobian(opened, options, dofs)
@@ -233,7 +200,6 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     if saturated:
         warnings.warn(f"steering loop {label}: holding the belt needs {hold:.4g} mrad, beyond the range "
                       f"±{limit:.4g} mrad: the loop saturates and the belt walks", SteeringWarning, stacklevel=2)
-    resp = (v[1] - v[0]) / a  # m per rad
     V = belt_speed(model)
     loop_time = float(model.control.loop_length) / V
     n_s = int(samples_per_update(model.control, options.dt)[loop])
@@ -281,21 +247,24 @@ class StabilityBoundary(Result):
 
 
 
+def _detrended(t, v):
+    """``v`` (…, n) less its least-squares line over ``t`` (:func:`jaxbelt.control.walk_rate`'s slope)."""
+    slope = np.asarray(walk_rate(t, v, (t[0], t[-1])))
+    return v - v.mean(axis=-1, keepdims=True) - slope[..., None] * (t - t.mean())
+
+
 def _growth(t, v):
-    """Envelope growth of the oscillation (detrended by a line over the second half): the RMS over
-    the last third against the middle third, per row of ``v``."""
+    """Envelope growth of the oscillation (detrended by a line over the last two thirds): the RMS
+    over the last third against the middle third, per row of ``v``."""
     n = v.shape[-1]
     a, b = n // 3, 2 * n // 3
-    x = t[a:] - t[a:].mean()
-    seg = v[:, a:]
-    slope = (seg - seg.mean(axis=1, keepdims=True)) @ x / (x @ x)
-    r = seg - seg.mean(axis=1, keepdims=True) - slope[:, None] * x
+    r = _detrended(t[a:], v[:, a:])
     mid, last = r[:, : b - a], r[:, b - a:]
     return np.sqrt((last**2).mean(axis=1)) / np.maximum(np.sqrt((mid**2).mean(axis=1)), 1e-300)
 
 
 def _period(t, v):
-    r = v - np.polyval(np.polyfit(t, v, 1), t)
+    r = _detrended(t, v)
     zc = t[1:][np.diff(np.sign(r)) != 0]
     return float(2 * np.mean(np.diff(zc[len(zc) // 3:]))) if len(zc) > 3 else float("nan")
 

@@ -1,6 +1,8 @@
-"""The full model's open-loop response of a steering loop as a transfer
-(:class:`~jaxbelt.steering.transfer.Transfer`), in continuous time (:class:`MeasuredResponse`) and
-as the sampled loop (:class:`DiscreteLoop`), and the one way a step of the actuator is applied
+"""The full model's open-loop response of a steering loop: the one measured step response
+(:func:`open_loop_response`, the runs behind every plant of :mod:`jaxbelt.steering`), as a transfer
+(:class:`~jaxbelt.steering.transfer.Transfer`) in continuous time (:class:`MeasuredResponse`) and
+as the sampled loop (:class:`DiscreteLoop`); the runs of a batch of loop settings side by side
+(:func:`run_batch`); and the one way a step of the actuator is applied
 (:func:`actuator_step`): the controller saturated (``k_p = 1``, a setpoint a metre away, the
 range set to the step), so the angle is held at the step from the first sample on, through the
 actuator's lag (its rate limit lifted: the identified plant is the linear one), with sensor noise
@@ -11,10 +13,17 @@ from __future__ import annotations
 import dataclasses
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..control import SteeringLoops
+from ..control import SteeringLoops, walk_rate
+from ..infra.programs import stored_jit
+from ..model import BeltModel
+from ..timeloop import RunOptions, simulate
+
+STEP_RAD = 1e-4  # the actuator step of the measured response, rad (0.1 mrad: the linear range)
+WALK_WINDOW_S = 5.0  # the measured response's walk rate: the slope over the run's last seconds
 
 
 def actuator_step(loops: SteeringLoops, amplitude: float, loop: int = 0) -> SteeringLoops:
@@ -26,6 +35,59 @@ def actuator_step(loops: SteeringLoops, amplitude: float, loop: int = 0) -> Stee
                        loops, (one, 0 * loops.ki, 0 * loops.kd, -jnp.ones_like(loops.sign), -one,
                                jnp.full_like(loops.kp, amplitude), jnp.full_like(loops.kp, jnp.inf), 0 * loops.noise,
                                0 * loops.profile_amplitude))
+
+
+def open_loops(model: BeltModel) -> BeltModel:
+    """``model`` with every steering loop open (gains 0: the actuator angle stays 0)."""
+    return model.replace(control=model.control.with_gains(0.0, 0.0, 0.0))
+
+
+@stored_jit
+def _batch_sensor(models, solver, n_steps, dt, loop):
+    """Sensor displacement and actuator angle of loop ``loop`` for a stacked batch of models."""
+    def one(m):
+        _, tr = simulate(m, solver, n_steps=n_steps, dt=dt, check=False)
+        return tr.t, tr.sensor_v[:, loop], tr.control_u[:, loop], tr.edge_margin
+    return jax.vmap(one, in_axes=(_axes(models),))(models)
+
+
+def _axes(models):
+    return jax.tree.map(lambda a: 0 if eqx.is_array(a) else None, models)
+
+
+def _stack(models):
+    arrays = [eqx.filter(m, eqx.is_array) for m in models]
+    static = eqx.filter(models[0], eqx.is_array, inverse=True)
+    stacked = jax.tree.map(lambda *xs: jnp.stack(xs), *arrays)
+    return eqx.combine(stacked, static)
+
+
+def run_batch(models, options: RunOptions, loop: int = 0):
+    """Closed- or open-loop runs of a list of models that differ in array values only (one vmapped
+    program), ``options.n_steps`` steps of ``options.dt`` with ``options.solver``: ``(t (n,),
+    sensor_v (b, n) m, control_u (b, n) rad, edge_margin (b, n, p) m)`` of loop ``loop``."""
+    t, v, u, em = _batch_sensor(_stack(models), options.solver, int(options.n_steps), float(options.dt), loop)
+    return np.asarray(t[0]), np.asarray(v), np.asarray(u), np.asarray(em)
+
+
+def open_loop_response(model: BeltModel, options: RunOptions, *, amplitude: float = STEP_RAD, loop: int = 0,
+                       t_end: float | None = None) -> "MeasuredResponse":
+    """The measured step response of loop ``loop`` (:class:`MeasuredResponse`), the one every plant
+    of the package is read from: two runs from the static state in one batch (:func:`run_batch`),
+    every loop open (:func:`open_loops`), one of them with the actuator angle stepped to
+    ``amplitude`` rad at ``t = 0`` (:func:`actuator_step`, so the actuator's lag is part of the
+    response); their difference over the amplitude, so the scene's own disturbance cancels. The run
+    is ``options``' (``t_end`` s instead where given); it should be long enough for the
+    once-around echoes to die out (tens of seconds) where the response is read as a transfer: its
+    ``rate`` is the walk rate over the last :data:`WALK_WINDOW_S` s (:func:`jaxbelt.control.walk_rate`)."""
+    if t_end is not None:
+        options = options.replace(n_steps=int(round(t_end / options.dt)))
+    opened = open_loops(model)
+    stepped = opened.replace(control=actuator_step(opened.control, amplitude, loop))
+    t, v, _, _ = run_batch([opened, stepped], options, loop)
+    step = (v[1] - v[0]) / amplitude
+    rate = float(walk_rate(t, step, (t[-1] - WALK_WINDOW_S, t[-1])))
+    return MeasuredResponse(t=t, step=step, dt=float(options.dt), rate=rate)
 
 
 @dataclasses.dataclass(frozen=True)

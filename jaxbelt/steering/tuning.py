@@ -63,19 +63,17 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ..control import walk_rate
 from ..infra.programs import stored_jit
 from ..infra.results import Result
 from ..model import BeltModel
 from ..timeloop import RunOptions, belt_speed, simulate
 from .plant import SteeringPlant, fit_plant, identify_plant
-from .response import MeasuredResponse, actuator_step
+from .response import MeasuredResponse, open_loop_response
 from .transfer import margins
 
 OBJECTIVES = {"ise": "µm²·s", "peak": "µm"}
 PEAK_SHARPNESS = 5.0  # β of the soft maximum, per µm
 M_TO_UM = 1e6
-WALK_WINDOW_S = 5.0  # the measured response's walk rate: the slope over the run's last seconds
 
 
 # ------------------------------------------------------------------------------- objective
@@ -151,31 +149,6 @@ def _log_value_and_grad(log_gains, kd, model, solver, dt, n_steps, kind, skip):
         e = _errors(model, jnp.concatenate([jnp.exp(x), kd]), solver, dt, n_steps)
         return _metric(e, dt, kind, skip)
     return jax.value_and_grad(f)(log_gains)
-
-
-# --------------------------------------------------------------------- measured response
-
-def open_loop_response(model: BeltModel, options: RunOptions, t_end: float | None = None,
-                       amplitude: float = 1e-4) -> MeasuredResponse:
-    """The measured response (:class:`~jaxbelt.steering.response.MeasuredResponse`): two runs
-    of ``t_end`` s (default the run of ``options``) from the static state, one with the loop open
-    (gains 0) and one with the actuator angle stepped to ``amplitude`` rad at ``t = 0``
-    (:func:`~jaxbelt.steering.response.actuator_step`), so the actuator's lag is part of the
-    response. The same compiled program as :func:`objective` where the length is the same. The run
-    should be long enough for the once-around echoes to die out (tens of seconds): the walk rate is
-    read over its last :data:`WALK_WINDOW_S` s (:func:`jaxbelt.control.walk_rate`)."""
-    loops = _loop(model)
-    n = int(options.n_steps) if t_end is None else int(round(t_end / options.dt))
-    dt = jnp.asarray(options.dt, model.ell.dtype)
-    held = actuator_step(loops, amplitude)
-    zero = jnp.zeros(3, model.ell.dtype)
-    v0 = np.asarray(_errors(model, zero, options.solver, dt, n)) + float(loops.setpoint[0])
-    v1 = np.asarray(_errors(model.replace(control=held), zero.at[0].set(1.0), options.solver, dt, n)) + \
-        float(held.setpoint[0])
-    step = (v1 - v0) / amplitude
-    t = (np.arange(n) + 1) * float(options.dt)
-    rate = float(walk_rate(t, step, (t[-1] - WALK_WINDOW_S, t[-1])))
-    return MeasuredResponse(t=t, step=step, dt=float(options.dt), rate=rate)
 
 
 # ---------------------------------------------------------------------------- results

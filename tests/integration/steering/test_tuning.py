@@ -14,8 +14,7 @@ import jaxbelt as jb
 from jaxbelt.cli import main
 from jaxbelt.steering import tuning
 from jaxbelt.steering.plant import SteeringPlant
-from jaxbelt.steering.response import MeasuredResponse
-from jaxbelt.steering.transfer import margins
+from jaxbelt.steering.response import open_loop_response
 
 T_END = 30.0
 
@@ -27,7 +26,7 @@ def setup():
     model = jb.build_model(scene)
     options = jb.RunOptions.from_scene(scene)
     options = options.replace(n_steps=int(round(T_END / options.dt)))
-    response = tuning.open_loop_response(model, options)
+    response = open_loop_response(model, options)
     return model, options, response
 
 
@@ -98,20 +97,6 @@ def test_margins_match_python_control(result):
         gm, pm = _control_margins(plant, p.kp_mrad_per_mm, p.ki_mrad_per_mm_s)
         assert p.gain_margin_db == pytest.approx(gm, abs=0.05)
         assert p.phase_margin_deg == pytest.approx(pm, abs=0.1)
-
-
-def test_measured_response_has_the_margins_of_the_plant_it_samples():
-    """A plant's step response, sampled and read as a measured response (a Fourier sum), has the
-    plant's own margins under the one ``margins``: the two descriptions of a transfer agree."""
-    plant = SteeringPlant(-0.0742, 0.05, 0.25)
-    dt = 1e-3
-    t = np.arange(1, 30001) * dt
-    measured = MeasuredResponse(t=t, step=plant.step_response(t), dt=dt, rate=plant.gain)
-    for kp, ki in ((1.0, 0.1), (3.0, 1.0)):
-        gm, pm, w_pc, w_gc = margins(measured, kp, ki)
-        ref = margins(plant, kp, ki)
-        assert gm == pytest.approx(ref[0], rel=2e-3) and pm == pytest.approx(ref[1], abs=0.2)
-        assert w_pc == pytest.approx(ref[2], rel=2e-3) and w_gc == pytest.approx(ref[3], rel=2e-3)
 
 
 def test_cli_json(setup, capsys):
