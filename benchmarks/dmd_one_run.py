@@ -34,8 +34,7 @@ def main():
     jb.enable_x64()
     sc = jb.load_scene(SCENE)
     model, opts = jb.build_model(sc), jb.RunOptions.from_scene(sc)
-    config = rom.ReduceConfig(method=rom.DMD(), n_steps=opts.n_steps, dt=opts.dt, solver=opts.solver, train_steps=TRAIN,
-                              stride=0)
+    config = rom.ReduceConfig(method=rom.DMD(), options=opts.replace(saveat=jb.SaveAt()), train_steps=TRAIN, stride=0)
     fastest = jb.DirectBackwardEuler(jb.Reuse())
     jax.block_until_ready(jb.simulate(model, fastest, n_steps=TRAIN, dt=opts.dt))
     snap_s = min(_clock(lambda: jax.block_until_ready(jb.simulate(model, fastest, n_steps=TRAIN, dt=opts.dt)))

@@ -177,17 +177,17 @@ def edge_margin(model: BeltModel, u, chi):
     return jnp.where(model.node_roller[None, :] == jnp.arange(p)[:, None], margin[None, :], jnp.inf).min(axis=1)
 
 
-def make_step(model: BeltModel, integrator: AbstractIntegrator, dt, run_data=None, saveat: SaveAt = SaveAt()):
+def make_step(model: BeltModel, solver: AbstractIntegrator, dt, run_data=None, saveat: SaveAt = SaveAt()):
     """``step(state) -> (state, record)``: one solve + transport with its outputs.
 
-    **Arguments:** ``dt`` the time step, s; ``run_data`` what ``integrator.init`` returned for this
+    **Arguments:** ``dt`` the time step, s; ``run_data`` what ``solver.init`` returned for this
     run (computed here from ``model`` and its initial state when ``None``, a convenience for single
     steps); ``saveat`` which records (:class:`SaveAt`; with ``solved`` the record also holds the
     flat states before and after transport, the snapshots of model order reduction).
     """
     p, d = model.n_rollers, len(model.dofs)
     if run_data is None:
-        run_data = integrator.init(model, initial_state(model), dt)
+        run_data = solver.init(model, initial_state(model), dt)
     stencil = free_belt_stencil(model)  # once per run, outside the scan
     offset = static_surface_offset(model)
     on = model.contact_columns  # R_r vanishes off the rollers: the loads need those columns only
@@ -224,9 +224,9 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, dt, run_data=Non
 
     def step(state: BeltState):
         step_model, ctrl, angle = steer(state)
-        solved = integrator.step(step_model, state, dt, run_data)
+        solved = solver.step(step_model, state, dt, run_data)
         u, ud, chi, m_e, weights = transport_step_with_weights(model, solved.u, solved.u_dot, solved.chi, state.m_e,
-                                                               static_offset=offset, rule=integrator.transport)
+                                                               static_offset=offset, rule=solver.transport)
         if ctrl is not None:  # the material's travel: the transport step's shift (mean longitudinal motion)
             ctrl = eqx.tree_at(lambda c: c.travel, ctrl, ctrl.travel + jnp.mean(solved.u[:, 0::2]))
         new = BeltState(u=u, u_dot=ud, chi=chi, chi_dot=solved.chi_dot, m_e=m_e, step=state.step + 1, control=ctrl)
@@ -258,7 +258,7 @@ def make_step(model: BeltModel, integrator: AbstractIntegrator, dt, run_data=Non
     return step
 
 
-def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, dt, n_steps: int,
+def run(model: BeltModel, solver: AbstractIntegrator, state: BeltState, dt, n_steps: int,
         saveat: SaveAt = SaveAt(), checkpoint: int | None = None, run_data=None):
     """``n_steps`` steps from ``state``; records every ``saveat.every``-th (traceable; no checks).
 
@@ -267,14 +267,14 @@ def run(model: BeltModel, integrator: AbstractIntegrator, state: BeltState, dt, 
     mode through a long run stays in bounded memory (the forward result is the same), each chunk a
     scan over record intervals, each interval a scan over its steps. The step is traced and
     compiled once whatever ``n_steps`` and ``saveat.every`` are; a run whose length is no whole
-    number of chunks ends on slots that skip the step. ``run_data``: ``integrator.init``'s, default
+    number of chunks ends on slots that skip the step. ``run_data``: ``solver.init``'s, default
     computed from ``state``.
 
     **Returns:** ``(final_state, Trajectory)``.
     """
     if run_data is None:
-        run_data = integrator.init(model, state, dt)
-    step = make_step(model, integrator, dt, run_data, SaveAt(saveat.every, saveat.fields))
+        run_data = solver.init(model, state, dt)
+    step = make_step(model, solver, dt, run_data, SaveAt(saveat.every, saveat.fields))
     plan = loop_plan(n_steps, saveat.every, checkpoint)
     if plan.active is None and plan.n_sub * plan.sub_steps == 1:  # a record every step, none padded
         def record(s, _):
@@ -466,13 +466,16 @@ class RunOptions:
     """A scene's own run settings, as :func:`simulate`'s keyword arguments.
 
     **Fields:** ``solver`` (from ``[solver]``), ``n_steps`` and ``dt`` (from ``[time]``), ``saveat``
-    (from ``[output]``). A mapping, so ``simulate(model, **options)`` works; :meth:`replace`
-    changes some."""
+    (from ``[output]``), ``adjoint`` the checkpointing of reverse mode through the run
+    (:class:`Checkpointed`; a scene does not set it). A mapping, so ``simulate(model, **options)``
+    works; :meth:`replace` changes some. The one way run settings travel: every function of the
+    package that runs a model takes them as ``options``."""
 
     solver: AbstractIntegrator
     n_steps: int
     dt: float
     saveat: SaveAt = SaveAt()
+    adjoint: Checkpointed = Checkpointed()
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "RunOptions":
@@ -489,7 +492,7 @@ class RunOptions:
         return dataclasses.replace(self, **changes)
 
     def keys(self):
-        return ("solver", "n_steps", "dt", "saveat")
+        return ("solver", "n_steps", "dt", "saveat", "adjoint")
 
     def __getitem__(self, key):
         return getattr(self, key)

@@ -76,9 +76,9 @@ def _built(n_eta, n_xi, dt, t_end):
     return build_model(sc), opts.n_steps, opts.dt
 
 
-def _full_run(model, integ, n_steps, dt, repeat):
+def _full_run(model, solver, n_steps, dt, repeat):
     """``(time_s, compile_s, bytes, tracer_u, tracer_v)`` on the common output grid."""
-    run, comp, nbytes = compile_run(model, integ, n_steps=n_steps, dt=dt)
+    run, comp, nbytes = compile_run(model, solver, n_steps=n_steps, dt=dt)
     best, out = np.inf, None
     for _ in range(repeat):
         t, out = clock(run, model, dt)
@@ -218,9 +218,9 @@ def run(out_dir: Path, quick: bool = False) -> dict:
     _log(f"  truth N = {truth_m.n_unknowns}: {t_truth:.1f} s")
     rows = {}
 
-    def add(name, family, built, integ, **extra):
+    def add(name, family, built, solver, **extra):
         model, n_steps, dt = built
-        t, comp, nbytes, u, v = _full_run(model, integ, n_steps, dt, repeat)
+        t, comp, nbytes, u, v = _full_run(model, solver, n_steps, dt, repeat)
         rows[name] = dict(family=family, n_unknowns=int(model.n_unknowns), dt=float(dt), time_s=t,
                           compile_s=comp, bytes=nbytes, **extra, **_errors(u, v, truth))
         _log(f"  {name}: {t:.2f} s, {rows[name]['lateral_max_um']:.3g} µm lateral, "

@@ -104,16 +104,16 @@ def warm_full_runs(model, solver, config: ReduceConfig):
     there, so the timed calls find the compiled programs; :func:`jaxbelt.timeloop.compile_simulate`).
     A caller with other work to do first — the sized training of ``jaxbelt reduce --train-ranges``
     — runs this in a background thread and overlaps the compilation with that work."""
-    saveat = SaveAt(every=config.every)
+    o = config.options
     for s in dict.fromkeys((solver, reuse_mode(solver))):
-        compile_simulate(model, s, n_steps=int(config.n_steps), dt=config.dt, saveat=saveat)
+        compile_simulate(model, s, n_steps=int(o.n_steps), dt=o.dt, saveat=SaveAt(every=o.saveat.every))
 
 
 def reduce_and_time(model, train, config: ReduceConfig, train_solvers=None, trained=None) -> TimedReduction:
     """:func:`~jaxbelt.rom.reduce_and_compare` with its costs measured: the full runs timed
     (:func:`full_runs`), the training runs in the fastest full mode, offline and online times
     by :func:`~jaxbelt.bench.timing.warm_best`, and the speedups (module docstring)."""
-    solver = config.full_solver
+    solver = config.options.solver
     traj, times, reuse_factors = full_runs(model, solver, config)
     result = reduce_and_compare(model, train, config, train_solvers, trained, full_trajectory=traj,
                                 reuse_factors=reuse_factors, clock=warm_best)

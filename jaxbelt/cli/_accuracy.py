@@ -98,9 +98,9 @@ def estimate_caveats(s: dict) -> list[str]:
             order = "-" if x.get("order") is None else f"{x['order']:.2g}"
             out.append(f"the observed order in {d} sits at a bound of its range ({order}): the runs are not in "
                        "the asymptotic range, and the estimate is a rough one")
-    for name, key in (("longitudinal", "tracer_u_max_abs_mm"), ("lateral", "tracer_v_max_abs_mm")):
+    for name, key in (("longitudinal", "tracer_u_max_abs_um"), ("lateral", "tracer_v_max_abs_um")):
         err, signal = e.get(name), s.get(key)
-        if err is not None and signal is not None and err > 1e3 * signal:
+        if err is not None and signal is not None and err > signal:
             out.append(f"the {name} error estimate ({err:.3g} µm) exceeds the {name} signal itself "
-                       f"(max |tracer| {1e3 * signal:.3g} µm): the grid resolves too little of it; refine it")
+                       f"(max |tracer| {signal:.3g} µm): the grid resolves too little of it; refine it")
     return out

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -127,8 +126,8 @@ def run(args):
                          "training window, so --train-steps must be smaller than --steps")
     modes = trained.modes if trained is not None else args.modes
     method = REDUCTIONS[args.method]() if modes is None else REDUCTIONS[args.method](modes=modes)
-    config = rom.ReduceConfig(method=method, n_steps=n, dt=opts.dt, solver=opts.solver, every=opts.saveat.every,
-                              train_steps=m_train, stride=args.stride, spectra=bool(args.plot))
+    config = rom.ReduceConfig(method=method, options=opts.replace(n_steps=n), train_steps=m_train, stride=args.stride,
+                              spectra=bool(args.plot))
     try:
         result = reduce_and_time(test, train, config, train_solvers, trained=trained)
     except FullRunDivergedError:
@@ -246,8 +245,8 @@ def _sized_training(test, box, n_steps, opts, args):
 
     def warm_up():  # compiled on the other core meanwhile: the estimate's full-order programs, the full runs
         rom.warm_error_rom(test, opts.dt, solver)
-        warm_full_runs(test, opts.solver, rom.ReduceConfig(method=rom.DMDc(), n_steps=n_steps, dt=opts.dt,
-                                                           every=opts.saveat.every, train_steps=1))
+        warm_full_runs(test, opts.solver, rom.ReduceConfig(method=rom.DMDc(), options=opts.replace(n_steps=n_steps),
+                                                           train_steps=1))
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         warm = pool.submit(warm_up)

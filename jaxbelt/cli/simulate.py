@@ -89,8 +89,8 @@ def _summary(scene, options, model, traj, timing):
     return dict(
         scene=scene.name, integrator=scene.solver.integrator, n_steps=int(round(t[-1] / options.dt)),
         t_end_s=float(t[-1]), n_unknowns=model.n_unknowns, wall_s=timing["run_s"], compile_s=timing["compile_s"],
-        tracer_u_max_abs_mm=float(np.max(np.abs(tu)) * 1e3), tracer_u_final_mm=(tu[-1] * 1e3).round(6).tolist(),
-        tracer_v_max_abs_mm=None if traj.tracer_v is None else float(np.max(np.abs(np.asarray(traj.tracer_v))) * 1e3),
+        tracer_u_max_abs_um=float(np.max(np.abs(tu)) * 1e6), tracer_u_final_um=(tu[-1] * 1e6).round(3).tolist(),
+        tracer_v_max_abs_um=None if traj.tracer_v is None else float(np.max(np.abs(np.asarray(traj.tracer_v))) * 1e6),
         roller_speed_m_s={r.name: float(abs(rv[-1, j, az]) * r.radius) for j, r in enumerate(scene.rollers)},
         belt_mass_kg=float(mass[-1]), belt_mass_rel_drift=float(np.max(np.abs(mass - mass[0])) / mass[0]),
         transport=options.solver.transport,
@@ -124,7 +124,7 @@ def _plot_fields(args, scene, mesh, model, traj, request, fields, s):
 
 def belt_off_roller(model, traj, dt):
     """The first recorded step at which a belt edge has left a roller's face (``edge_margin`` < 0):
-    ``{"roller", "step", "t_s", "margin_mm"}``, or ``None`` (and always in 1D)."""
+    ``{"roller", "step", "t_s", "margin_um"}``, or ``None`` (and always in 1D)."""
     if traj.edge_margin is None:
         return None
     m = np.asarray(traj.edge_margin)
@@ -133,7 +133,7 @@ def belt_off_roller(model, traj, dt):
         return None
     k, j = bad[0]
     t = float(np.asarray(traj.t)[k])
-    return {"roller": model.roller_names[j], "step": int(round(t / float(dt))), "t_s": t, "margin_mm": float(m[k, j] * 1e3)}
+    return {"roller": model.roller_names[j], "step": int(round(t / float(dt))), "t_s": t, "margin_um": float(m[k, j] * 1e6)}
 
 
 def _field_request(args, scene, options):
@@ -218,7 +218,7 @@ def _warn(s):
     off = s["belt_off_roller"]
     if off:
         print(f"jaxbelt: warning: the belt runs off {off['roller']!r} at step {off['step']} (t = {off['t_s']:g} s): "
-              f"its edge is {-off['margin_mm']:.3g} mm beyond the roller's face; later results are not physical",
+              f"its edge is {-off['margin_um'] / 1e3:.3g} mm beyond the roller's face; later results are not physical",
               file=sys.stderr)
     lo, hi = s["transport_weight_range"]
     if lo < 0 or hi >= 1:
@@ -236,7 +236,7 @@ def _text(s, scene, model, demo):
         print(f"{'demo: ' if demo else ''}simulated {scene.name} ({scene.kind}, N = {model.n_unknowns}) for "
               f"{s['t_end_s']:g} s in {s['n_steps']} steps with the {s['integrator']} integrator: "
               f"{s['wall_s']:.2f} s run + {s['compile_s']:.2f} s compile")
-        print(f"  max |tracer u| = {s['tracer_u_max_abs_mm']:.6g} mm; roller surface speeds "
+        print(f"  max |tracer u| = {s['tracer_u_max_abs_um']:.6g} µm; roller surface speeds "
               + ", ".join(f"{k}: {v:.6g} m/s" for k, v in s["roller_speed_m_s"].items()))
         print(f"  belt mass {s['belt_mass_kg']:.9g} kg, max relative drift {s['belt_mass_rel_drift']:.2e}")
         for c in s.get("control", []):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..integrators import AbstractIntegrator, make_solver
+from ..timeloop import RunOptions
 from .error_estimate import ErrorRomOptions
 from .reduced_model import CALIBRATION_RUNS, AbstractReduction
 
@@ -16,9 +16,9 @@ class ReduceConfig:
 
     **Fields:** ``method`` the reduction and its modes (:class:`~jaxbelt.rom.ReducedPOD`,
     :class:`~jaxbelt.rom.DMD`, :class:`~jaxbelt.rom.DMDc`, :class:`~jaxbelt.rom.ParametricDMD`);
-    ``n_steps`` steps to predict and compare; ``dt`` the time step, s; ``solver`` the full model's
-    (default :func:`jaxbelt.make_solver`'s); ``every`` the full run's record interval (the
-    comparison is at its recorded steps); ``train_steps`` full-order steps per training
+    ``options`` the full model's run (:class:`jaxbelt.RunOptions`): its ``n_steps`` the steps to
+    predict and compare, its ``dt``, its ``solver``, its ``saveat.every`` the full run's record
+    interval (the comparison is at its recorded steps); ``train_steps`` full-order steps per training
     configuration (default ``min(200, n_steps // 2)``); ``stride`` the error estimate's residual
     windows (0: no estimate); ``estimate`` the error ROM's tuning; ``calibration_runs`` training
     runs the safety factor is calibrated on; ``spectra`` whether to keep the singular values and
@@ -26,10 +26,7 @@ class ReduceConfig:
     """
 
     method: AbstractReduction
-    n_steps: int
-    dt: float
-    solver: AbstractIntegrator | None = None
-    every: int = 1
+    options: RunOptions
     train_steps: int | None = None
     stride: int = 10
     estimate: ErrorRomOptions = ErrorRomOptions()
@@ -39,16 +36,16 @@ class ReduceConfig:
     def __post_init__(self):
         if not isinstance(self.method, AbstractReduction):
             raise ValueError(f"method = {self.method!r}: a reduction (ReducedPOD(), DMD(), DMDc(), ParametricDMD())")
-        for name, low in (("n_steps", 1), ("every", 1), ("stride", 0), ("calibration_runs", 0)):
-            if int(getattr(self, name)) < low:
-                raise ValueError(f"{name} = {getattr(self, name)}: must be at least {low}")
-        self.method.check(int(self.n_steps), self.train_window)
+        if not isinstance(self.options, RunOptions):
+            raise ValueError(f"options = {self.options!r}: the full run's settings (jaxbelt.RunOptions)")
+        for name, value, low in (("options.n_steps", self.options.n_steps, 1), ("options.saveat.every",
+                                 self.options.saveat.every, 1), ("stride", self.stride, 0),
+                                 ("calibration_runs", self.calibration_runs, 0)):
+            if int(value) < low:
+                raise ValueError(f"{name} = {value}: must be at least {low}")
+        self.method.check(int(self.options.n_steps), self.train_window)
 
     @property
     def train_window(self) -> int:
         """Full-order steps per training configuration."""
-        return int(self.train_steps or min(200, self.n_steps // 2))
-
-    @property
-    def full_solver(self) -> AbstractIntegrator:
-        return make_solver() if self.solver is None else self.solver
+        return int(self.train_steps or min(200, self.options.n_steps // 2))

@@ -62,11 +62,11 @@ def is_reuse(solver) -> bool:
 
 
 def full_run(model, solver, config: ReduceConfig):
-    """The predicted configuration's full-order run (:class:`~jaxbelt.Trajectory`) over
-    ``config.n_steps`` steps, recorded every ``config.every``, that :func:`reduce_and_compare`
-    compares with."""
-    return simulate(model, solver, n_steps=config.n_steps, dt=config.dt, saveat=SaveAt(every=config.every),
-                    check=False)[1]
+    """The predicted configuration's full-order run (:class:`~jaxbelt.Trajectory`) with ``solver``
+    over ``config.options``' steps, recorded every ``options.saveat.every``, that
+    :func:`reduce_and_compare` compares with."""
+    o = config.options
+    return simulate(model, solver, n_steps=o.n_steps, dt=o.dt, saveat=SaveAt(every=o.saveat.every), check=False)[1]
 
 
 def _once(f, **_):
@@ -77,12 +77,12 @@ def _once(f, **_):
 def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, trained=None, *, full_trajectory=None,
                        reuse_factors: bool = False, clock: Callable | None = None) -> ReductionResult:
     """Train ``config.method`` on the ``train`` models (dmd: ``model`` itself), predict ``model``
-    over ``config.n_steps`` steps and compare with its full-order run (module docstring).
+    over ``config.options.n_steps`` steps and compare with its full-order run (module docstring).
 
     **Arguments:** ``model`` the configuration predicted; ``train`` the training configurations
     (same mesh; pod is linearised at the first; dmdc/pdmd need at least two: the nominal
     configuration plus one run per varied parameter); ``config`` (:class:`ReduceConfig`);
-    ``train_solvers`` each training model's own solver (default ``config.solver``);
+    ``train_solvers`` each training model's own solver (default ``config.options.solver``);
     ``trained`` (dmdc only) a :class:`~jaxbelt.rom.sizing.BoxTraining` sized to a tolerance: its
     training runs and fit are used as they are (``train`` is then its models, the training steps
     and modes its own), and its loop's time, compilation included, is the offline time;
@@ -96,7 +96,7 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     **Raises:** ``ValueError`` on an unusable training set, :class:`FullRunDivergedError`,
     :class:`ReducedRunDivergedError`.
     """
-    solver = config.full_solver
+    solver = config.options.solver
     method = config.method
     if trained is not None:
         if not isinstance(method, DMDc):
@@ -109,7 +109,7 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
     if len(train_solvers) != len(train):
         raise ValueError(f"{len(train_solvers)} training solvers for {len(train)} training models")
     method.check_training(model, train, train_solvers)
-    n, dt = config.n_steps, config.dt
+    n, dt = config.options.n_steps, config.options.dt
 
     traj = full_run(model, solver, config) if full_trajectory is None else full_trajectory
     if not np.all(np.isfinite(np.asarray(traj.tracer_u))):
@@ -165,14 +165,14 @@ def _estimate(model, method, fitted: AbstractReducedModel, training: TrainingRun
     the training data (module docstring), each timed once by ``clock`` (the calibration of a sized
     training is its own: 0 s here); ``at`` the prediction's rows at the compared steps."""
     traj = prediction.trajectory
-    est, estimate_s, _ = clock(lambda: error_rom(model, traj.basis, traj.coords, config.dt, traj.z_true0,
+    est, estimate_s, _ = clock(lambda: error_rom(model, traj.basis, traj.coords, config.options.dt, traj.z_true0,
                                                  stride=config.stride, order=prediction.order, solver=solver,
                                                  options=config.estimate), repeat=0)
     if trained is not None:  # calibrated on the same fit and training runs already
         cal, calibration_s = trained.calibration, None if estimate_s is None else 0.0
     else:
         cal, calibration_s, _ = clock(lambda: calibrate(
-            method.calibration_cases(fitted, training, max(1, config.train_window // 2)), config.dt,
+            method.calibration_cases(fitted, training, max(1, config.train_window // 2)), config.options.dt,
             stride=config.stride, order=prediction.order, options=config.estimate), repeat=0)
     kappa = cal.safety_factor
     est_t = kappa * np.asarray(est.error_um)[at]

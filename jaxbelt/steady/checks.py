@@ -32,7 +32,7 @@ def check_steady(s, model: BeltModel, what: str = "the aligned machine"):
                                  f"({-np.min(np.asarray(s.edge_margin)) * 1e3:.3g} mm beyond its face)")
 
 
-def actuator_jitter(model: BeltModel, integrator, dt, s: SteadyState, turns: float = JITTER_TURNS):
+def actuator_jitter(model: BeltModel, solver, dt, s: SteadyState, turns: float = JITTER_TURNS):
     """The aligned machine's actuator jitter around its steady angle, mrad (n_c,): the largest
     ``|angle − steady angle|`` of a time-stepped run of ``model`` (sensor noise and edge profile
     on) from its steady state ``s`` over ``turns`` belt turns. A loop whose steady state is not
@@ -41,7 +41,7 @@ def actuator_jitter(model: BeltModel, integrator, dt, s: SteadyState, turns: flo
     loops = model.control
     n = max(2, int(np.ceil(turns * float(loops.loop_length) / belt_speed(model) / float(dt))))
     y0 = dataclasses.replace(s.state, control=dataclasses.replace(s.state.control, travel=jnp.zeros((), dt.dtype)))
-    _, tr = simulate(model, integrator, n_steps=n, dt=dt, y0=y0, saveat=SaveAt(), check=False)
+    _, tr = simulate(model, solver, n_steps=n, dt=dt, y0=y0, saveat=SaveAt(), check=False)
     dev = np.abs(np.asarray(tr.control_u) - np.asarray(s.angle)[None])
     if not np.all(np.isfinite(dev)):
         raise NoSteadyStateError("no steady operation: the aligned machine's run from its steady state diverged "

@@ -212,5 +212,5 @@ def test_belt_running_off_a_roller_is_reported_with_step_and_roller(tmp_path, ca
     import json
 
     off = json.loads(out.out)["belt_off_roller"]
-    assert off is not None and off["margin_mm"] < 0 and 0 < off["step"] <= 600
+    assert off is not None and off["margin_um"] < 0 and 0 < off["step"] <= 600
     assert f"runs off {off['roller']!r} at step {off['step']}" in out.err

@@ -130,8 +130,8 @@ def test_every_registered_solver_runs_and_agrees_with_dense(one_d, dense_run, in
 
 @pytest.mark.slow
 def test_run_options_from_scene():
-    """:meth:`jaxbelt.RunOptions.from_scene` reads ``[time]``, ``[output]`` and ``[solver]``, and
-    ``simulate(model, **options)`` runs with them."""
+    """:meth:`jaxbelt.RunOptions.from_scene` reads ``[time]``, ``[output]`` and ``[solver]`` (the
+    adjoint's checkpointing is the default), and ``simulate(model, **options)`` runs with them."""
     def mutate(d):
         d["time"] = {"dt_s": 0.004, "t_end_s": 0.1}
         d["output"] = {"every": 5, "fields": "full"}
@@ -142,7 +142,8 @@ def test_run_options_from_scene():
     assert opts.dt == 0.004 and opts.n_steps == 25 and opts.t_end == pytest.approx(0.1, rel=1e-14)
     assert opts.saveat == jb.SaveAt(every=5, fields=True)
     assert solver_name(opts.solver) == "direct/cyclic-reduction" and opts.solver.transport == "source"
-    assert dict(opts) == {"solver": opts.solver, "n_steps": 25, "dt": 0.004, "saveat": opts.saveat}
+    assert dict(opts) == {"solver": opts.solver, "n_steps": 25, "dt": 0.004, "saveat": opts.saveat,
+                          "adjoint": jb.Checkpointed()}
     assert opts.replace(n_steps=7).n_steps == 7 and opts.n_steps == 25
     default = jb.RunOptions.from_scene(jb.load_scene("two-roller-1d"))
     assert solver_name(default.solver) == "direct/kept-interior" and default.solver.transport == "shift"

@@ -49,9 +49,9 @@ def test_a_method_checks_its_settings_and_training_set(setup):
     with pytest.raises(ValueError, match="modes"):
         rom.DMDc(modes=0)
     with pytest.raises(ValueError, match="smaller than n_steps"):
-        rom.ReduceConfig(method=rom.DMD(), n_steps=20, dt=opts.dt, train_steps=20)
+        rom.ReduceConfig(method=rom.DMD(), options=opts.replace(n_steps=20), train_steps=20)
     with pytest.raises(ValueError, match="at least two"):
-        rom.ReduceConfig(method=rom.ParametricDMD(), n_steps=20, dt=opts.dt).method.check_training(
+        rom.ReduceConfig(method=rom.ParametricDMD(), options=opts.replace(n_steps=20)).method.check_training(
             models[0], models[:1], (opts.solver,))
 
 
@@ -60,7 +60,7 @@ def test_reduce_and_compare_without_the_command_line(setup):
     steps in µm, the error estimate calibrated on the training runs; nothing timed."""
     models, opts = setup
     test = models[0].replace(chi_static=0.6 * models[1].chi_static + 0.4 * models[0].chi_static)
-    config = rom.ReduceConfig(method=rom.DMDc(modes=20), n_steps=N_STEPS, dt=opts.dt, solver=opts.solver,
+    config = rom.ReduceConfig(method=rom.DMDc(modes=20), options=opts.replace(n_steps=N_STEPS, saveat=jb.SaveAt()),
                               train_steps=TRAIN_STEPS, stride=5)
     r = rom.reduce_and_compare(test, models, config)
     assert r.method.name == "dmdc" and r.modes == 20 and r.cost is None and r.compared == "tracer_u"
@@ -83,8 +83,8 @@ def test_a_prediction_observes_the_predicted_configurations_tracers(method, setu
     shifted = moved.replace(tracer_col=(moved.tracer_col + moved.n_xi // 4) % moved.n_xi,
                             tracer_xi=moved.tracer_xi + 0.5)
     assert not np.allclose(rom.observation(shifted), rom.observation(models[0]))
-    config = rom.ReduceConfig(method=method, n_steps=N_STEPS, dt=opts.dt, solver=opts.solver, train_steps=N_STEPS,
-                              stride=0)
+    config = rom.ReduceConfig(method=method, options=opts.replace(n_steps=N_STEPS, saveat=jb.SaveAt()),
+                              train_steps=N_STEPS, stride=0)
     same, other = (rom.reduce_and_compare(m, models, config) for m in (moved, shifted))
     assert same.rmse_um < 5.0 and other.rmse_um < 2 * same.rmse_um + 1.0
     # the tracers of the predicted states at the predicted configuration's tracers

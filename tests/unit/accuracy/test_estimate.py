@@ -62,15 +62,15 @@ def test_the_text_output_says_when_an_estimate_is_doubtful(capsys):
     text output too (not only flagged in the JSON); a sound estimate gets no warning."""
     from jaxbelt.cli._accuracy import print_accuracy
 
-    def summary(order, clamped, lateral_um, v_max_mm):
-        return dict(tracer_u_max_abs_mm=1.0, tracer_v_max_abs_mm=v_max_mm, discretisation_error_um=dict(
+    def summary(order, clamped, lateral_um, v_max_um):
+        return dict(tracer_u_max_abs_um=1e3, tracer_v_max_abs_um=v_max_um, discretisation_error_um=dict(
             longitudinal=2.0, lateral=lateral_um, dominant="dt", orders={"dt": order, "n_xi": 1.0},
             directions={"dt": dict(order=order, order_clamped=clamped), "n_xi": dict(order=1.0, order_clamped=False)},
             cost_runs=3.0))
 
-    print_accuracy(summary(4.0, True, 81.0, 0.06))
+    print_accuracy(summary(4.0, True, 81.0, 60.0))
     out = capsys.readouterr().out
     assert "the observed order in dt sits at a bound of its range (4)" in out
     assert "the lateral error estimate (81 µm) exceeds the lateral signal itself (max |tracer| 60 µm)" in out
-    print_accuracy(summary(1.0, False, 5.0, 0.06))
+    print_accuracy(summary(1.0, False, 5.0, 60.0))
     assert "warning" not in capsys.readouterr().out
