@@ -104,7 +104,7 @@ def string_limit():
         frac = np.round(np.arange(0.05, 1.51, 0.05), 2)
         w = frac * 2 * np.pi / r.loop_time_s
         G = th.string_loop_response(sc, w)
-        meas = response_transfer(r.step_response["sensor_mm_per_mrad"], r.coefficient_mm_s_per_mrad, dt, w) \
+        meas = response_transfer(r.step_response.sensor_um_per_mrad * 1e-3, r.coefficient_mm_s_per_mrad, dt, w) \
             * np.exp(0.5j * w * dt)
         fit = r.plant.frequency_response(w)
         row = dict(width_mm=w_mm, K_L=kl, grid=[ne, nf], dt_s=dt, coefficient_mm_s_per_mrad=r.coefficient_mm_s_per_mrad,

@@ -45,8 +45,7 @@ def run(args):
 
 
 def _print(r):
-    print(f"loop {r['loop']} (open): runs of {r['t_end_s']:g} s, walk rates = slopes over "
-          f"{r['window_s'][0]:g}–{r['window_s'][1]:g} s")
+    print(f"loop {r['loop']} (open): walk rates of the steady walk, step response over {r['t_end_s']:g} s")
     print(f"  coefficient      {r['coefficient_mm_s_per_mrad']:+.6g} mm/s per mrad")
     print(f"  disturbance      {r['disturbance_mm_s']:+.6g} mm/s")
     print(f"  hold angle       {r['hold_angle_mrad']:+.6g} mrad (range ±{r['limit_mrad']:g} mrad)"

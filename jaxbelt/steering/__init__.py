@@ -23,6 +23,7 @@ from .plant import fit_plant as fit_plant
 from .plant import identify_plant as identify_plant
 from .report import StabilityBoundary as StabilityBoundary
 from .report import SteeringReport as SteeringReport
+from .report import StepResponse as StepResponse
 from .report import SteeringWarning as SteeringWarning
 from .report import stability_boundary as stability_boundary
 from .report import steering_report as steering_report

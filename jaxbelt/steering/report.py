@@ -83,6 +83,17 @@ def response_gain_margin(response, gain, dt, sample_steps: int = 1):
 
 
 @dataclasses.dataclass(frozen=True)
+class StepResponse(Result):
+    """The model's open-loop response to a step of the actuator angle at ``t = 0``
+    (:func:`~jaxbelt.steering.response.open_loop_response`). **Fields:** ``t_s`` (n,) the record
+    times; ``sensor_um_per_mrad`` (n,) the belt's lateral displacement at the sensor per mrad of
+    the step."""
+
+    t_s: np.ndarray
+    sensor_um_per_mrad: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
 class SteeringReport(Result):
     """The plant of one steering loop, measured on the model with the loop open.
 
@@ -104,9 +115,8 @@ class SteeringReport(Result):
     that delay (the stability boundary ``k_p``, mrad/mm) and ``plant_crossover_period_s`` its
     oscillation period; ``response_gain_margin`` and ``response_crossover_period_s`` the same of
     the discrete loop on the step response itself (:func:`response_gain_margin`, no fitted form);
-    ``step_mrad`` the actuator step; ``t_end_s``, ``dt_s`` the runs; ``window_s`` the walk-rate
-    window; ``step_response`` ``{"t_s": […], "sensor_mm_per_mrad": […]}`` the model's open-loop
-    response to the step per mrad; ``belt_speed_m_s``, ``loop_time_s`` the transit time;
+    ``step_mrad`` the actuator step; ``t_end_s``, ``dt_s`` the runs; ``step_response`` the
+    model's open-loop response to the step (:class:`StepResponse`); ``belt_speed_m_s``, ``loop_time_s`` the transit time;
     ``elapsed_s`` the wall time.
     """
 
@@ -127,8 +137,7 @@ class SteeringReport(Result):
     step_mrad: float
     t_end_s: float
     dt_s: float
-    window_s: tuple
-    step_response: dict
+    step_response: StepResponse
     belt_speed_m_s: float
     loop_time_s: float
     elapsed_s: float
@@ -217,8 +226,7 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
         sample_delay_s=delay, plant_gain_margin=float(gm), plant_crossover_period_s=_period_of(w_pc),
         response_gain_margin=rgm, response_crossover_period_s=_period_of(rw_pc),
         step_mrad=float(step_mrad), t_end_s=float(t[-1]), dt_s=float(options.dt),
-        window_s=(float(t[-1] / 2), float(t[-1])),
-        step_response={"t_s": [float(x) for x in t], "sensor_mm_per_mrad": [float(x) for x in resp]},
+        step_response=StepResponse(t_s=np.asarray(t, float), sensor_um_per_mrad=np.asarray(resp, float) * 1e3),
         belt_speed_m_s=V, loop_time_s=loop_time, elapsed_s=time.perf_counter() - start)
 
 

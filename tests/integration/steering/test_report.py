@@ -76,8 +76,8 @@ def test_pi_loop_holds_the_belt(scene, report):
 
 def test_plant_reproduces_step_response(report):
     r = report.step_response
-    y = np.asarray(r["sensor_mm_per_mrad"])
-    fit = report.plant.step_response(np.asarray(r["t_s"]))
+    y = r.sensor_um_per_mrad * 1e-3  # m per rad
+    fit = report.plant.step_response(r.t_s)
     assert np.max(np.abs(fit - y)) / np.ptp(y) < 0.02  # within 2 % of the response's range
 
 
@@ -89,14 +89,14 @@ def test_p_boundary_against_the_gain_margin(scene, report):
     5 % (0.1 %); of the identified continuous plant with the hold's delay T_s / 2, within 5 %
     (+3.4 %)."""
     control = pytest.importorskip("control")
-    # batches of 3 runs of 2000 steps: the report's compiled program
+    # batches of 2 runs of 2000 steps: the compiled program of the report's step response
     b = stability_boundary(jb.build_model(scene), jb.RunOptions.from_scene(scene).replace(n_steps=2000),
-                           2.5, 4.0, rounds=3, batch=3)
+                           2.5, 4.0, rounds=4, batch=2)
     kp = b.kp_mrad_per_mm
     assert b.bracket[1] - b.bracket[0] < 0.02 * kp
     dt = report.dt_s
     w = np.geomspace(0.05, 0.999 * np.pi / dt, 6000)
-    P = response_transfer(report.step_response["sensor_mm_per_mrad"], report.coefficient_mm_s_per_mrad, dt, w)
+    P = response_transfer(report.step_response.sensor_um_per_mrad * 1e-3, report.coefficient_mm_s_per_mrad, dt, w)
     gm = control.stability_margins(control.frd(np.sign(report.coefficient_mm_s_per_mrad) * P, w))[0]
     assert gm == pytest.approx(kp, rel=0.05)
     assert report.response_gain_margin == pytest.approx(kp, rel=0.05)
@@ -126,7 +126,7 @@ def test_plant_in_the_string_limit_is_sheltons_span_model(string_report):
     G = th.string_loop_response(sc, w)
     coeff = r.coefficient_mm_s_per_mrad
     assert coeff == pytest.approx((1j * w[0] * G[0]).real, rel=0.15)
-    measured = response_transfer(r.step_response["sensor_mm_per_mrad"], coeff, r.dt_s, w) * np.exp(0.5j * w * r.dt_s)
+    measured = response_transfer(r.step_response.sensor_um_per_mrad * 1e-3, coeff, r.dt_s, w) * np.exp(0.5j * w * r.dt_s)
     assert np.max(np.abs(measured / G - 1)) < 0.15
     low = w <= 0.2 * 2 * np.pi / r.loop_time_s
     assert np.max(np.abs(r.plant.frequency_response(w[low]) / G[low] - 1)) < 0.15

@@ -1,8 +1,8 @@
 """Steering-loop tuning (:mod:`jaxbelt.steering.tuning`, ``jaxbelt tune``) on ``two-roller-steered``.
 
-Closed-loop runs of 30 s, the measured response's own length (one compiled forward run serves
-both), and few Adam iterations; one measured response and one tuning shared by the module, and
-the command line run in-process on the same run length, so it reuses the compiled programs."""
+Closed-loop runs of 30 s, the measured response's own length, and few Adam iterations; one
+measured response and one tuning shared by the module, and the command line run in-process on the
+same run length, so it reuses the compiled programs."""
 
 import json
 
