@@ -80,13 +80,11 @@ def part(which, out_path):
                 n_steps=int(study.n_steps), labels=study.space.labels())
     arrays = {"metric": np.asarray(res.metric_values)}
     if method is not None:
-        import jax.numpy as jnp
-
-        from jaxbelt.design.sampling import standard_normal_samples
+        from jaxbelt.design.sampling import sample_configurations
         from jaxbelt.design.surrogate import fit_surrogate
 
         sur = fit_surrogate(study, dist, LIMIT, seed=SEED + 7919, method=method)  # the sweep's own validation seed
-        thetas = np.asarray(dist.transform(jnp.asarray(standard_normal_samples(N, study.space.size, SEED))))
+        thetas = sample_configurations(dist, N, SEED)
         sur.evaluate(thetas)
         t0 = time.perf_counter()
         pred = sur.evaluate(thetas)

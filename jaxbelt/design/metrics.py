@@ -61,6 +61,7 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..control import SATURATION_FRACTION, walk_rate
 
@@ -198,6 +199,23 @@ def aggregate(kind: str, r, smooth: bool = False, tau: float = SMOOTH_TAU_UM):
     return jnp.max(jnp.abs(r), axis=-1)
 
 
+def metric_from_deviation(study, du, dv, angle=None, smooth: bool = False):
+    """The study's metric (its response aggregated, :func:`aggregate`) from a configuration's
+    deviations and actuator angles: the one place a metric value is formed."""
+    return aggregate(study.aggregate, response_from_deviation(study, du, dv, angle), smooth)
+
+
+def on_limit_scale(values, limits) -> np.ndarray:
+    """The measure of several limits at once (``limits`` ``((metric, limit), ...)``): each value
+    (m, n_limits) over its limit, the largest, on the scale of the first limit (m,); without limits
+    (``()``) the values as they are."""
+    values = np.asarray(values)
+    if not limits:
+        return values
+    lims = np.array([lim for _, lim in limits], float)
+    return lims[0] * np.max(values / lims, axis=-1)
+
+
 def limit_values_from_deviation(study, du, dv, angle):
     """Each limited metric's value (n_limits,) from the deviations and the actuator angles."""
     return jnp.stack([aggregate(METRICS[n].aggregate, _single_response(study, n, du, dv, angle)) for n in study.limit_names])
@@ -210,7 +228,7 @@ def aligned_values(study):
     du = jnp.zeros(study.ref_u.shape)
     dv = None if study.ref_v is None else jnp.zeros(study.ref_v.shape)
     angle = study.ref_angle
-    metric = aggregate(study.aggregate, response_from_deviation(study, du, dv, angle))
+    metric = metric_from_deviation(study, du, dv, angle)
     return metric, limit_values_from_deviation(study, du, dv, angle) if study.limit_names else None
 
 

@@ -41,6 +41,7 @@ from ..infra.results import Result
 from ..infra.sharding import batched_map
 
 DISTRIBUTIONS = ("normal", "uniform")
+Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: every 95 % interval here
 STEADY_CHUNK = 4  # steady solves per block (they run in sequence: a block only bounds the padding)
 
 
@@ -57,14 +58,36 @@ class Distribution:
     def components(self) -> list[str]:
         return list(self.labels)
 
+    @property
+    def uniform(self) -> tuple:
+        """(P,) whether each law is uniform (else normal)."""
+        return tuple(k == "uniform" for k in self.kind)
+
+    @property
+    def sigma(self) -> tuple:
+        """(P,) each law's standard deviation (mm / mrad): ``σ``, or ``h / √3`` for a uniform law."""
+        return tuple(s / math.sqrt(3.0) if u else s for s, u in zip(self.scale, self.uniform))
+
     def transform(self, u):
         """Standard normal ``u`` (..., P) → misalignments ``θ`` (..., P)."""
-        scale = jnp.asarray(self.scale)
-        uniform = jnp.asarray([k == "uniform" for k in self.kind])
-        return jnp.where(uniform, scale * (2.0 * norm.cdf(u) - 1.0), scale * u)
+        return misalignments_of(jnp.asarray(self.scale), jnp.asarray(self.uniform), u)
 
     def to_dict(self) -> dict:
         return {lab: {"dist": k, "scale": s} for lab, k, s in zip(self.labels, self.kind, self.scale)}
+
+
+def misalignments_of(scale, uniform, u):
+    """The misalignments ``θ`` (..., P) of standard normal ``u`` under laws of ``scale`` (P,) (σ or
+    half-width), ``uniform`` (P,) a mask of the uniform ones (module docstring): ``jnp``, the one
+    transform of the sampling and of FORM's limit state."""
+    return jnp.where(uniform, scale * (2.0 * norm.cdf(u) - 1.0), scale * u)
+
+
+def sample_configurations(dist: Distribution, n: int, seed: int) -> np.ndarray:
+    """The configurations (n, P) of ``seed`` under ``dist``: the first ``n`` of the seed's sequence
+    (:func:`standard_normal_samples`), the same for every ``n`` (a resumed sweep relies on that)."""
+    # jit: one small program instead of compiling norm.cdf's primitives one by one (~2 s)
+    return np.asarray(jax.jit(dist.transform)(jnp.asarray(standard_normal_samples(n, len(dist.labels), seed))))
 
 
 def distribution_from_dict(data: dict, model) -> Distribution:
@@ -142,6 +165,13 @@ def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=No
     return _map(study, thetas, chunk, progress)
 
 
+def padded_rows(rows, chunk: int) -> np.ndarray:
+    """``rows`` (n, …) with the last row repeated up to a whole number of ``chunk``-row blocks, so
+    that every block of a batched evaluation has one shape: one compilation (no rows: none)."""
+    rows = np.asarray(rows)
+    return np.concatenate([rows, np.repeat(rows[-1:], -len(rows) % chunk, axis=0)]) if len(rows) else rows
+
+
 def _map(study, thetas, chunk, progress=None):
     """:func:`~jaxbelt.infra.sharding.batched_map` with the rows padded to a whole number of
     chunks, so that every call with the same ``chunk`` reuses one compilation. Steady solves run
@@ -151,8 +181,8 @@ def _map(study, thetas, chunk, progress=None):
     if study.steady:
         chunk = min(chunk or STEADY_CHUNK, STEADY_CHUNK)
     n = thetas.shape[0]
-    if chunk is not None and n % chunk:
-        thetas = np.concatenate([thetas, np.repeat(thetas[-1:], chunk - n % chunk, axis=0)])
+    if chunk is not None:
+        thetas = padded_rows(thetas, chunk)
     if study.steady:
         out = _steady_chunks(study, thetas, chunk or len(thetas), progress)
     else:
@@ -190,7 +220,7 @@ def evaluate_metric(study: Study, thetas, chunk: int | None = None):
 # ----------------------------------------------------------------------------- statistics
 
 
-def wilson_interval(passed: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+def wilson_interval(passed: int, n: int, z: float = Z95) -> tuple[float, float]:
     """Wilson score interval of a binomial proportion (95 % by default)."""
     if n <= 0:
         raise ValueError(f"n = {n}: need at least one sample")
@@ -245,7 +275,7 @@ def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed:
     check_distribution(dist, study)
     if n <= 0:
         raise ValueError(f"samples = {n}: must be at least 1")
-    thetas = np.asarray(dist.transform(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
+    thetas = sample_configurations(dist, n, seed)
     out = evaluate_configs(study, thetas, chunk, progress)
     metric = np.asarray(out["metric"])
     passed = int(np.sum(passes(metric, limit_um, out.get("saturated"))))
@@ -257,8 +287,7 @@ def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed:
 @stored_jit
 def _g_and_grad(study, dist_scale, uniform, u, limit):
     def g(u):
-        theta = jnp.where(uniform, dist_scale * (2.0 * norm.cdf(u) - 1.0), dist_scale * u)
-        return limit - metric_value(study, theta, smooth=True)
+        return limit - metric_value(study, misalignments_of(dist_scale, uniform, u), smooth=True)
 
     return jax.value_and_grad(g)(u)
 
@@ -294,8 +323,7 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
     over all linearised failure modes, of which FORM's single design point sees only the most
     probable one."""
     check_distribution(dist, study)
-    scale = jnp.asarray(dist.scale)
-    uniform = jnp.asarray([k == "uniform" for k in dist.kind])
+    scale, uniform = jnp.asarray(dist.scale), jnp.asarray(dist.uniform)
     r0, J = response_jacobian(study, linear=linear)
     if u0 is None:
         u0 = linear_design_point(r0, J, dist, limit_um, study.aggregate)
@@ -328,7 +356,7 @@ def _mode_betas(r0, J, dist: Distribution, limit_um: float):
     """Reliability indices of every failure mode ``s r_i > limit`` (row ``i``, sign ``s``) of
     the response linearised at ``u = 0``: ``β = (limit - s r0_i) / ‖J_i D‖`` with ``D = σ``
     (normal) or ``2 φ(0) h`` (uniform). **Returns:** ``(β (n_r, 2), J D)``."""
-    D = np.array([s * (2 * 0.3989422804014327 if k == "uniform" else 1.0) for k, s in zip(dist.kind, dist.scale)])
+    D = np.array([s * (2 * 0.3989422804014327 if u else 1.0) for u, s in zip(dist.uniform, dist.scale)])
     JD = np.asarray(J) * D
     norms = np.linalg.norm(JD, axis=1)
     beta = np.full((len(r0), 2), np.inf)
@@ -374,9 +402,8 @@ def importance_sampling(study: Study, dist: Distribution, limit_um: float, u_sta
     w = np.exp(-u @ u_star + 0.5 * u_star @ u_star)
     thetas = np.asarray(dist.transform(jnp.asarray(u)))
     metric = evaluate_metric(study, thetas, chunk) if metric_of is None else np.asarray(metric_of(thetas))
-    fail = (metric > limit_um).astype(float)
+    fail = (~passes(metric, limit_um)).astype(float)  # the metric only (module docstring); NaN fails
     pf = float(np.mean(fail * w))
     se = float(np.std(fail * w, ddof=1) / math.sqrt(n)) if n > 1 else float("inf")
-    z = 1.959963984540054
-    return ImportanceSamplingResult(yield_=1.0 - pf, ci95=(max(0.0, 1.0 - pf - z * se), min(1.0, 1.0 - pf + z * se)),
+    return ImportanceSamplingResult(yield_=1.0 - pf, ci95=(max(0.0, 1.0 - pf - Z95 * se), min(1.0, 1.0 - pf + Z95 * se)),
                                     failure_probability=pf, std_error=se, samples=n)

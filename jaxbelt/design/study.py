@@ -25,7 +25,7 @@ from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward
 from ..timeloop import RunOptions, check_finite, simulate
 from .linear_box import LinearDeviation, linear_deviation
 from .metrics import (CLOSED_LOOP_WINDOW, METRICS, M_TO_UM, OPEN_LOOP_WINDOW, RAD_TO_MRAD, limit_values_from_deviation,
-                      aggregate, response_from_deviation, saturation)
+                      metric_from_deviation, response_from_deviation, saturation)
 
 
 class Study(eqx.Module):
@@ -325,11 +325,10 @@ def make_study_at(model: BeltModel, metric: str, thetas, options: RunOptions, *,
         study = with_limits(study, limits)
 
     def values(uk, vk, ak):
-        du = (uk - study.ref_u) * M_TO_UM
-        dv = None if vk is None else (vk - study.ref_v) * M_TO_UM
+        du, dv, _ = deviation(study, uk, vk, None)
         if study.limit_names:
             return limit_values_from_deviation(study, du, dv, ak)
-        return aggregate(study.aggregate, response_from_deviation(study, du, dv, ak))
+        return metric_from_deviation(study, du, dv, ak)
 
     rest = lambda a: None if a is None else a[1:]  # noqa: E731
     return study, np.asarray(jax.vmap(values)(u[1:], rest(v), rest(angle)), dtype=float)
@@ -410,7 +409,7 @@ def run_deviation(study: Study, theta):
                          y0=steady_start(study, theta))
         return steady_deviation(study, s)
     _, tr = simulate(study.configured(theta), study.solver, n_steps=study.n_steps, dt=study.dt)
-    return _deviation(study, tr.tracer_u, tr.tracer_v, tr.control_u)
+    return deviation(study, tr.tracer_u, tr.tracer_v, tr.control_u)
 
 
 def steady_start(study: Study, theta):
@@ -426,10 +425,13 @@ def steady_deviation(study: Study, s):
     solve done elsewhere, e.g. :func:`jaxbelt.steady.steady_states`); an unconverged solve is
     NaN, never a number."""
     u, v, angle = _steady_rows(s)
-    return _deviation(study, u + jnp.where(s.converged, 0.0, jnp.nan), v, angle)
+    return deviation(study, u + jnp.where(s.converged, 0.0, jnp.nan), v, angle)
 
 
-def _deviation(study: Study, u, v, angle):
+def deviation(study: Study, u, v, angle):
+    """``(d_u, d_v, angle)`` of :func:`run_deviation` from a run's (or steady state's) tracer
+    displacements ``u``, ``v`` (…, n_tr) m and actuator angles rad (``v``, ``angle`` may be
+    ``None``): the deviations from the aligned reference in µm, the angles in mrad."""
     du = (u - study.ref_u) * M_TO_UM
     dv = None if v is None else (v - study.ref_v) * M_TO_UM
     return du, dv, _mrad(angle)
@@ -449,8 +451,8 @@ def response(study: Study, theta):
 def metric_value(study: Study, theta, smooth: bool = False):
     """The study's metric at ``theta`` (P,) in its unit (µm; µm/s for ``walk_rate``, mrad for
     ``steering_max``, the largest ratio times the first limit with several limits)."""
-    return aggregate(study.aggregate, response(study, theta), smooth and study.metric == "lateral_peak"
-                     and not study.limit_names)
+    return metric_from_deviation(study, *run_deviation(study, theta),
+                                 smooth=smooth and study.metric == "lateral_peak" and not study.limit_names)
 
 
 def limit_values(study: Study, theta):
@@ -469,8 +471,7 @@ def evaluate(study: Study, theta):
 
 def evaluate_deviation(study: Study, du, dv, angle):
     """:func:`evaluate` from a configuration's deviations (:func:`run_deviation`)."""
-    out = {"metric": aggregate(study.aggregate, response_from_deviation(study, du, dv, angle)),
-           "longitudinal_um": du[-1]}
+    out = {"metric": metric_from_deviation(study, du, dv, angle), "longitudinal_um": du[-1]}
     if dv is not None:
         out["lateral_um"] = dv[-1]
     if angle is not None:

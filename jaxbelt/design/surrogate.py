@@ -49,7 +49,7 @@ from them by the study's own :func:`~jaxbelt.design.metrics.response_from_deviat
 definition. The batch is ``vmap``-ed and compiled once: rows are padded to ``batch``.
 
 **Bound** (``n_validation`` more full runs). ``n_validation`` fresh samples of ``dist``
-(:func:`~jaxbelt.design.sampling.standard_normal_samples` with ``seed``) run both ways. With
+(:func:`~jaxbelt.design.sampling.sample_configurations` with ``seed``) run both ways. With
 ``E`` the largest true metric error among them and ``ρ(θ) = ‖θ / w‖`` the distance from the
 nominal in units of the training widths ``w``,
 
@@ -102,11 +102,12 @@ from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, trace
 from ..rom.pod_step import reduced_operators
 from ..state import initial_state
 from ..timeloop import RunOptions, simulate
-from .metrics import METRICS, M_TO_UM, RAD_TO_MRAD, aggregate, response_from_deviation, saturation
+from .metrics import METRICS
 from .linear_box import LinearDeviation
-from .study import Study, linearise
+from .study import Study, deviation, evaluate_deviation, linearise
 from .records import SurrogateValidation
-from .sampling import STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, standard_normal_samples
+from .sampling import (STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, padded_rows,
+                       sample_configurations)
 
 ROUNDOFF_UM = 1e-9
 METHODS = ("response", "pod")
@@ -171,21 +172,13 @@ def full_deviations(study: Study, theta):
     non-finite run comes back non-finite."""
     model = _configured(study, jnp.asarray(theta, study.base.dtype))
     _, tr = simulate(model, study.solver, n_steps=study.n_steps, dt=study.dt, check=False)
-    du = (np.asarray(tr.tracer_u) - np.asarray(study.ref_u)) * M_TO_UM
-    dv = None if tr.tracer_v is None else (np.asarray(tr.tracer_v) - np.asarray(study.ref_v)) * M_TO_UM
-    return du, dv, None if tr.control_u is None else np.asarray(tr.control_u) * RAD_TO_MRAD
-
-
-def _metric(study: Study, du, dv, angle=None):
-    return aggregate(study.aggregate, response_from_deviation(study, du, dv, angle))
+    return jax.tree.map(np.asarray, deviation(study, tr.tracer_u, tr.tracer_v, tr.control_u))
 
 
 @stored_jit
 def _metric_jit(study: Study, du, dv, angle):
-    out = {"metric": _metric(study, du, dv, angle)}
-    if angle is not None:
-        out["steering_mrad"] = saturation(study, angle)[0]
-    return out
+    out = evaluate_deviation(study, du, dv, angle)
+    return {k: out[k] for k in ("metric", "steering_mrad") if k in out}
 
 
 def _reduced_tracers(study: Study, rom: ReducedStep, theta):
@@ -205,14 +198,8 @@ def _predict_one(study: Study, rom, anchor, theta):
         angle = rom.angles(theta)
     else:
         tu, tv = _reduced_tracers(study, rom, theta)
-        du = (tu + anchor[0] - study.ref_u) * M_TO_UM
-        dv = None if tv is None else (tv + anchor[1] - study.ref_v) * M_TO_UM
-    out = {"metric": _metric(study, du, dv, angle), "longitudinal_um": du[-1]}
-    if dv is not None:
-        out["lateral_um"] = dv[-1]
-    if angle is not None:
-        out["steering_mrad"], out["saturated"] = saturation(study, angle)
-    return out
+        du, dv, _ = deviation(study, tu + anchor[0], None if tv is None else tv + anchor[1], None)
+    return evaluate_deviation(study, du, dv, angle)
 
 
 @stored_jit
@@ -252,16 +239,12 @@ class Surrogate:
         """Reduced ``metric`` and tracer deviations for ``thetas`` (n, P) (numpy arrays, no bound),
         ``batch`` rows at a time (one compilation)."""
         thetas = np.asarray(thetas, float).reshape(-1, self.study.space.size)
-        parts = []
-        for start in range(0, len(thetas), self.batch):
-            block = thetas[start:start + self.batch]
-            m = len(block)
-            block = np.concatenate([block, np.repeat(block[-1:], self.batch - m, axis=0)])
-            out = _predict_batch(self.study, self.rom, self.anchor, jnp.asarray(block))
-            parts.append({key: np.asarray(v)[:m] for key, v in out.items()})
-        if not parts:
+        if not len(thetas):
             return {"metric": np.zeros(0)}
-        return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+        rows = padded_rows(thetas, self.batch)
+        parts = [_predict_batch(self.study, self.rom, self.anchor, jnp.asarray(rows[start:start + self.batch]))
+                 for start in range(0, len(rows), self.batch)]
+        return {key: np.concatenate([np.asarray(p[key]) for p in parts])[:len(thetas)] for key in parts[0]}
 
     def distance(self, thetas) -> np.ndarray:
         """``ρ(θ) = ‖θ / w‖`` (n,): distance from the nominal in training widths."""
@@ -368,8 +351,7 @@ def _calibrate(surrogate: Surrogate, dist: Distribution, seed: int, n_validation
     the largest metric error (``error_um``, ``rho_max``, ``bound_um``). **Returns:** the
     validation figures of :class:`SurrogateValidation`, by field name."""
     study = surrogate.study
-    u = standard_normal_samples(n_validation, study.space.size, seed)
-    thetas = np.asarray(jax.jit(dist.transform)(jnp.asarray(u)))  # one small program, not op by op
+    thetas = sample_configurations(dist, n_validation, seed)
     if study.steady:  # one batch of steady solves (the sweep's own program for its full evaluations)
         batch = evaluate_configs(study, thetas, STEADY_CHUNK)
         runs = [{k: batch[k][i] for k in ("metric", "steering_mrad") if k in batch} for i in range(len(thetas))]

@@ -1,7 +1,7 @@
 """The yield study behind ``jaxbelt sweep``: Monte Carlo in chunks, stored and resumable, with
 FORM / importance sampling beside it and a reduced model standing in where it is trusted.
 
-Per chunk of configurations (fixed by the seed, :func:`~jaxbelt.design.sampling.standard_normal_samples`):
+Per chunk of configurations (fixed by the seed, :func:`~jaxbelt.design.sampling.sample_configurations`):
 
 1. full model only (``rom="off"``): every configuration runs in full, batched and sharded;
 2. ``rom="auto"``: a surrogate (:mod:`jaxbelt.design.surrogate`) is fitted and *validated* on
@@ -40,8 +40,6 @@ import dataclasses
 import math
 import time
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..accuracy import Grid
@@ -49,9 +47,9 @@ from ..infra.results import Result, to_json
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearDeviation, LinearResponse, rss_stackup
-from .metrics import SATURATION_FRACTION, metric_unit
+from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
-                       standard_normal_samples, wilson_interval)
+                       sample_configurations, wilson_interval)
 from .sensitivity import response_jacobian
 from .records import MetricLimit, RollerMisalignment, SurrogateValidation, misalignment_per_roller
 from .study import Study, study_on
@@ -253,7 +251,7 @@ def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_sampl
     With a ``surrogate``, the importance samples are evaluated as the Monte Carlo's are (the
     surrogate, and in full where it cannot decide)."""
     r0, J = response_jacobian(study, linear=linear)
-    sigma = [s if k == "normal" else s / np.sqrt(3.0) for k, s in zip(dist.kind, dist.scale)]
+    sigma = dist.sigma
     f = form(study, dist, limit_um, linear=linear)
     out = dict(rss_3sigma_um=rss_stackup(LinearResponse(r0, J, study.aggregate), sigma).three_sigma_um,
                form_yield=f.yield_, form_beta=f.beta, form_converged=f.converged,
@@ -265,12 +263,6 @@ def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_sampl
                                 metric_of=metric_of)
         out.update(is_yield=i.yield_, is_ci95=list(i.ci95), is_samples=i.samples)
     return out
-
-
-def sweep_samples(study: Study, dist: Distribution, n: int, seed: int) -> np.ndarray:
-    """The sweep's configurations (n, P): the first ``n`` of ``seed``'s sequence under ``dist``."""
-    # jit: one small program instead of compiling norm.cdf's primitives one by one (~2 s)
-    return np.asarray(jax.jit(dist.transform)(jnp.asarray(standard_normal_samples(n, study.space.size, seed))))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -308,15 +300,13 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distr
     are kept. The finer grid's aligned reference runs in the same ``vmap`` batch as the samples
     (:func:`jaxbelt.design.study.make_study_at`)."""
     n = res.samples
-    thetas = sweep_samples(study, dist, n, res.seed)
+    thetas = sample_configurations(dist, n, res.seed)
     values = np.asarray(res.metric_values)
     order = np.argsort(np.abs(values - res.limit_um))
     within = int(np.sum(np.abs(values - res.limit_um) <= FLIP_BAND * res.limit_um))
     pick = order[: min(n, max(MIN_RECHECKED, min(k, within)))]
     _, fine = study_on(fine_model, study, thetas[pick], fine_options, limits=study.limits)
-    if study.limits:  # each limit's value: on the scale of the first, as the sweep's metric
-        lims = np.array([v for _, v in study.limits])
-        fine = np.max(np.asarray(fine) / lims, axis=1) * lims[0]
+    fine = on_limit_scale(fine, study.limits)  # several limits: as the sweep's metric
     before, after = values[pick] <= res.limit_um, fine <= res.limit_um
     rel = np.abs(fine - values[pick]) / np.maximum(np.abs(values[pick]), 1e-12)
     return YieldDiscretisation(
@@ -347,7 +337,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
                          f"limit ({study.limits[0][0]} ≤ {study.limits[0][1]:g}); pass that")
     check_distribution(dist, study)
     t0 = time.perf_counter()
-    thetas = sweep_samples(study, dist, n, seed)
+    thetas = sample_configurations(dist, n, seed)
     identity = sweep_identity(study, dist, n, limit_um, seed, scene)
     done = min(open_sweep(out, identity), n) if out is not None else 0
     surrogate, rom_use = None, ReducedModelUse(used=False)

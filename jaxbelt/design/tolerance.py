@@ -32,7 +32,8 @@ from ..infra.results import Result, to_json
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
-from .metrics import METRICS, aggregate, aligned_values, limit_values_from_deviation, metric_unit, response_sizes
+from .metrics import (METRICS, aggregate, aligned_values, limit_values_from_deviation, metric_unit, on_limit_scale,
+                      response_sizes)
 from .records import RollerMisalignment, misalignment_per_roller
 from .configurations import at_configurations
 from .study import Study, study_on, with_limits
@@ -172,7 +173,7 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
         signs, pred = worst_corners(lin, h, n_corners)
         corners = np.concatenate([signs, corners_random])
         values = np.asarray(evaluate_many(corners * h))
-        full = _on_limit_scale(values, limit_um, names)
+        full = on_limit_scale(values, names)
         pred_all = np.concatenate([pred, [lin.metric(c * h) for c in corners_random]])
         kinds = ["worst corner"] * len(signs) + ["random corner"] * n_random
         by_limit = [{n: float(x) for (n, _), x in zip(names, v)} for v in values] if names else [None] * len(full)
@@ -310,16 +311,6 @@ def _box_floor(box: ToleranceBox, kind: str) -> float:
     return float(aggregate(kind, jnp.asarray(box.response0_um)))
 
 
-def _on_limit_scale(values, limit_um: float, names=None) -> np.ndarray:
-    """The measure of a box with several limits (``names``: ``((metric, limit), ...)``): each
-    limit's value over its limit (m, n_limits), the largest, on the scale of ``limit_um``; a
-    single metric's values (m,) (``names`` empty) as they are."""
-    values = np.asarray(values)
-    if not names:
-        return values
-    return limit_um * np.max(values / np.array([lim for _, lim in names]), axis=1)
-
-
 def box_discretisation(box: ToleranceBox, study: Study, fine_model, fine_options: RunOptions, *,
                        grid: Grid | None = None, grid_fine: Grid | None = None) -> BoxDiscretisation:
     """The box's worst corners (those of the last verification within :data:`NEAR_WORST` of the
@@ -340,11 +331,11 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, fine_options
     aligned_scene = not np.any(np.asarray(study.base))
     thetas = corners if aligned_scene else np.concatenate([np.zeros((1, corners.shape[1])), corners])
     fine_study, values = study_on(fine_model, study, thetas, fine_options, limits=box.limit_names or ())
-    fine = _on_limit_scale(values, box.limit_um, box.limit_names)
+    fine = on_limit_scale(values, box.limit_names)
     if aligned_scene:
         metric, per_limit = aligned_values(fine_study)
         floor_f = float(metric) if per_limit is None else float(
-            _on_limit_scale(per_limit[None], box.limit_um, box.limit_names)[0])
+            on_limit_scale(per_limit[None], box.limit_names)[0])
         worst_f = float(np.max(fine))
     else:
         floor_f, worst_f = float(fine[0]), float(np.max(fine[1:]))

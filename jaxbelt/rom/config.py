@@ -38,8 +38,7 @@ class ReduceConfig:
             raise ValueError(f"method = {self.method!r}: a reduction (ReducedPOD(), DMD(), DMDc(), ParametricDMD())")
         if not isinstance(self.options, RunOptions):
             raise ValueError(f"options = {self.options!r}: the full run's settings (jaxbelt.RunOptions)")
-        for name, value, low in (("options.n_steps", self.options.n_steps, 1), ("options.saveat.every",
-                                 self.options.saveat.every, 1), ("stride", self.stride, 0),
+        for name, value, low in (("options.n_steps", self.options.n_steps, 1), ("stride", self.stride, 0),
                                  ("calibration_runs", self.calibration_runs, 0)):
             if int(value) < low:
                 raise ValueError(f"{name} = {value}: must be at least {low}")

@@ -34,9 +34,9 @@ def test_steady_sweep_linear_response_agrees_with_steady_solves(steady_study):
     assert 0 < res.passed < res.samples
     assert res.reduced_runs + res.full_runs - res.rom.validation_runs == res.samples
     # the surrogate's calls against steady solves of the same configurations
-    from jaxbelt.design.sweep import sweep_samples
+    from jaxbelt.design.sampling import sample_configurations
 
-    thetas = sweep_samples(study, dist, 48, 3)
+    thetas = sample_configurations(dist, 48, 3)
     pick = np.arange(0, 48, 6)
     full = evaluate_metric(study, thetas[pick])
     np.testing.assert_array_equal(full <= 35.3, res.metric_values[pick] <= 35.3)
@@ -66,7 +66,7 @@ def test_a_steered_sweep_holds_the_limits_tolerance_holds(steady_study):
     deviation and the actuator angle — as one metric on the scale of the first limit: a sample
     passes exactly where each limit's own value is within it."""
     from jaxbelt.design import with_limits
-    from jaxbelt.design.sweep import sweep_samples
+    from jaxbelt.design.sampling import sample_configurations
     from jaxbelt.design.tolerance import _limit_values_batch
 
     study, dist, linear = steady_study
@@ -74,7 +74,7 @@ def test_a_steered_sweep_holds_the_limits_tolerance_holds(steady_study):
     limited = with_limits(study, names)
     res = run_sweep(limited, dist, 24, limit_um=35.3, seed=3, chunk=8, rom="auto", with_form=False, linear=linear)
     assert [x.metric for x in res.limits] == ["lateral_max", "longitudinal_max", "steering_max"]
-    thetas = sweep_samples(limited, dist, 24, 3)
+    thetas = sample_configurations(dist, 24, 3)
     pick = np.arange(0, 24, 4)
     each = np.asarray(_limit_values_batch(limited, thetas[pick]))  # (m, 3), each in its own unit
     lims = np.array([v for _, v in names])

@@ -1,5 +1,6 @@
-"""One pass rule for every yield: the metric within the limit and, on a steered machine, the
-actuator not saturated (:func:`jaxbelt.design.sampling.passes`), in the Monte Carlo as in the sweep."""
+"""The sampling pieces of the yield (jaxbelt.design.sampling): one pass rule for every yield (the
+metric within the limit and, on a steered machine, the actuator not saturated: :func:`passes`), in
+the Monte Carlo as in the sweep and importance sampling; the configurations a seed draws."""
 
 from types import SimpleNamespace
 
@@ -24,3 +25,33 @@ def test_monte_carlo_counts_saturation_as_failure(monkeypatch):
     monkeypatch.setattr(sampling, "evaluate_configs", lambda study, thetas, chunk, progress: fake)
     mc = sampling.monte_carlo(study, dist, 4, 20.0)
     assert mc.passed == 2 and mc.yield_ == 0.5  # the saturated one fails though its metric is small
+
+
+def test_importance_sampling_counts_a_nan_metric_as_a_failure():
+    """An unconverged evaluation (NaN) fails in importance sampling as in the Monte Carlo: with
+    every sample NaN the failure probability is the mean weight, not zero."""
+    labels = ("roller 2:ay",)
+    study = SimpleNamespace(space=SimpleNamespace(size=1, labels=lambda: list(labels)))
+    dist = sampling.Distribution(labels, ("normal",), (0.1,))
+    r = sampling.importance_sampling(study, dist, 20.0, np.array([2.0]), n=50, seed=3,
+                                     metric_of=lambda th: np.full(len(th), np.nan))
+    u = 2.0 + np.random.default_rng(3).standard_normal((50, 1))
+    w = np.exp(-u @ np.array([2.0]) + 2.0)
+    assert r.failure_probability == np.mean(w) and r.yield_ == 1.0 - np.mean(w)
+
+
+def test_a_distribution_samples_its_laws():
+    """The configurations of a seed under normal and uniform laws: ``σ u`` and ``h (2Φ(u) − 1)`` of
+    the seed's standard normal samples (the first n for every n), and each law's standard deviation
+    (``h / √3`` for a uniform one)."""
+    from scipy.stats import norm
+
+    dist = sampling.Distribution(("a:dx", "a:ay"), ("normal", "uniform"), (0.02, 0.3))
+    u = np.random.default_rng(7).standard_normal((40, 2))
+    th = sampling.sample_configurations(dist, 40, 7)
+    np.testing.assert_allclose(th[:, 0], 0.02 * u[:, 0], rtol=1e-14)
+    np.testing.assert_allclose(th[:, 1], 0.3 * (2 * norm.cdf(u[:, 1]) - 1), rtol=1e-12)
+    np.testing.assert_array_equal(sampling.sample_configurations(dist, 10, 7), th[:10])
+    assert dist.uniform == (False, True)
+    np.testing.assert_allclose(dist.sigma, (0.02, 0.3 / np.sqrt(3.0)), rtol=1e-15)
+    assert np.all(np.abs(th[:, 1]) <= 0.3)
