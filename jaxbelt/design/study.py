@@ -53,6 +53,9 @@ class Study(eqx.Module):
     :func:`jaxbelt.steady.linear_start`, or without them at the aligned steady state. Both are
     where the study's runs start, so they belong to the study; the linear response of the
     deviations, which no run reads, is a :class:`~jaxbelt.design.linear_box.LinearDeviation` beside it.
+    Set from those: ``aggregate`` how the response is aggregated (``"max"`` with several limits,
+    else the metric's) and ``steered`` whether the machine has steering loops (then its metrics
+    read the window in closed loop).
     """
 
     model: BeltModel
@@ -73,6 +76,13 @@ class Study(eqx.Module):
     jitter_mrad: jax.Array | None = None
     steady_start: BeltState | None = None
     steady_tangents: tuple | None = None
+    aggregate: str = eqx.field(static=True, init=False)
+    steered: bool = eqx.field(static=True, init=False)
+
+    def __post_init__(self):
+        # read by every evaluation: plain attributes, set once from the fields they follow
+        self.aggregate = "max" if self.limit_names else METRICS[self.metric].aggregate
+        self.steered = self.model.control is not None  # steering loops: metrics read the window closed-loop
 
     @property
     def limits(self) -> tuple:
@@ -80,15 +90,6 @@ class Study(eqx.Module):
         if not self.limit_names:
             return ()
         return tuple(zip(self.limit_names, (float(v) for v in np.asarray(self.limit_values))))
-
-    @property
-    def aggregate(self) -> str:
-        return "max" if self.limit_names else METRICS[self.metric].aggregate
-
-    @property
-    def steered(self) -> bool:
-        """Whether the machine has steering loops (its metrics read the window in closed loop)."""
-        return self.model.control is not None
 
     @property
     def t_eval(self) -> float | None:
