@@ -66,10 +66,6 @@ def check_steering_limit(args, model=None):
         raise UsageError(f"--steering-limit-mrad = {x}: the scene has no steering loop")
 
 
-OTHER_DIRECTION = {"lateral_max": "longitudinal_max", "lateral_peak": "longitudinal_max",
-                   "longitudinal_max": "lateral_max"}
-
-
 def limits_of(args, study):
     """``(limit, limits)``: the study metric's limit and the further limits held at the same time.
     On a steered machine a lateral (longitudinal) max-type metric is joined by the other direction
@@ -82,14 +78,17 @@ def limits_of(args, study):
     steer = study.range_mrad if args.steering_limit_mrad is None else args.steering_limit_mrad
     if args.metric == "steering_max":
         return steer, {}
-    if args.metric not in OTHER_DIRECTION:
+    metric = METRICS.get(args.metric)
+    if metric is None or metric.aggregate != "max" or metric.other_direction is None:
         return args.limit_um, {}
-    return args.limit_um, {OTHER_DIRECTION[args.metric]: args.limit_um, "steering_max": steer}
+    return args.limit_um, {metric.other_direction: args.limit_um, "steering_max": steer}
 
 
 def one_d_metric(metric: str) -> str:
-    """The longitudinal counterpart of a lateral metric: the default on a 1D scene."""
-    return metric.replace("lateral", "longitudinal", 1) if metric.startswith("lateral") else metric
+    """The longitudinal counterpart of a lateral metric (its ``other_direction``): the default on a
+    1D scene."""
+    m = METRICS[metric]
+    return m.other_direction if m.needs_2d and m.other_direction is not None else metric
 
 
 def check_limit(v):
@@ -156,11 +155,10 @@ def metric_quantities(metric: str, scene) -> tuple[str, ...]:
     """The tracer quantities whose discretisation error a design metric carries: the lateral
     deviation, the longitudinal one, or (the steering angle, which answers the lateral walk, and a
     steered machine's several limits) both."""
-    if scene.kind == "1d" or metric.startswith("longitudinal"):
+    own = METRICS[metric].quantities()
+    if scene.kind == "1d" or own == ("longitudinal",):
         return ("longitudinal",)
-    if scene.control or not (metric.startswith("lateral") or metric == "walk_rate"):
-        return ("longitudinal", "lateral")
-    return ("lateral",)
+    return ("longitudinal", "lateral") if scene.control else own
 
 
 def make_design_study(args, model, options, components=None, jacobian: bool = False):

@@ -119,13 +119,12 @@ def run(args):
         trained = _sized_training(test, box, n, opts, args)
         train_names = [train_names[0] + f", sized to {args.tol_um:g} µm on {args.held_out} held-out configurations"]
     m_train = trained.train_steps if trained is not None else int(args.train_steps or min(200, n // 2))
-    if m_train < (2 if args.method == "dmd" else 1):
-        raise UsageError(f"--steps = {n}: too few steps to train on (--train-steps = {m_train})")
-    if args.method == "dmd" and m_train >= n:
-        raise UsageError(f"--train-steps = {m_train} with --steps = {n}: dmd predicts the steps after the "
-                         "training window, so --train-steps must be smaller than --steps")
     modes = trained.modes if trained is not None else args.modes
     method = REDUCTIONS[args.method]() if modes is None else REDUCTIONS[args.method](modes=modes)
+    try:  # the method's own check, in the options' words
+        method.check(n, m_train)
+    except ValueError as e:
+        raise UsageError(str(e).replace("train_steps", "--train-steps").replace("n_steps", "--steps")) from None
     config = rom.ReduceConfig(method=method, options=opts.replace(n_steps=n), train_steps=m_train, stride=args.stride,
                               spectra=bool(args.plot))
     try:

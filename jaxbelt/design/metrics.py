@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -78,7 +79,15 @@ class Metric(abc.ABC):
     (``aggregate``: ``"max"`` max-abs, ``"rms"``), the ``unit`` of its value, whether it needs a
     2D scene (``needs_2d``) and a steering loop (``needs_loop``), a one-line ``description``;
     :meth:`response` reads it from a run's deviations and :meth:`steps_read` says how many of a
-    run's last steps that reads. A new metric is one subclass and one entry in :data:`METRICS`."""
+    run's last steps that reads and :meth:`quantities` which tracer deviations its discretisation
+    error follows; ``other_direction`` the same measure in the other direction (``lateral_max`` ↔
+    ``longitudinal_max``: a 1D scene's default, and the further limit a steered machine holds),
+    ``None`` where there is none; ``soft_maximum`` (class attribute) whether a gradient-based
+    search (FORM's limit state) takes its maximum as the soft one of :func:`aggregate` — a maximum
+    over every step of a window, whose peak jumps from step to step. A new metric is one subclass
+    and one entry in :data:`METRICS`."""
+
+    soft_maximum: ClassVar[bool] = False
 
     name: str
     aggregate: str
@@ -86,6 +95,7 @@ class Metric(abc.ABC):
     needs_2d: bool
     needs_loop: bool
     description: str
+    other_direction: str | None = None
 
     @abc.abstractmethod
     def response(self, study, du, dv, angle):
@@ -95,6 +105,12 @@ class Metric(abc.ABC):
     def steps_read(self, study) -> int:
         """How many of the last steps of a run :meth:`response` reads."""
         return study.window
+
+    def quantities(self) -> tuple[str, ...]:
+        """The tracer deviations (``"longitudinal"``, ``"lateral"``) whose discretisation error the
+        metric carries: both by default (an actuator angle answers the lateral walk and the
+        longitudinal registration alike)."""
+        return ("longitudinal", "lateral")
 
 
 def _window(study) -> slice:
@@ -116,13 +132,21 @@ class TracerDeviation(Metric):
     def steps_read(self, study):
         return study.window if study.steered else 1
 
+    def quantities(self):
+        return (self.direction,)
+
 
 @dataclasses.dataclass(frozen=True)
 class LateralPeak(Metric):
     """``lateral_peak``: the lateral deviation over the window, every step of it."""
 
+    soft_maximum: ClassVar[bool] = True
+
     def response(self, study, du, dv, angle):
         return dv[_window(study)].reshape(-1)
+
+    def quantities(self):
+        return ("lateral",)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,6 +160,9 @@ class WalkRate(Metric):
 
     def steps_read(self, study):
         return study.n_steps - study.n_steps // 2
+
+    def quantities(self):
+        return ("lateral",)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,15 +181,19 @@ class SteeringMax(Metric):
 _STEERED = "(steered: over tracers and the window)"
 METRICS = {m.name: m for m in (
     TracerDeviation("lateral_rms", "rms", "µm", True, False,
-                    f"RMS over the tracers of the lateral deviation at t_eval {_STEERED}, µm", "lateral"),
+                    f"RMS over the tracers of the lateral deviation at t_eval {_STEERED}, µm", "longitudinal_rms",
+                    "lateral"),
     TracerDeviation("lateral_max", "max", "µm", True, False,
-                    f"largest |lateral deviation| over the tracers at t_eval {_STEERED}, µm", "lateral"),
+                    f"largest |lateral deviation| over the tracers at t_eval {_STEERED}, µm", "longitudinal_max",
+                    "lateral"),
     TracerDeviation("longitudinal_rms", "rms", "µm", False, False,
-                    f"RMS over the tracers of the longitudinal deviation at t_eval {_STEERED}, µm", "longitudinal"),
+                    f"RMS over the tracers of the longitudinal deviation at t_eval {_STEERED}, µm", "lateral_rms",
+                    "longitudinal"),
     TracerDeviation("longitudinal_max", "max", "µm", False, False,
                     f"largest |longitudinal deviation| over the tracers at t_eval {_STEERED}: registration, µm",
-                    "longitudinal"),
-    LateralPeak("lateral_peak", "max", "µm", True, False, "largest |lateral deviation| over tracers and the window, µm"),
+                    "lateral_max", "longitudinal"),
+    LateralPeak("lateral_peak", "max", "µm", True, False, "largest |lateral deviation| over tracers and the window, µm",
+                "longitudinal_max"),
     WalkRate("walk_rate", "max", "µm/s", True, False,
              "|slope| of the mean lateral deviation over the second half of the run, µm/s"),
     SteeringMax("steering_max", "max", "mrad", True, True,

@@ -453,7 +453,7 @@ def metric_value(study: Study, theta, smooth: bool = False):
     """The study's metric at ``theta`` (P,) in its unit (µm; µm/s for ``walk_rate``, mrad for
     ``steering_max``, the largest ratio times the first limit with several limits)."""
     return metric_from_deviation(study, *run_deviation(study, theta),
-                                 smooth=smooth and study.metric == "lateral_peak" and not study.limit_names)
+                                 smooth=smooth and METRICS[study.metric].soft_maximum and not study.limit_names)
 
 
 def limit_values(study: Study, theta):
