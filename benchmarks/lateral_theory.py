@@ -140,7 +140,7 @@ def span_shape(w_mm=50, eps0=5e-3, alpha=1e-3, n_xis=(200, 400)):
         _, tr = jb.simulate(m, **jb.RunOptions.from_scene(sc))
         v = np.asarray(tr.tracer_v[-1])
         EI, kGA = th.belt_section(w_mm * 1e-3, T_B, E, NU)
-        _, shape = th.walk_rate(th.scene_geometry(sc)[0], rot, E * eps0 * w_mm * 1e-3 * T_B, EI, kGA,
+        _, shape = th.beam_walk_rate(th.scene_geometry(sc)[0], rot, E * eps0 * w_mm * 1e-3 * T_B, EI, kGA,
                                 return_shape=True)
         xs, mv, rv = th.span_tracer_shapes(mesh, v, shape)
         rows.append({"n_xi": n_xi, "x_m": xs.tolist(), "model_mm": (mv * 1e3).tolist(), "reference_mm": (rv * 1e3).tolist(),
@@ -220,7 +220,7 @@ def plot(rows, off, name):
     rot[1, 1] = 1.0
     EI, kGA = th.belt_section(w, T_B, E, NU)
     geom, _ = th.scene_geometry(geom_sc)
-    eb = [th.walk_rate(geom, rot, E * e * w * T_B, EI, np.inf) / STRING for e in eps]
+    eb = [th.beam_walk_rate(geom, rot, E * e * w * T_B, EI, np.inf) / STRING for e in eps]
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     ax.semilogx(kl, np.array(eb), "k-", lw=1, label="theory: Euler–Bernoulli beam loop (w = 50 mm)")
     ax.semilogx([r["KL"] for r in rows], [r["timoshenko_per_string"] for r in rows], "s", mfc="none", color="C1",

@@ -115,7 +115,7 @@ def _span_rows(x, L, T, EI, S):
     return np.array([y, yp, phi, phip])
 
 
-def walk_rate(geom: LoopGeometry, alpha, tension, EI, kGA=np.inf, speed=1.0, return_shape=False):
+def beam_walk_rate(geom: LoopGeometry, alpha, tension, EI, kGA=np.inf, speed=1.0, return_shape=False):
     """Steady walk rate ``c`` (m/s) of the belt for roller rotations ``alpha`` (p, 3) rad.
 
     ``tension`` (p,) span tensions in N (or a scalar), ``EI`` the belt's in-plane bending
@@ -170,7 +170,7 @@ def walk_rate(geom: LoopGeometry, alpha, tension, EI, kGA=np.inf, speed=1.0, ret
 
 def span_tracer_shapes(mesh, tracer_v, shape):
     """The tracers on the free spans: their positions along the belt (m), the model's lateral
-    displacements ``tracer_v`` there and the reference ``shape`` (from :func:`walk_rate` with
+    displacements ``tracer_v`` there and the reference ``shape`` (from :func:`beam_walk_rate` with
     ``return_shape``) at the same points, both with their mean removed (the walk's offset and the
     reference's gauge)."""
     starts = np.cumsum([0.0] + [seg.length for seg in mesh.path.segments])
@@ -203,7 +203,7 @@ def scene_geometry(scene) -> tuple[LoopGeometry, float]:
 
 
 def scene_walk_rate(scene, rotation=None, tension=None, shear=True):
-    """:func:`walk_rate` for a compiled-from :class:`jaxbelt.scene_spec.Scene`: geometry from its belt
+    """:func:`beam_walk_rate` for a compiled-from :class:`jaxbelt.scene_spec.Scene`: geometry from its belt
     path, EI and κGA from its belt, tension ``E A ε₀`` from its pre-tension unless given, the
     drive speed as ``V``; ``rotation`` (p, 3) rad defaults to the scene's roller rotations."""
     rl = scene.rollers
@@ -215,7 +215,7 @@ def scene_walk_rate(scene, rotation=None, tension=None, shear=True):
     if rotation is None:
         rotation = np.array([r.rotation for r in rl])
     V = next(r.speed for r in rl if r.role == "drive")
-    return walk_rate(geom, rotation, tension, EI, kGA if shear else np.inf, speed=V)
+    return beam_walk_rate(geom, rotation, tension, EI, kGA if shear else np.inf, speed=V)
 
 
 def string_loop_transfer(geom: LoopGeometry, omega, rotation, speed, sensor_span: int, sensor_x: float):
@@ -264,7 +264,7 @@ def string_loop_response(scene, omega, loop: int = 0):
     :class:`jaxbelt.scene_spec.Scene`: the actuated roller and axis, the drive speed as ``V`` and the
     sensor's position along the path (which must lie on a free span). Returns ``G(iω)`` (m per
     rad) with the machine's own sign; its low-frequency limit is ``c / (iω)`` with ``c`` the
-    string walk rate ``V Σ L σ_in / L_loop`` of :func:`walk_rate`'s string limit."""
+    string walk rate ``V Σ L σ_in / L_loop`` of :func:`beam_walk_rate`'s string limit."""
     geom, _ = scene_geometry(scene)
     rl = scene.rollers
     spec = scene.control[loop]

@@ -41,31 +41,31 @@ def rot(roller, axis, alpha=1e-3, p=2):
 def test_reference_string_limit_is_normal_entry_with_loop_closure():
     g = geometry()
     EI, _ = th.belt_section(0.05, T_B, E, NU)
-    c = th.walk_rate(g, rot(1, 1), tension=1e13, EI=EI)
+    c = th.beam_walk_rate(g, rot(1, 1), tension=1e13, EI=EI)
     assert c == pytest.approx(-1e-3 * SPAN / L_LOOP, rel=1e-4)
 
 
 def test_reference_beam_limit_is_a_third_of_the_string_rate():
     g = geometry()
     EI, kGA = th.belt_section(0.05, T_B, E, NU)
-    c_eb = th.walk_rate(g, rot(1, 1), tension=0.0, EI=EI)
+    c_eb = th.beam_walk_rate(g, rot(1, 1), tension=0.0, EI=EI)
     assert c_eb == pytest.approx(-1e-3 * SPAN / L_LOOP / 3, rel=1e-9)
     # the tensioned formula tends to the untensioned one
-    assert th.walk_rate(g, rot(1, 1), tension=1e-4 * EI, EI=EI) == pytest.approx(c_eb, rel=1e-4)  # K L = 0.01
+    assert th.beam_walk_rate(g, rot(1, 1), tension=1e-4 * EI, EI=EI) == pytest.approx(c_eb, rel=1e-4)  # K L = 0.01
 
 
 def test_reference_twist_walks_by_the_per_pass_shift():
     g = geometry()
     EI, kGA = th.belt_section(0.05, T_B, E, NU)
     for T in (0.0, 50.0, 5000.0):
-        assert th.walk_rate(g, rot(1, 0), T, EI, kGA) == pytest.approx(2 * R * 1e-3 / L_LOOP, rel=1e-9)
+        assert th.beam_walk_rate(g, rot(1, 0), T, EI, kGA) == pytest.approx(2 * R * 1e-3 / L_LOOP, rel=1e-9)
 
 
 def test_reference_is_linear_and_timoshenko_tends_to_euler_bernoulli():
     g = geometry()
     EI, kGA = th.belt_section(0.2, T_B, E, NU)
     a, b = rot(1, 1, 1e-3), rot(0, 0, 2e-3)
-    c = lambda r, s=kGA: th.walk_rate(g, r, 200.0, EI, s)  # noqa: E731
+    c = lambda r, s=kGA: th.beam_walk_rate(g, r, 200.0, EI, s)  # noqa: E731
     assert c(a + b) == pytest.approx(c(a) + c(b), rel=1e-10)
     assert c(a, 1e6 * kGA) == pytest.approx(c(a, np.inf), rel=1e-5)
     assert abs(c(a) / c(a, np.inf) - 1) > 1e-3  # shear matters for a 200 mm belt on a 1 m span
@@ -77,7 +77,7 @@ def test_reference_span_shape_solves_the_beam_equations(T):
     zero-moment and normal-entry conditions at the entry line."""
     g = geometry()
     EI, kGA = th.belt_section(0.3, T_B, E, NU)
-    c, shape = th.walk_rate(g, rot(1, 1), T, EI, kGA, return_shape=True)
+    c, shape = th.beam_walk_rate(g, rot(1, 1), T, EI, kGA, return_shape=True)
     x, h = np.linspace(0.1, 0.9, 9), 1e-3
     y = lambda x: np.array([shape(0, xi)[0] for xi in np.atleast_1d(x)])  # noqa: E731
     phi = lambda x: np.array([shape(0, xi)[1] for xi in np.atleast_1d(x)])  # noqa: E731
@@ -159,11 +159,9 @@ def test_twist_walk_equals_the_per_pass_shift(two_roller_loaded):
 @jax.jit  # one program for both cases, not op by op
 def _entry_line_correction(m, s):
     """The normal-entry correction of the static state for a uniform shift ``s`` (m)."""
-    from jaxbelt.assembly import roller_R, roller_surface_displacement
     from jaxbelt.transport import entry_line_correction, upwind_weights
 
     st = jb.initial_state(m)
-    r = roller_surface_displacement(m, st.chi, roller_R(m, st.u))
     a, fwd = upwind_weights(jnp.full((m.n_xi, m.n_eta), s), m.ell)
     return entry_line_correction(m, jnp.repeat(a, 2, axis=1), jnp.repeat(fwd, 2, axis=1), st.chi)
 
@@ -192,7 +190,7 @@ def test_steady_span_shape_equals_the_reference(skew_run):
     sc = two_roller()
     mesh = jb.build_mesh(sc)
     v = np.asarray(skew_run.tracer_v[-1])
-    _, shape = th.walk_rate(th.scene_geometry(sc)[0], rot(1, 1), E * 5e-3 * 0.05 * T_B,
+    _, shape = th.beam_walk_rate(th.scene_geometry(sc)[0], rot(1, 1), E * 5e-3 * 0.05 * T_B,
                             *th.belt_section(0.05, T_B, E, NU), return_shape=True)
     _, d_model, d_ref = th.span_tracer_shapes(mesh, v, shape)
     assert len(d_model) == 10
