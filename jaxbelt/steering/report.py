@@ -177,10 +177,11 @@ def steering_report(model, options: RunOptions, *, loop: int = 0, step_mrad: flo
     """The plant of loop ``loop`` (:class:`SteeringReport`; module docstring for the method).
 
     The walk rates from steady walks (module docstring): the scene's with its derivatives (the
-    coefficient and the walk sensitivity) in one program, the aligned machine's beside it. Three
-    open-loop runs in one vmapped batch (the scene's machine, the same with the actuator stepped by
-    ``step_mrad``, the aligned machine), ``options.n_steps`` steps of ``options.dt``, give the
-    step response and the plant by :func:`identify_plant` (``identify=False``: skipped, the plant
+    coefficient and the walk sensitivity) in one program, the aligned machine's beside it. The
+    measured step response (:func:`~jaxbelt.steering.response.open_loop_response`: two open-loop
+    runs in one vmapped batch, the scene's machine and the same with the actuator stepped by
+    ``step_mrad``, ``options.n_steps`` steps of ``options.dt``) gives the plant by
+    :func:`identify_plant` (``identify=False``: skipped, the plant
     fields ``None``/NaN). A hold angle beyond the loop's range sets ``saturated`` and warns
     (:class:`SteeringWarning`).
     """
