@@ -312,19 +312,21 @@ class FormResult(Result):
 
 
 def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: int = 30,
-         tol: float = 1e-6, linear: LinearDeviation | None = None) -> FormResult:
+         tol: float = 1e-6, linear: LinearDeviation | None = None, response=None) -> FormResult:
     """First-order reliability: the design point by HL-RF iterations (module docstring).
 
     The start point ``u0`` defaults to the design point of the linearised response's most
     critical row (see :func:`linear_design_point`); the linear response is read from ``linear``
-    (the study's :class:`~jaxbelt.design.linear_box.LinearDeviation`) where given, else from a run.
+    (the study's :class:`~jaxbelt.design.linear_box.LinearDeviation`) where given, else from a run;
+    ``response`` ``(r0, J)`` (:func:`~jaxbelt.design.sensitivity.response_jacobian`) where the caller
+    already holds it.
 
     **Returns:** a :class:`FormResult`; its ``series_bounds`` (max-type metrics) bound the yield
     over all linearised failure modes, of which FORM's single design point sees only the most
     probable one."""
     check_distribution(dist, study)
     scale, uniform = jnp.asarray(dist.scale), jnp.asarray(dist.uniform)
-    r0, J = response_jacobian(study, linear=linear)
+    r0, J = response_jacobian(study, linear=linear) if response is None else response
     if u0 is None:
         u0 = linear_design_point(r0, J, dist, limit_um, study.aggregate)
     u = jnp.asarray(u0, float)

@@ -164,10 +164,18 @@ class SweepResult(Result):
         return to_json(out)
 
 
-def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "") -> dict:
-    return {"scene": scene, "metric": study.metric, "t_eval_s": study.t_eval, "limit_um": float(limit_um),
-            "limits": [[n, float(v)] for n, v in study.limits],
-            "seed": int(seed), "distribution": dist.to_dict(),
+def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "",
+                   limits: tuple | None = None) -> dict:
+    """What a stored sweep is of (its store resumes only a sweep with the same identity);
+    ``limits`` the study's (:attr:`~jaxbelt.design.study.Study.limits`, read from it when not given)."""
+    limits = study.limits if limits is None else limits
+    return _identity(study, study.t_eval, limits, dist.to_dict(), limit_um, seed, scene)
+
+
+def _identity(study, t_eval, limits, distribution: dict, limit_um, seed, scene) -> dict:
+    return {"scene": scene, "metric": study.metric, "t_eval_s": t_eval, "limit_um": float(limit_um),
+            "limits": [[n, float(v)] for n, v in limits],
+            "seed": int(seed), "distribution": distribution,
             "tracers": int(study.ref_u.shape[1])}
 
 
@@ -252,16 +260,16 @@ def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_sampl
     surrogate, and in full where it cannot decide)."""
     r0, J = response_jacobian(study, linear=linear)
     sigma = dist.sigma
-    f = form(study, dist, limit_um, linear=linear)
-    out = dict(rss_3sigma_um=rss_stackup(LinearResponse(r0, J, study.aggregate), sigma).three_sigma_um,
-               form_yield=f.yield_, form_beta=f.beta, form_converged=f.converged,
-               design_point=misalignment_per_roller(study.space, f.theta_star))
+    f = form(study, dist, limit_um, linear=linear, response=(r0, J))
+    out = dict(form_yield=f.yield_, form_beta=f.beta, form_converged=f.converged)
     if n - passed <= max(5, int(0.001 * n)) and f.beta > 0:  # yield near 1: MC sees few failures
         metric_of = None if surrogate is None else \
             (lambda th: _chunk_outputs(study, surrogate, th, limit_um, chunk)[0]["metric"])
         i = importance_sampling(study, dist, limit_um, f.u_star, n=importance_samples, seed=seed + 1, chunk=chunk,
                                 metric_of=metric_of)
         out.update(is_yield=i.yield_, is_ci95=list(i.ci95), is_samples=i.samples)
+    out.update(rss_3sigma_um=rss_stackup(LinearResponse(r0, J, study.aggregate), sigma).three_sigma_um,
+               design_point=misalignment_per_roller(study.space, f.theta_star))
     return out
 
 
@@ -305,8 +313,9 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distr
     order = np.argsort(np.abs(values - res.limit_um))
     within = int(np.sum(np.abs(values - res.limit_um) <= FLIP_BAND * res.limit_um))
     pick = order[: min(n, max(MIN_RECHECKED, min(k, within)))]
-    _, fine = study_on(fine_model, study, thetas[pick], fine_options, limits=study.limits)
-    fine = on_limit_scale(fine, study.limits)  # several limits: as the sweep's metric
+    limits = study.limits
+    _, fine = study_on(fine_model, study, thetas[pick], fine_options, limits=limits)
+    fine = on_limit_scale(fine, limits)  # several limits: as the sweep's metric
     before, after = values[pick] <= res.limit_um, fine <= res.limit_um
     rel = np.abs(fine - values[pick]) / np.maximum(np.abs(values[pick]), 1e-12)
     return YieldDiscretisation(
@@ -331,14 +340,15 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     read the linear response from it instead of a run.
 
     **Returns:** a :class:`SweepResult`."""
-    _check(n, limit_um, rom, rom_method)
-    if study.limits and not math.isclose(float(limit_um), study.limits[0][1]):
-        raise ValueError(f"limit_um = {limit_um}: a study with several limits is judged on the scale of its first "
-                         f"limit ({study.limits[0][0]} ≤ {study.limits[0][1]:g}); pass that")
-    check_distribution(dist, study)
     t0 = time.perf_counter()
-    thetas = sample_configurations(dist, n, seed)
-    identity = sweep_identity(study, dist, n, limit_um, seed, scene)
+    _check(n, limit_um, rom, rom_method)
+    limits, t_eval = study.limits, study.t_eval
+    check_distribution(dist, study)
+    thetas, distribution = sample_configurations(dist, n, seed), dist.to_dict()
+    if limits and not math.isclose(float(limit_um), limits[0][1]):
+        raise ValueError(f"limit_um = {limit_um}: a study with several limits is judged on the scale of its first "
+                         f"limit ({limits[0][0]} ≤ {limits[0][1]:g}); pass that")
+    identity = _identity(study, t_eval, limits, distribution, limit_um, seed, scene)
     done = min(open_sweep(out, identity), n) if out is not None else 0
     surrogate, rom_use = None, ReducedModelUse(used=False)
     if rom == "auto" and study.steered and rom_method == "pod":
@@ -346,12 +356,12 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     elif rom == "auto" and done < n:
         surrogate, rom_use = _surrogate(study, dist, limit_um, seed, rom_method, linear)
     metric, code, steering = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
-    ok = passes(metric, limit_um, None if steering is None else steering[1])
+    passed = int(np.sum(passes(metric, limit_um, None if steering is None else steering[1])))
+    ci95 = list(wilson_interval(passed, n))
     extra = {}
     if steering is not None:
         extra.update(saturated=int(np.sum(steering[1])), range_mrad=study.range_mrad,
                      steering_max_mrad=float(np.max(steering[0])) if len(steering[0]) else 0.0)
-    passed = int(np.sum(ok))
     if rom_use.used and rom_use.validation.n_validation:
         # indicative: the validation's full runs (their compilation included) per configuration
         per_full = rom_use.validation.validation_s / rom_use.validation.n_validation
@@ -362,9 +372,9 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     wall = time.perf_counter() - t0
     return SweepResult(
         metric=study.metric, limit_um=float(limit_um), samples=int(n), seed=int(seed),
-        yield_=passed / n, ci95=list(wilson_interval(passed, n)), passed=passed,
+        yield_=passed / n, ci95=ci95, passed=passed,
         # the surrogate's training and validation runs are full runs too, used or not
         full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_use.validation_runs,
         reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_use, metric_values=metric,
         wall_s=wall, configs_per_s=(n - done) / wall,
-        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in study.limits) or None, **extra)
+        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in limits) or None, **extra)
