@@ -66,6 +66,12 @@ def _unit(metric):
     return metric_unit(metric)
 
 
+def scale_unit(r) -> str:
+    """The unit of a design answer's combined metric (its worst case, stack-up, values): the first
+    limit's with several limits (the combined metric is on that limit's scale), else the metric's."""
+    return r["limits"][0]["unit"] if r.get("limits") else metric_unit(r["metric"])
+
+
 def _print(r):
     if r["limits"]:
         held = ", ".join(f"{x['metric']} ≤ {x['limit']:g} {x['unit']}" for x in r["limits"])
@@ -85,18 +91,19 @@ def _print(r):
         bar = "" if bar is None or row["component"] in r["unconstrained"] else f" (± {bar:.2g} discretisation)"
         print(f"  {row['component']:16s} ± {row['half_width']:.4g} {row['unit']}{bar}{note}")
     how = "steady solves" if r["operation"] == "steady" else "full runs"
-    print(f"verified worst case {r['worst_case_um']:.4g} µm by {len(r['verification'])} {how} "
+    unit = scale_unit(r)
+    print(f"verified worst case {r['worst_case_um']:.4g} {unit} by {len(r['verification'])} {how} "
           f"({'within' if r['verified'] else 'NOT within'} [0.97, 1] × limit, {r['iterations']} iteration(s)); "
-          f"linear model {r['predicted_worst_um']:.4g} µm")
+          f"linear model {r['predicted_worst_um']:.4g} {unit}")
     for x in r["limits"]:
         print(f"  {x['metric']:17s} verified worst {x['worst_case']:.4g} {x['unit']} of {x['limit']:g} "
               f"({100 * x['ratio']:.0f} %; linear model {x['predicted_worst']:.4g}){'  <- binds' if x['binds'] else ''}")
-    print(f"binding: {', '.join(r['binding'][:5]) or '-'}; RSS stack-up with σ = h/3: {r['rss_um']:.4g} µm")
+    print(f"binding: {', '.join(r['binding'][:5]) or '-'}; RSS stack-up with σ = h/3: {r['rss_um']:.4g} {unit}")
     d = r.get("discretisation")
     if d is not None:
         g = d["grid_fine"]
         print(f"discretisation: one level finer (n_xi {g['n_xi']}, n_eta {g['n_eta']}, dt {g['dt']:g} s) the worst corner "
-              f"reads {d['worst_case_fine_um']:.4g} against {d['worst_case_um']:.4g} µm: the half-widths change by "
+              f"reads {d['worst_case_fine_um']:.4g} against {d['worst_case_um']:.4g} {unit}: the half-widths change by "
               f"{100 * d['half_width_relative_change']:+.2g} %")
     if not r["verified"]:
         print("warning: the verified worst case is outside [0.97, 1] × limit (strongly nonlinear response)")
