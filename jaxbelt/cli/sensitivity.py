@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from ..design import sensitivity_report
-from ..design.metrics import metric_unit
 from ._design import add_design_arguments, check_plot, finish, load_design_model, make_design_study, stage
 
 
@@ -27,7 +26,7 @@ def run(args):
 
 def _print(r):
     when = "in steady operation" if r["t_eval_s"] is None else f"at t = {r['t_eval_s']:g} s"
-    unit = metric_unit(r["metric"])
+    unit = r["unit"]
     print(f"{r['metric']} = {r['value_um']:.6g} {unit} {when} "
           f"(forward {r['forward_s']:.3g} s, gradient {r['gradient_s']:.3g} s = ×{r['gradient_s'] / r['forward_s']:.2f})")
     print(f"{'roller':14s} {f'translation x, y, z [{unit}/mm]':>36s}   {f'rotation x, y, z [{unit}/mrad]':>36s}")

@@ -67,9 +67,9 @@ def _unit(metric):
 
 
 def scale_unit(r) -> str:
-    """The unit of a design answer's combined metric (its worst case, stack-up, values): the first
-    limit's with several limits (the combined metric is on that limit's scale), else the metric's."""
-    return r["limits"][0]["unit"] if r.get("limits") else metric_unit(r["metric"])
+    """The unit of a design answer's metric values (its worst case, stack-up, samples): the record's
+    ``unit`` (:func:`jaxbelt.design.metrics.value_unit`)."""
+    return r["unit"]
 
 
 def _print(r):

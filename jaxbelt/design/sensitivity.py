@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import response_from_deviation
+from .metrics import metric_unit, response_from_deviation
 from .records import ComponentGradient, RollerSensitivity, StructuralZero, sensitivity_per_roller
 from .linear_box import LinearDeviation
 from .study import Study, metric_value, response
@@ -106,7 +106,8 @@ def response_jacobian(study: Study, theta=None, mode: str = "auto", linear: Line
 class SensitivityReport(Result):
     """A metric and its gradient w.r.t. every misalignment component (:func:`sensitivity_report`).
 
-    **Fields:** ``metric``; ``value_um`` the metric, µm (µm/s for ``walk_rate``); ``t_eval_s``;
+    **Fields:** ``metric``; ``value_um`` the metric in ``unit`` (µm; mrad for ``steering_max``, µm/s for ``walk_rate``),
+    the gradients in ``unit`` per mm / mrad; ``t_eval_s``;
     ``parameters`` one :class:`~jaxbelt.design.records.ComponentGradient` per varied component;
     ``gradient`` ``{roller: RollerSensitivity}`` (:class:`~jaxbelt.design.records.RollerSensitivity`,
     0 for components that are not parameters); ``structural_zero`` the components that cannot
@@ -125,6 +126,7 @@ class SensitivityReport(Result):
     forward_s: float
     gradient_s: float
     compile_s: float
+    unit: str = "µm"
 
 
 
@@ -158,4 +160,4 @@ def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> Sensitivity
         parameters=tuple(ComponentGradient(lab, unit, float(g))
                          for lab, unit, g in zip(sp.labels(), sp.units(), np.asarray(grad))),
         gradient=sensitivity_per_roller(sp, np.asarray(grad)), structural_zero=structural, at_kink=at_kink,
-        forward_s=forward_s, gradient_s=gradient_s, compile_s=compile_s)
+        forward_s=forward_s, gradient_s=gradient_s, compile_s=compile_s, unit=metric_unit(study.metric))

@@ -47,7 +47,7 @@ from ..infra.results import Result, to_json
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearDeviation, LinearResponse, rss_stackup
-from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale
+from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale, value_unit
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
                        sample_configurations, wilson_interval)
 from .sensitivity import response_jacobian
@@ -111,7 +111,9 @@ class SweepResult(Result):
       validation runs included (used or not); ``reduced_runs``: configurations the surrogate
       decided.
     - ``rom``: whether a surrogate stood in and its validation record (:class:`ReducedModelUse`).
-    - ``metric_values`` (samples,): the metric of every configuration, µm.
+    - ``unit``: the unit of ``limit_um``, ``metric_values`` and ``rss_3sigma_um`` (the metric's: µm,
+      mrad or µm/s; the first limit's with several limits).
+    - ``metric_values`` (samples,): the metric of every configuration.
     - ``speedup_estimate``: with a reduced model, the full model's time per configuration in the
       validation runs (compilation included) times the configurations run, over the wall time —
       indicative (``benchmarks/yield_rom.py`` measures it side by side); else ``None``.
@@ -150,6 +152,7 @@ class SweepResult(Result):
     is_ci95: list | None = None
     is_samples: int | None = None
     limits: tuple[MetricLimit, ...] | None = None
+    unit: str = "µm"
 
     def to_dict(self, values: bool = False) -> dict:
         """The result as JSON-able data (``jaxbelt sweep --json``): ``yield_`` as ``"yield"``, the
@@ -377,4 +380,4 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
         full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_use.validation_runs,
         reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_use, metric_values=metric,
         wall_s=wall, configs_per_s=(n - done) / wall,
-        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in limits) or None, **extra)
+        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in limits) or None, unit=value_unit(study), **extra)

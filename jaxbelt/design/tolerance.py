@@ -33,7 +33,7 @@ from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
 from .metrics import (METRICS, aggregate, aligned_values, limit_values_from_deviation, metric_unit, on_limit_scale,
-                      response_sizes)
+                      response_sizes, value_unit)
 from .records import RollerMisalignment, misalignment_per_roller
 from .configurations import at_configurations
 from .study import Study, study_on, with_limits
@@ -117,7 +117,9 @@ class ToleranceBox(Result):
     ``jacobian_um`` (n_r, P) and ``response0_um`` (n_r,) the linear response ``r0 + J θ``;
     ``limits`` with several limits (module docstring) one :class:`LimitCheck` per limit, else
     ``()``; ``binding_limit`` the metric whose limit
-    binds (the study's metric with a single limit). With several limits ``worst_case_um``,
+    binds (the study's metric with a single limit); ``unit`` the unit of ``limit_um``, the worst
+    cases, the stack-up and the linear response (the metric's: µm, mrad or µm/s; the first
+    limit's with several limits). With several limits ``worst_case_um``,
     ``predicted_worst_um``, the verification values and the linear response are the largest ratio
     to its limit times ``limit_um``, and every verification run has ``full_by_limit``.
     """
@@ -144,13 +146,14 @@ class ToleranceBox(Result):
     binding_limit: str = ""
     corners: np.ndarray | None = None  # (m, P) the verified worst corners, as parameter vectors
     limit_names: tuple | None = None  # ((metric, limit), ...) with several limits
+    unit: str = "µm"
 
     def to_dict(self) -> dict:
         """The box as JSON-able data (``jaxbelt tolerance --json``): the scalar and table fields
         and ``half_widths`` as ``[{"component", "half_width", "unit", "share"}]``."""
         out = {k: getattr(self, k) for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um",
                                               "predicted_worst_um", "verified", "binding", "unconstrained",
-                                              "iterations", "rss_um", "limits", "binding_limit")}
+                                              "iterations", "rss_um", "limits", "binding_limit", "unit")}
         out["verification"] = [row.to_dict() for row in self.verification]
         out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
                               for lab, h, u, s in zip(self.labels, self.half_widths, self.units, self.share)]
@@ -271,7 +274,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
         binding=binding, unconstrained=[labels[k] for k in range(len(h)) if not felt[k]],
         verification=table, iterations=iterations,
         rss_um=rss_stackup(lin, h / 3.0).three_sigma_um, jacobian_um=J, response0_um=r0,
-        limits=per_limit, binding_limit=binding_limit, corners=thetas, limit_names=names)
+        limits=per_limit, binding_limit=binding_limit, corners=thetas, limit_names=names, unit=value_unit(study))
 
 
 NEAR_WORST = 1e-3  # corners run on the finer grid: within this fraction of the worst excess over the floor

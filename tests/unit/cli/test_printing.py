@@ -5,7 +5,7 @@ from jaxbelt.cli import sensitivity, sweep, tolerance
 
 
 def _box(metric, limits=()):
-    return {"limits": list(limits), "operation": "window", "metric": metric, "limit_um": 0.5, "t_eval_s": 1.0,
+    return {"unit": limits[0]["unit"] if limits else {"steering_max": "mrad"}.get(metric, "µm"), "limits": list(limits), "operation": "window", "metric": metric, "limit_um": 0.5, "t_eval_s": 1.0,
             "window_s": [0.8, 1.0], "half_widths": [{"component": "roller 1 dx", "half_width": 0.1, "unit": "mm",
                                                      "share": 1.0}],
             "unconstrained": [], "worst_case_um": 0.49, "verification": [{}], "verified": True, "iterations": 1,
@@ -36,7 +36,7 @@ def test_tolerance_with_several_limits_prints_the_first_limits_unit(capsys):
 def test_sensitivity_prints_the_metrics_unit(capsys):
     r = {"metric": "walk_rate", "t_eval_s": 1.0, "value_um": 2.0, "forward_s": 1.0, "gradient_s": 2.0,
          "gradient": {"roller 1": {"translation_um_per_mm": [0.0, 1.0, 0.0], "rotation_um_per_mrad": [0.0, 2.0, 0.0]}},
-         "at_kink": False, "structural_zero": []}
+         "at_kink": False, "structural_zero": [], "unit": "µm/s"}
     sensitivity._print(r)
     out = capsys.readouterr().out
     assert "walk_rate = 2 µm/s at t = 1 s" in out and "[µm/s/mm]" in out and "[µm/s/mrad]" in out
@@ -45,7 +45,7 @@ def test_sensitivity_prints_the_metrics_unit(capsys):
 def test_sweep_prints_the_stack_up_in_the_metrics_unit(capsys):
     r = {"ci95": [0.9, 1.0], "metric": "steering_max", "limit_um": 0.5, "yield": 1.0, "passed": 10, "samples": 10,
          "form_beta": 3.0, "form_yield": 0.99, "rss_3sigma_um": 0.2, "full_runs": 10, "reduced_runs": 0,
-         "wall_s": 1.0, "configs_per_s": 10.0}
+         "wall_s": 1.0, "configs_per_s": 10.0, "unit": "mrad"}
     sweep._print(r)
     out = capsys.readouterr().out
     assert "steering_max ≤ 0.5 mrad" in out and "(3σ) 0.2 mrad" in out and "µm" not in out
