@@ -35,9 +35,9 @@ def main():
               ("exact cyclic-reduction", jb.DirectBackwardEuler(jb.CyclicReduction())),
               ("exact kept interior", jb.DirectBackwardEuler(jb.KeptInterior())),
               ("reuse", jb.DirectBackwardEuler(jb.Reuse()))]
-    for name, integ in [] if args.skip_single else single:
+    for name, solver in [] if args.skip_single else single:
         t0 = time.perf_counter()
-        c = compile_simulation(model, integ, n_steps=args.steps, dt=dt)
+        c = compile_simulation(model, solver, n_steps=args.steps, dt=dt)
         comp = time.perf_counter() - t0
         t0 = time.perf_counter()
         jax.block_until_ready(c(model, dt))
@@ -49,11 +49,11 @@ def main():
     chis[:, 1] = rng.uniform(-5e-3, 5e-3, args.batch)  # roller 1 y translation
     chis[:, 9] = rng.uniform(-5e-4, 5e-4, args.batch)  # roller 2 x rotation
     chis[:, 15] = rng.uniform(-5e-4, 5e-4, args.batch)  # roller 3 x rotation
-    integ = VMAP_SOLVERS[args.vmap_integrator]
+    solver = VMAP_SOLVERS[args.vmap_integrator]
 
     def one(chi):
         m = model.replace(chi_static=chi)
-        return run(m, integ, jb.initial_state(m), dt, args.steps)[1].tracer_v
+        return run(m, solver, jb.initial_state(m), dt, args.steps)[1].tracer_v
 
     f = jax.jit(jax.vmap(one))
     t0 = time.perf_counter()

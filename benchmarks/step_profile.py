@@ -71,9 +71,9 @@ def main():
         x_b, x_r = factor_solve(data["reuse"].linear.F, *c)
         return rb0 + eps * x_b, rr0 + eps * x_r
 
-    def solve_step_of(integ, run_data):
+    def solve_step_of(solver, run_data):
         def go(s):
-            new = integ.step(model, s, dt, run_data)
+            new = solver.step(model, s, dt, run_data)
             return jax.tree.map(lambda x, y: x + eps * y if jnp.issubdtype(x.dtype, jnp.floating) else x, s, new)
         return go
 

@@ -69,11 +69,11 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
     from .scipy_reference import ScipyBelt
 
     s0 = jax.block_until_ready(initial_state(model))
-    integ = {"exact": DirectBackwardEuler(KeptInterior()),
+    solver = {"exact": DirectBackwardEuler(KeptInterior()),
              "exact, full factorisation": DirectBackwardEuler(Structured()),
              "reuse": DirectBackwardEuler(Reuse())}
     runs, init_s = {}, {}
-    for k, v in integ.items():
+    for k, v in solver.items():
         runs[k], init_s[k] = compile_steps(model, v, n_steps=steps, dt=dt, state=s0)
 
     sc = ScipyBelt(model, dt)
@@ -138,9 +138,9 @@ def per_step(model, dt, rounds: int, steps: int = 200, scipy_steps: int = 5) -> 
 
 def whole_run(model, n_steps: int, dt, repeat: int) -> dict:
     """The whole run (``n_steps`` of ``dt`` s) in the reuse mode, compile apart, best of ``repeat``."""
-    integ = DirectBackwardEuler(Reuse())
+    solver = DirectBackwardEuler(Reuse())
     t0 = time.perf_counter()
-    run = compile_simulation(model, integ, n_steps=n_steps, dt=dt)
+    run = compile_simulation(model, solver, n_steps=n_steps, dt=dt)
     comp = time.perf_counter() - t0
     best = min(clock(lambda: run(model, dt)[0].u)[0] for _ in range(repeat))
     return {"n_steps": int(n_steps), "t_end_s": float(n_steps * dt), "run_s": best,
@@ -158,13 +158,13 @@ jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 scene = jb.load_scene(sys.argv[1])
 m, opts = jb.build_model(scene), jb.RunOptions.from_scene(scene)
-integ = jb.DirectBackwardEuler(jb.Reuse())
+solver = jb.DirectBackwardEuler(jb.Reuse())
 jax.block_until_ready(jb.initial_state(m))
 t_ready = time.perf_counter()
 out = {}
 for n in map(int, sys.argv[2].split(",")):
     t1 = time.perf_counter()
-    compile_simulation(m, integ, n_steps=n, dt=opts.dt)
+    compile_simulation(m, solver, n_steps=n, dt=opts.dt)
     out[n] = {"compile_s": time.perf_counter() - t1}
 print(json.dumps({"setup_s": t_ready - t0, "by_steps": out}))
 """
@@ -191,16 +191,16 @@ def vmap_batches(batches, steps: int, repeat: int) -> dict:
     scene = load_scene("three-roller-tolerance")
     model, dt = build_model(scene), RunOptions.from_scene(scene).dt
     rows = {}
-    for solver, integ in (("exact", DirectBackwardEuler(KeptInterior())), ("reuse", DirectBackwardEuler(Reuse()))):
-        study = design.make_study(model, "lateral_max", RunOptions(integ, steps, dt))
+    for name, solver in (("exact", DirectBackwardEuler(KeptInterior())), ("reuse", DirectBackwardEuler(Reuse()))):
+        study = design.make_study(model, "lateral_max", RunOptions(solver, steps, dt))
         rng = np.random.default_rng(0)
         for b in batches:
             thetas = 0.01 * rng.standard_normal((b, study.space.size))
             first, _ = clock(lambda: design.evaluate_configs(study, thetas, chunk=b))
             best = min(clock(lambda: design.evaluate_configs(study, thetas, chunk=b))[0] for _ in range(repeat))
-            rows[f"{solver}/{b}"] = {"solver": solver, "batch": b, "compile_s": max(first - best, 0.0), "run_s": best,
+            rows[f"{name}/{b}"] = {"solver": name, "batch": b, "compile_s": max(first - best, 0.0), "run_s": best,
                                      "ms_per_config_step": 1e3 * best / (b * steps)}
-            _log(f"  vmap {solver:10s} batch {b:4d}: {rows[f'{solver}/{b}']['ms_per_config_step']:.3f} ms "
+            _log(f"  vmap {name:10s} batch {b:4d}: {rows[f'{name}/{b}']['ms_per_config_step']:.3f} ms "
                  "per configuration-step")
     return {"scene": "three-roller-tolerance", "steps": steps, "rows": rows,
             "note": (
