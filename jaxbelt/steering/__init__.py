@@ -24,6 +24,8 @@ from .plant import identify_plant as identify_plant
 from .report import StabilityBoundary as StabilityBoundary
 from .report import SteeringReport as SteeringReport
 from .report import StepResponse as StepResponse
+from .report import LoopGrowth as LoopGrowth
+from .report import WalkSensitivity as WalkSensitivity
 from .report import SteeringWarning as SteeringWarning
 from .report import stability_boundary as stability_boundary
 from .report import steering_report as steering_report

@@ -103,8 +103,7 @@ class SteeringReport(Result):
     the aligned machine's; ``hold_angle_mrad`` ``−disturbance / coefficient``, the angle that stops
     the walk; ``limit_mrad`` the loop's range; ``saturated`` whether the hold angle is beyond it
     (then a :class:`SteeringWarning` names the loop and the angle); ``walk_sensitivity``
-    ``{roller: {"translation_mm_s_per_mm": [x, y, z], "rotation_mm_s_per_mrad": [x, y, z]}}`` the
-    walk rate per unit of each misalignment component at the scene's misalignment (derivatives
+    ``{roller: WalkSensitivity}`` (:class:`WalkSensitivity`) the walk rate per unit of each misalignment component at the scene's misalignment (derivatives
     of the open-loop steady walk; structurally zero components, such as the drive rotation about
     z, are 0), or ``None`` when not asked for; ``plant`` the identified transfer function
     (:class:`~jaxbelt.steering.plant.SteeringPlant`: SI, m/s per rad, s, m per rad; ``None`` when not
@@ -126,7 +125,7 @@ class SteeringReport(Result):
     hold_angle_mrad: float
     limit_mrad: float
     saturated: bool
-    walk_sensitivity: dict | None
+    walk_sensitivity: dict[str, WalkSensitivity] | None
     plant: SteeringPlant | None
     plant_fit_error: float
     sample_delay_s: float
@@ -159,16 +158,36 @@ def steady_walk_jacobian(model, options: RunOptions, dofs) -> tuple[np.ndarray, 
     return np.asarray(J[-1]), float(s.walk_rate)
 
 
-def walk_sensitivity(model, options: RunOptions, loop: int = 0, jacobian=None) -> dict:
-    """``{roller: {"translation_mm_s_per_mm": [x, y, z], "rotation_mm_s_per_mrad": [x, y, z]}}``:
-    the derivatives of the open-loop steady walk rate w.r.t. every misalignment component that
-    can vary, at the model's own misalignment (:func:`steady_walk_jacobian`; ``jacobian`` the
-    derivatives already taken in the order of the components)."""
+@dataclasses.dataclass(frozen=True)
+class WalkSensitivity(Result):
+    """The open-loop walk rate's derivatives with respect to one roller's misalignment components
+    (:func:`walk_sensitivity`). **Fields:** ``translation_mm_s_per_mm`` ``(x, y, z)``;
+    ``rotation_mm_s_per_mrad`` ``(x, y, z)``."""
+
+    translation_mm_s_per_mm: tuple
+    rotation_mm_s_per_mrad: tuple
+
+
+@dataclasses.dataclass(frozen=True)
+class LoopGrowth(Result):
+    """One closed-loop run of :func:`stability_boundary`. **Fields:** ``kp_mrad_per_mm`` its
+    proportional gain; ``growth`` the sensor oscillation's envelope over the last third of the run
+    against the middle third (> 1: growing)."""
+
+    kp_mrad_per_mm: float
+    growth: float
+
+
+def walk_sensitivity(model, options: RunOptions, loop: int = 0, jacobian=None) -> dict[str, WalkSensitivity]:
+    """``{roller: WalkSensitivity}``: the derivatives of the open-loop steady walk rate w.r.t.
+    every misalignment component that can vary, at the model's own misalignment
+    (:func:`steady_walk_jacobian`; ``jacobian`` the derivatives already taken in the order of the
+    components)."""
     _require_loop(model, loop)
     space = parameter_space(model)
     g = steady_walk_jacobian(model, options, space.chi_index)[0] if jacobian is None else np.asarray(jacobian)
     per = space.per_roller(g)  # m/s per m = mm/s per mm; m/s per rad = mm/s per mrad
-    return {name: {"translation_mm_s_per_mm": d["translation"], "rotation_mm_s_per_mrad": d["rotation"]}
+    return {name: WalkSensitivity(tuple(float(x) for x in d["translation"]), tuple(float(x) for x in d["rotation"]))
             for name, d in per.items()}
 
 
@@ -239,15 +258,14 @@ class StabilityBoundary(Result):
     """The P-only loop's stability boundary from closed-loop runs of the model.
 
     **Fields:** ``loop`` the label; ``kp_mrad_per_mm`` the boundary (midpoint of the last
-    bracket); ``bracket`` ``(stable, unstable)`` k_p, mrad/mm; ``growth`` ``{k_p: ratio}`` of every
-    run, the sensor oscillation's envelope over the last third of the run against the middle third
-    (> 1: growing); ``period_s`` the oscillation period at the unstable end (zero crossings);
+    bracket); ``bracket`` ``(stable, unstable)`` k_p, mrad/mm; ``growth`` every run's gain and envelope
+    growth (:class:`LoopGrowth`), in increasing gain; ``period_s`` the oscillation period at the unstable end (zero crossings);
     ``t_end_s``, ``dt_s`` the runs; ``runs`` how many; ``elapsed_s``."""
 
     loop: str
     kp_mrad_per_mm: float
     bracket: tuple
-    growth: dict
+    growth: tuple[LoopGrowth, ...]
     period_s: float
     t_end_s: float
     dt_s: float
@@ -308,6 +326,7 @@ def stability_boundary(model, options: RunOptions, kp_low: float, kp_high: float
                 period = _period(t[len(t) // 2:], vv[len(t) // 2:])
                 break
             lo = float(k)
+    growth = tuple(LoopGrowth(k, growth[k]) for k in sorted(growth))
     return StabilityBoundary(loop=c.labels[loop], kp_mrad_per_mm=0.5 * (lo + hi), bracket=(lo, hi), growth=growth,
                              period_s=period, t_end_s=float(options.n_steps * options.dt), dt_s=float(options.dt),
                              runs=runs, elapsed_s=time.perf_counter() - start)

@@ -94,6 +94,7 @@ def test_p_boundary_against_the_gain_margin(scene, report):
                            2.5, 4.0, rounds=4, batch=2)
     kp = b.kp_mrad_per_mm
     assert b.bracket[1] - b.bracket[0] < 0.02 * kp
+    assert min(g.kp_mrad_per_mm for g in b.growth if g.growth > 1) == b.bracket[1]  # the bracket's unstable end
     dt = report.dt_s
     w = np.geomspace(0.05, 0.999 * np.pi / dt, 6000)
     P = response_transfer(report.step_response.sensor_um_per_mrad * 1e-3, report.coefficient_mm_s_per_mrad, dt, w)
@@ -165,6 +166,6 @@ def test_walk_sensitivity_is_the_coefficient_and_the_disturbance(scene):
     r = steering_report(jb.build_model(scene), opts, identify=False)
     s = r.walk_sensitivity
     assert set(s) == {"drive", "idle"}
-    assert s["idle"]["rotation_mm_s_per_mrad"][1] == pytest.approx(r.coefficient_mm_s_per_mrad, rel=0.02)
-    assert 0.15 * s["drive"]["rotation_mm_s_per_mrad"][1] == pytest.approx(r.disturbance_mm_s, rel=0.02)
-    assert s["drive"]["rotation_mm_s_per_mrad"][2] == 0.0  # the drive DOF: structurally zero
+    assert s["idle"].rotation_mm_s_per_mrad[1] == pytest.approx(r.coefficient_mm_s_per_mrad, rel=0.02)
+    assert 0.15 * s["drive"].rotation_mm_s_per_mrad[1] == pytest.approx(r.disturbance_mm_s, rel=0.02)
+    assert s["drive"].rotation_mm_s_per_mrad[2] == 0.0  # the drive DOF: structurally zero
