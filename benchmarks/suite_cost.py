@@ -1,22 +1,25 @@
-"""Where the default test suite's time goes: tracing, lowering, XLA compilation, and the rest.
+"""Where the test suite's time goes, and the slow/fast split it sets: every test's measured cost.
 
-Runs the README's test command twice in fresh processes, each with a small pytest plugin that
-listens to JAX's compile events (``jax.monitoring``) per test:
+Runs the test suite twice in fresh processes, each with a small pytest plugin that listens to
+JAX's compile events (``jax.monitoring``) per test:
 
-* as configured (``pyproject.toml``: two xdist workers), for the wall time a user sees and the
-  test seconds of each worker;
-* in one process (``-n 0``), for the work itself without a second worker's duplicated tracing or
-  the two processes competing for the cores: test seconds, and of them the seconds spent tracing
-  to jaxprs, lowering to MLIR and compiling with XLA (a load from the run's compilation cache
-  counts as a compile), the number of programs whose compile took over half a second, and the
-  slowest modules.
+* in one process (``-n 0``) with the split off, so that **every** test runs: test seconds, and
+  of them the seconds spent tracing to jaxprs, lowering to MLIR and compiling with XLA (a load
+  from the run's compilation cache counts as a compile), the number of programs whose compile took
+  over half a second, and the slowest modules. Writes ``tests/test_seconds.json``, the
+  one-process seconds of every test, by which ``tests/conftest.py`` marks a test slow (over
+  ``SLOW_TEST_S``, unless it is a ``reference`` check): the split is this measurement, no test is
+  marked slow by hand;
+* then the README's test command as configured (``pyproject.toml``: two xdist workers, the
+  default run under the split just written), for the wall time a user sees and the test seconds
+  of each worker.
 
-``wall_s_if_split_perfectly`` is the one-process test seconds halved: the wall time two workers
-could reach at best, before start-up and their competition for memory bandwidth. Writes
-``results/suite_cost.json``, ``tests/module_seconds.json``: the one-process seconds of every
-test module, which ``tests/conftest.py`` schedules the workers by (heaviest module first), and
-``tests/test_seconds.json``: the one-process seconds of every test, by which ``tests/conftest.py``
-marks a test slow (over ``SLOW_TEST_S``). Takes eight to ten minutes on two cores.
+``default_run`` sums the one-process seconds of the tests the default run keeps;
+``wall_s_if_split_perfectly`` is half of that: the wall time two workers could reach at best,
+before start-up and their competition for memory bandwidth. Writes ``results/suite_cost.json`` and
+``tests/module_seconds.json``: the one-process seconds of every test module in the default run,
+which ``tests/conftest.py`` schedules the workers by (heaviest module first). Takes about an hour
+on two cores (the slow tests run once).
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/suite_cost.py``.
 """
 
@@ -45,6 +48,7 @@ import pytest
 CUR = ["<none>"]
 ACC = collections.defaultdict(collections.Counter)
 BIG = collections.Counter()
+REFERENCE = set()
 
 
 def _listener(event, secs, **kwargs):
@@ -64,6 +68,8 @@ def pytest_runtest_protocol(item, nextitem):
     t0 = time.perf_counter()
     yield
     ACC[item.nodeid]["wall"] += time.perf_counter() - t0
+    if item.get_closest_marker("reference") is not None:
+        REFERENCE.add(item.nodeid)
 
 
 def pytest_sessionfinish(session):
@@ -72,7 +78,7 @@ def pytest_sessionfinish(session):
     out = os.environ["SUITE_COST_OUT"]
     wid = os.environ.get("PYTEST_XDIST_WORKER", "main")
     with open(os.path.join(out, f"{wid}.json"), "w") as f:
-        json.dump({"tests": ACC, "big": BIG}, f)
+        json.dump({"tests": ACC, "big": BIG, "reference": sorted(REFERENCE)}, f)
 '''
 
 PHASES = {"jaxpr_trace_duration": "trace_s", "jaxpr_to_mlir_module_duration": "lower_s",
@@ -118,33 +124,50 @@ def _totals(workers):
     return out
 
 
+def _slow_test_s() -> float:
+    """``SLOW_TEST_S`` of ``tests/conftest.py``."""
+    return float(re.search(r"^SLOW_TEST_S = ([0-9.]+)", (ROOT / "tests" / "conftest.py").read_text(), re.M).group(1))
+
+
 def main():
+    slow_s = _slow_test_s()
     with tempfile.TemporaryDirectory(prefix="jaxbelt-suite-cost-") as d:
         d = Path(d)
         (d / "suite_cost_plugin.py").write_text(PLUGIN)
         results = {}
-        for label, args in (("two_workers", []), ("one_process", ["-n", "0"])):
+        # first every test in one process (the split off), whose seconds are the split; then the
+        # default run under that split, as a user runs it
+        for label, args in (("one_process", ["-n", "0"]), ("two_workers", [])):
             out = d / label
             out.mkdir()
             print(f"running the suite: {label}", file=sys.stderr, flush=True)
-            # the one-process run measures every test the hand marks leave in (the measured split off)
             wall, summary, workers = _run(args, d, out, measured_split=label == "two_workers")
             results[label] = {"wall_s": wall, "pytest_summary": summary, **_totals(workers)}
             print(f"  {wall:.1f} s: {summary}", file=sys.stderr, flush=True)
+            if label == "one_process":
+                per_test = results[label]["per_test_s"]
+                reference = {t for w in workers.values() for t in w.get("reference", [])}
+                # the split tests/conftest.py reads: seconds per test, one process, every test
+                TEST_SECONDS.write_text(json.dumps({t: round(v, 2) for t, v in sorted(per_test.items())}, indent=1)
+                                        + "\n")
     one = results["one_process"]
-    results["wall_s_if_split_perfectly"] = one["test_s"] / 2
-    results["duplicated_or_contended_s"] = results["two_workers"]["test_s"] - one["test_s"]
-    module_s = results["one_process"].pop("module_s")
-    results["two_workers"].pop("module_s")
-    per_test = results["one_process"].pop("per_test_s")
-    results["two_workers"].pop("per_test_s")
+    kept = {t: v for t, v in per_test.items() if v <= slow_s or t in reference}
+    module_s = collections.Counter()
+    for t, v in kept.items():
+        module_s[re.sub(r"::.*", "", t).removeprefix("tests/")] += v
+    results["slow_test_s"] = slow_s
+    results["default_run"] = {"tests": len(kept), "test_s": sum(kept.values()),
+                              "slow_tests": len(per_test) - len(kept),
+                              "references_over_the_split": sorted(t for t in reference if per_test.get(t, 0) > slow_s)}
+    results["wall_s_if_split_perfectly"] = results["default_run"]["test_s"] / 2
+    for label in ("one_process", "two_workers"):
+        results[label].pop("module_s")
+        results[label].pop("per_test_s")
     write("suite_cost", results)
-    # the scheduling table tests/conftest.py reads: seconds per test module (its path under tests/
-    # without .py, tests/conftest.py: module_key), one process, measured
+    # the scheduling table tests/conftest.py reads: seconds per test module of the default run (its
+    # path under tests/ without .py, tests/conftest.py: module_key), one process, measured
     table = {m.removesuffix(".py"): max(1, round(v)) for m, v in sorted(module_s.items(), key=lambda kv: -kv[1])}
     MODULE_SECONDS.write_text(json.dumps(table, indent=1) + "\n")
-    # the measured half of the slow/fast split (tests/conftest.py: SLOW_TEST_S): seconds per test
-    TEST_SECONDS.write_text(json.dumps({t: round(v, 2) for t, v in sorted(per_test.items())}, indent=1) + "\n")
     print(f"wrote {MODULE_SECONDS} and {TEST_SECONDS}", file=sys.stderr)
     print(json.dumps({k: v for k, v in one.items() if k != "slowest_modules_s"}, indent=1))
 

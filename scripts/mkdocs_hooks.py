@@ -313,11 +313,12 @@ BENCHMARKS = {
                         "bytes a configuration-step streams against the read bandwidth measured in the same process, "
                         "the step, the solve and one sweep's recurrence timed against it for batches of 1, 8 and 32 "
                         "([scale](scale.md#how-fast-a-batch-can-go-on-a-cpu))."),
-    "suite_cost": ("Where the test suite's time goes", "The default test suite (`python -m pytest -q`) as "
-                   "configured (two workers) and in one process, with JAX's compile events counted per test: "
-                   "seconds spent tracing, lowering and compiling with XLA against the tests' whole time, the "
-                   "programs whose compile took over half a second, and the best wall time two workers could "
-                   "reach by splitting the one process's work perfectly."),
+    "suite_cost": ("Where the test suite's time goes", "Every test in one process, with JAX's compile events "
+                   "counted per test (seconds spent tracing, lowering and compiling with XLA against the tests' "
+                   "whole time, the programs whose compile took over half a second): the measured cost that sets "
+                   "the slow/fast split; then the default test suite (`python -m pytest -q`) as configured (two "
+                   "workers) under that split, and the best wall time two workers could reach by splitting the "
+                   "default run's one-process work perfectly."),
     "small_time_steps": ("Small time steps and the start-up", "`two-roller-1d` with the idle roller aligned and "
                          "1 mm out, 0.2 s from rest and from a running start at the scene's Δt and Δt/10, /100, "
                          "/1000: the idle roller's speed, the largest tracer displacement and the gap between "

@@ -2,12 +2,11 @@
 programs freed after each module, and the ``--runslow`` option.
 
 The default run (``python -m pytest``; ``pyproject.toml`` adds ``-m 'not slow' -n 2 --dist
-loadfile``) leaves out the tests marked ``@pytest.mark.slow``: full-size scenes, long runs,
-fine-grid convergence studies, and the integration tests whose code the default run already
-reaches through cheaper tests (chosen by per-test line coverage against cost: a greedy cover,
-with one check against each dense, analytic or finite-difference reference kept by default).
-``python -m pytest --runslow`` runs everything (slow tests included); ``python -m pytest -m slow``
-runs only the slow ones.
+loadfile``) leaves out the slow tests: those whose measured cost is over :data:`SLOW_TEST_S`
+(``benchmarks/suite_cost.py`` measures every test and writes ``tests/test_seconds.json``), except
+the checks against an independent reference (marked ``reference``), kept whatever they cost.
+No test is marked slow by hand. ``python -m pytest --runslow`` runs everything (slow tests
+included); ``python -m pytest -m slow`` runs only the slow ones.
 """
 
 import gc
@@ -73,12 +72,11 @@ def pytest_addoption(parser):
 TESTS = Path(__file__).parent
 MODULE_SECONDS = json.loads((TESTS / "module_seconds.json").read_text())
 
-# The measured half of the slow/fast split: a test of the default run whose one-process seconds,
-# as benchmarks/suite_cost.py measured them (tests/test_seconds.json), exceed SLOW_TEST_S is
-# slow, unless it is marked ``reference`` (a check against an independent reference: a dense
-# solve, an analytic solution, python-control — the default run keeps one of each, whatever it
-# costs); the hand-placed ``@pytest.mark.slow`` marks are the other half (coverage: a test whose
-# code cheaper tests already reach).
+# The slow/fast split, by measured cost alone: a test whose one-process seconds, as
+# benchmarks/suite_cost.py measured them for every test (tests/test_seconds.json), exceed
+# SLOW_TEST_S is slow, unless it is marked ``reference`` (a check against an independent reference:
+# a dense solve, an analytic solution, python-control — the default run keeps one of each, whatever
+# it costs). A test not in the table yet (a new one) runs by default until the next measurement.
 TEST_SECONDS_FILE = TESTS / "test_seconds.json"
 TEST_SECONDS = json.loads(TEST_SECONDS_FILE.read_text()) if TEST_SECONDS_FILE.exists() else {}
 if os.environ.get("JAXBELT_MEASURED_SPLIT", "1") == "0":  # suite_cost.py measures every test

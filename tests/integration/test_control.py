@@ -30,7 +30,6 @@ def open_and_closed(loaded):
     return run(with_gains(model, 0.0), options, 900), run(model, options, 900)
 
 
-@pytest.mark.slow
 def test_records_of_a_steered_run_and_none_without_a_loop(loaded, open_and_closed):
     model, options = loaded
     _, closed = open_and_closed
@@ -44,7 +43,6 @@ def test_records_of_a_steered_run_and_none_without_a_loop(loaded, open_and_close
     assert plain.control_u is None and plain.sensor_v is None
 
 
-@pytest.mark.slow
 def test_open_loop_walks_and_the_loop_stops_the_walk(open_and_closed):
     open_, closed = open_and_closed
     t = np.asarray(open_.t)
@@ -59,7 +57,6 @@ def test_open_loop_walks_and_the_loop_stops_the_walk(open_and_closed):
     assert np.max(np.abs(np.asarray(closed.sensor_v)[late, 0])) < 0.5 * abs(np.asarray(open_.sensor_v)[-1, 0])
 
 
-@pytest.mark.slow
 def test_gradient_wrt_the_gains_matches_central_differences(loaded):
     model, options = loaded
 
@@ -76,7 +73,6 @@ def test_gradient_wrt_the_gains_matches_central_differences(loaded):
         assert float(grad[i]) == pytest.approx(float(fd), rel=1e-5, abs=1e-9)
 
 
-@pytest.mark.slow
 def test_vmap_over_gains_equals_separate_runs_and_new_gains_do_not_compile(loaded):
     model, options = loaded
     kps = jnp.array([0.5, 2.0])
@@ -98,7 +94,6 @@ def test_vmap_over_gains_equals_separate_runs_and_new_gains_do_not_compile(loade
     assert events == []
 
 
-@pytest.mark.slow
 def test_simulate_json_reports_the_loop_and_warns_when_it_saturates(capsys, tmp_path):
     scene = tmp_path / "tight.toml"
     scene.write_text('extends = "two-roller-steered"\n[time]\nt_end_s = 6.0\n'

@@ -28,7 +28,6 @@ def _metric(loaded, translation, n_steps=56):
     return jnp.mean(tr.tracer_u**2) * 1e6 + jnp.mean(tr.tracer_u[-1]) * 1e3
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("k", [0, 1])
 def test_grad_wrt_roller_translation_matches_central_differences(loaded, k):
     """Slow (programs of its own). Fast: case 1d-drive-idle of
@@ -44,7 +43,6 @@ def test_grad_wrt_roller_translation_matches_central_differences(loaded, k):
     assert abs(float(g - fd)) / abs(float(fd)) < 1e-5
 
 
-@pytest.mark.slow
 def test_grad_through_eliminated_and_naive():
     """Reverse mode through the eliminated integrator (dense condensation, ``jnp.linalg.solve``)
     gives the direct one's gradient. The direct gradient is case 1d-drive-idle-kept-interior of
@@ -69,7 +67,6 @@ def _metric2d(loaded, chi, n_steps=9):
     return jnp.mean(tr.tracer_u[-1]) * 1e3 + jnp.sum(tr.tracer_v**2) * 1e6 + jnp.mean(tr.tracer_v) * 1e3
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("dof", [0, 1, 2, 3, 4])
 def test_grad_2d_wrt_each_misalignment_component(model2d, dof):
     """Roller 2's dx, dy, dz, αx, αy (index 6 + dof) around a misaligned configuration.
@@ -188,12 +185,10 @@ def _fd_point(model):
     return model.chi_static + jnp.asarray(np.random.default_rng(0).uniform(-1, 1, model.chi_static.size) * scale)
 
 
-_SLOW_FD = {("1d-drive-idle", "reuse"), ("1d-tension", "reuse"), ("2d-tension", "reuse")}  # fast: kept-interior
-_FD_PARAMS = [pytest.param(case, solver, id=f"{case}-{solver}", marks=[pytest.mark.slow] * ((case, solver) in _SLOW_FD))
+_FD_PARAMS = [pytest.param(case, solver, id=f"{case}-{solver}")
               for solver in ("kept-interior", "reuse") for case in _FD_CASES]
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("case,solver", _FD_PARAMS)
 def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, solver):
     """Reverse mode through the whole run (custom adjoint solve, checkpointed scan) against
@@ -220,7 +215,6 @@ def test_grad_wrt_drive_idle_tension_rollers_matches_central_differences(case, s
             assert abs(float(g[k])) <= 1e-12 * gmax and abs(fd) <= 1e-9 * gmax, (k, float(g[k]), fd)
 
 
-@pytest.mark.slow
 def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
     """Chunked ``jax.checkpoint`` with ``every = 3`` and a tail of 2 steps: 1-step chunks (nested
     inside each record interval, the tail's padded interval too) give the same trajectory and
@@ -248,7 +242,6 @@ def test_checkpointed_scan_changes_neither_outputs_nor_gradients():
     check(metric(t0, 6)[1], ref)
 
 
-@pytest.mark.slow
 def test_checkpointing_bounds_reverse_mode_memory():
     """XLA's temporary memory for the gradient of a 400-step run: the checkpointed scan (20-step
     chunks) needs a fraction of what storing every step's residuals takes."""

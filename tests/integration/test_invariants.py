@@ -10,7 +10,6 @@ from jaxbelt.transport import transport_step
 from helpers import load, solve_step
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("scene,transport", [("two-roller-1d-train1", "shift"),
                                              ("two-roller-1d-idle-translated", "source")])
 def test_mass_conserved_over_1000_steps(scene, transport):

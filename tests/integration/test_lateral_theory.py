@@ -138,7 +138,6 @@ def skew_run(two_roller_loaded):
     return _run(two_roller_loaded, rot(1, 1))
 
 
-@pytest.mark.slow
 def test_skew_walk_equals_the_timoshenko_loop(skew_run):
     """K L = 4.9 (50 mm belt, ε₀ = 5e-3): the walk on a skewed roller is neither the string's nor
     the beam's; the 2D model gives the reference's within 2 % on this mesh (0.1 % at n_ξ = 400,
@@ -150,7 +149,6 @@ def test_skew_walk_equals_the_timoshenko_loop(skew_run):
     assert abs(c / (-1e-3 * SPAN / L_LOOP)) < 0.7  # far from the string limit at this K L
 
 
-@pytest.mark.slow
 def test_twist_walk_equals_the_per_pass_shift(two_roller_loaded):
     c = _walk(_run(two_roller_loaded, rot(1, 0)))
     assert c == pytest.approx(2 * R * 1e-3 / L_LOOP, rel=0.01)

@@ -41,7 +41,6 @@ def with_variant(model, rollers):
     return jb.with_misalignment(model, translation=jnp.asarray(t), rotation=jnp.asarray(r))
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("scene,n_eta,expected", [("three-roller", 18, 3762), ("three-roller", 4, 850),
                                                   ("four-roller-external", 18, 3768), ("three-roller-tension", 5, None)])
 def test_unknown_counts(scene, n_eta, expected):
@@ -51,7 +50,6 @@ def test_unknown_counts(scene, n_eta, expected):
         assert m.n_unknowns == expected
 
 
-@pytest.mark.slow
 def test_default_scene_count_via_info(capsys):
     import json
 
@@ -88,7 +86,6 @@ def test_mass_conserved_500_steps_and_idle_speeds():
     np.testing.assert_allclose(np.abs(w) * radii, 1.0, rtol=1e-3)
 
 
-@pytest.mark.slow
 def test_aligned_stretched_belt_is_symmetric():
     """No lateral misalignment, belt stretched by moving roller 2 outwards: Poisson contraction
     only, v = 0 on the centre line and v(-z) = -v(z), u(-z) = u(z)."""
@@ -102,7 +99,6 @@ def test_aligned_stretched_belt_is_symmetric():
     assert np.max(np.abs(np.asarray(tr.tracer_v))) < 1e-9 * np.max(np.abs(v))  # tracers on the centre line
 
 
-@pytest.mark.slow
 def test_mirrored_lateral_misalignment_mirrors_the_field():
     base = small()[0]
     a = with_variant(base, {0: dict(translation=(0, 0, 1e-3)), 1: dict(rotation=(4e-4, -2e-4))})
@@ -129,8 +125,7 @@ def test_doubling_a_small_misalignment_doubles_the_response():
         assert np.linalg.norm(d2 - 2 * d1) < 0.01 * np.linalg.norm(2 * d1)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("name", [pytest.param("naive", marks=pytest.mark.slow), "eliminated"])
+@pytest.mark.parametrize("name", ["naive", "eliminated"])
 def test_integrators_agree_2d(name):
     """The eliminated and the naive integrator give the direct one's run. The naive one (a dense
     3N = 1926 solve a step) is slow here; integrators/test_integrators.py checks it in 1D."""
@@ -151,7 +146,6 @@ def test_tension_roller_moves_and_is_balanced():
     np.testing.assert_allclose(np.abs(w) * np.array([0.08, 0.06, 0.10]), 1.0, rtol=2e-3)
 
 
-@pytest.mark.slow
 def test_exact_static_rotation_matches_linear_for_small_angles():
     from jaxbelt.rollers import exact_static_displacement
 
@@ -195,7 +189,6 @@ def test_roller_reactions_balance_and_vanish_at_dynamic_dofs():
     assert np.max(np.abs(reac[0, :2])) > 10.0  # the drive's support really carries the belt tension
 
 
-@pytest.mark.slow
 def test_belt_running_off_a_roller_is_reported_with_step_and_roller(tmp_path, capsys):
     """A 400 mm belt on 402 mm rollers walks sideways on a twisted roller (lateral transport):
     the edge margin starts at 1 mm, falls, and the CLI names the roller and the step where it

@@ -84,7 +84,6 @@ def test_another_dt_or_misalignment_does_not_compile_again(case, one_d, two_d):
     assert float(jnp.max(jnp.abs(runs[2].tracer_u - runs[1].tracer_u))) > 1e-9
 
 
-@pytest.mark.slow
 def test_dt_traced_under_jit_equals_the_eager_run_and_has_a_gradient(one_d):
     """``dt`` as a traced value inside ``jax.jit`` gives the eager call's trajectory, and reverse
     mode w.r.t. ``dt`` matches central differences."""
@@ -128,7 +127,6 @@ def test_every_registered_solver_runs_and_agrees_with_dense(one_d, dense_run, in
     np.testing.assert_allclose(np.asarray(tr.roller_velocity), np.asarray(tr_ref.roller_velocity), rtol=1e-10, atol=1e-10)
 
 
-@pytest.mark.slow
 def test_run_options_from_scene():
     """:meth:`jaxbelt.RunOptions.from_scene` reads ``[time]``, ``[output]`` and ``[solver]`` (the
     adjoint's checkpointing is the default), and ``simulate(model, **options)`` runs with them."""
@@ -179,7 +177,6 @@ def test_bad_run_settings_are_refused(one_d):
         jb.make_solver("direct", "lu")
 
 
-@pytest.mark.slow
 def test_import_changes_no_process_setting():
     """``import jaxbelt`` in a fresh interpreter leaves JAX in float32 and the BLAS threads alone;
     :func:`jaxbelt.enable_x64` switches float64 on."""
@@ -199,7 +196,6 @@ def translated():
     return load("two-roller-1d-idle-translated", n_steps=205, saveat=jb.SaveAt(every=5))
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("solver", [jb.make_solver(), jb.make_solver("direct", jb.Reuse(refine=0), transport="source")],
                          ids=["kept-interior", "reuse"])
 def test_progress_bar_run_equals_one_call(translated, solver):

@@ -59,7 +59,6 @@ def test_dt_just_below_the_cfl_limit_runs_and_just_above_is_rejected():
         jb.simulate(model, opts.solver, n_steps=opts.n_steps, dt=1.01 * dt_max)
 
 
-@pytest.mark.slow
 def test_nonfinite_state_stops_with_step_and_cause():
     model, opts = load(scene_1d(time={"t_end_s": 0.1}))
     run = dict(solver=opts.solver, dt=opts.dt)
@@ -78,7 +77,6 @@ def test_nonfinite_state_stops_with_step_and_cause():
     assert not np.any(np.asarray(tr.nonfinite))
 
 
-@pytest.mark.slow
 def test_long_run_keeps_mass_and_mean_displacement():
     """10 000 steps (50 s; the 100 000-step version is marked slow): no drift of the belt mass or
     of the mean tracer displacement once the belt has settled."""
@@ -90,7 +88,6 @@ def test_long_run_keeps_mass_and_mean_displacement():
     assert np.ptp(mean_u[len(mean_u) // 2:]) < 1e-9  # m
 
 
-@pytest.mark.slow
 def test_100000_steps_keep_mass_and_mean_displacement():
     model, opts = load(scene_1d(time={"t_end_s": 500.0}, output={"every": 500}))
     _, tr = jb.simulate(model, **opts)
@@ -216,7 +213,6 @@ def test_rotation_beyond_the_linear_range_is_refused_and_near_it_warned():
         assert len(hits) == (outcome == "warn")
 
 
-@pytest.mark.slow
 def test_linearity_error_grows_with_the_skew_as_measured():
     """The figure behind the range: on a coarse three-roller the skew response's linearity error at
     10 mrad is 0.3–1 % and at 1 mrad ten times smaller."""
@@ -240,7 +236,6 @@ def test_linearity_error_grows_with_the_skew_as_measured():
 
 # --- float32 and the reduced models at the edges -------------------------------------------------
 
-@pytest.mark.slow
 def test_float32_end_to_end_error_is_small():
     """Without :func:`jaxbelt.enable_x64` the whole model runs in float32 (a subprocess: x64 is
     process-wide); on two-roller-1d-train1 over 400 steps the tracers differ from float64 by
@@ -278,7 +273,6 @@ def _linear_trajectory(n=8, m=60, seed=1, growth=None):
     return A, lam, X
 
 
-@pytest.mark.slow
 def test_dmd_on_duplicated_rank_deficient_and_noisy_snapshots():
     from jaxbelt.rom import fit_dmd
 
@@ -338,8 +332,7 @@ def t72_default_grid():
     return _t72_run(18)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("n_eta", [2, pytest.param(33, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("n_eta", [2, 33])
 def test_very_coarse_and_very_fine_grids_across_the_width(n_eta, t72_default_grid):
     """three-roller-t72 with 2 and 33 points across (N = 1266 … 6882), 20 steps: finite, mass
     conserved, and the tracers within 10 % of the default 18-point grid's (the corner-limited
@@ -376,7 +369,6 @@ def test_small_time_steps_converge_from_a_running_start():
     assert gaps[1] < 0.15 * gaps[0] and gaps[2] < 0.15 * gaps[1], gaps
 
 
-@pytest.mark.slow
 def test_small_time_steps_converge_from_a_running_start_in_2d():
     """The misaligned 2D machine (``three-roller-t72``) from a running start: Δt, Δt/10 and Δt/100
     (Courant 0.77 down to 7.7e-3) differ by a tenth as much at each level over 0.2 s, and every

@@ -21,10 +21,10 @@ def test_weights_are_exact_linear_interpolation_of_displaced_positions():
     x = jnp.concatenate([jnp.zeros(1), jnp.cumsum(ell)[:-1]])
     for i in range(4):
         if fwd[i, 0]:
-            j, L = (i - 1) % 4, ell[(i - 1) % 4]
+            j = (i - 1) % 4
             pos_j = x[j] - (ell.sum() if j > i else 0) + u[j, 0]
         else:
-            j, L = (i + 1) % 4, ell[i]
+            j = (i + 1) % 4
             pos_j = x[j] + (ell.sum() if j < i else 0) + u[j, 0]
         pos_i = x[i] + u[i, 0]
         # the grid point x_i is the point a of the way from material point i to j
@@ -59,13 +59,11 @@ def test_shift_transport_reaches_analytic_steady_strain():
         assert w[1] == pytest.approx(w[0], rel=1e-9)
 
 
-@pytest.mark.slow
 def test_shift_transport_mesh_independent():
     eps, _ = _steady_strain("shift", 0.00125, refine=2)
     np.testing.assert_allclose(eps[0], 1e-3 / (0.275 + np.pi * 0.05), rtol=1e-9)
 
 
-@pytest.mark.slow
 def test_source_transport_depends_on_dt():
     """eq. 3.56 as written: the steady strain drifts with Δt (numbers quoted in jaxbelt.transport)."""
     eps5, w5 = _steady_strain("source", 0.005)
@@ -75,7 +73,6 @@ def test_source_transport_depends_on_dt():
     assert abs(w5[1] / w5[0] - 1) < 1e-3  # still within the 0.1 % speed tolerance at 1 mm
 
 
-@pytest.mark.slow
 def test_plain_interpolation_on_arcs_erases_a_translation(monkeypatch):
     """Why the arcs carry w = u - R_r χ: interpolating u itself (eq. 3.55) lets the span strain
     of a translated idle roller decay to zero; with the roller-relative transport it persists."""

@@ -383,7 +383,6 @@ def test_support_loads_span_tension_and_drive_torque_1d(statics_1d, name):
     assert r["impulse"] == pytest.approx(r["impulse_hand"], rel=1e-5)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("name", ["three-roller", "three-roller-tension"])
 def test_support_loads_and_drive_torque_2d(statics_2d, name):
     r = statics_2d[name]
@@ -453,7 +452,6 @@ def lateral():
     return {eps0: run_lateral(eps0) for eps0 in (0.0, 1e-3)}  # 400 steps: 3.2 loops at 1 m/s
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("eps0", [0.0, 1e-3])
 def test_lateral_translation_static_span_is_a_clamped_guided_beam(lateral, eps0):
     r = lateral[eps0]
@@ -464,7 +462,6 @@ def test_lateral_translation_static_span_is_a_clamped_guided_beam(lateral, eps0)
     assert r["support"][0] == pytest.approx(r["support_hand"], rel=0.02)  # first step: still the static field
 
 
-@pytest.mark.slow
 def test_lateral_translation_running_default_variant_carries_the_rotation(lateral):
     r = lateral[0.0]
     on_roller, span1, span2 = r["running"]
@@ -475,7 +472,6 @@ def test_lateral_translation_running_default_variant_carries_the_rotation(latera
     assert r["support"][-1] == pytest.approx(r["support"][0], rel=0.01)  # same end shear: ξ³ term −2 d
 
 
-@pytest.mark.slow
 def test_lateral_translation_with_lateral_transport_straightens_the_belt():
     r = run_lateral(lateral_transport=True, n_steps=1500)  # 12 loops
     assert np.ptp(r["history"][-1]) < 0.02  # straight: an axially translated cylinder does not steer
@@ -521,20 +517,17 @@ def t72_runs():
     return {key: t72_tracers(*key) for key in ((3, 0.02), (3, 0.01), (3, 0.005), (5, 0.02), (9, 0.02))}
 
 
-@pytest.mark.slow
 def test_convergence_order_in_dt_is_one(t72_runs):
     p_u, p_v = observed_orders([t72_runs[3, dt] for dt in (0.02, 0.01, 0.005)])
     assert abs(p_u - 1) < 0.1 and abs(p_v - 1) < 0.1
 
 
-@pytest.mark.slow
 def test_convergence_order_in_n_eta_is_corner_limited(t72_runs):
     p_u, p_v = observed_orders([t72_runs[n, 0.02] for n in (3, 5, 9)])
     for p in (p_u, p_v):
         assert 2 * LAMBDA_CORNER - 0.35 < p < 2.1
 
 
-@pytest.mark.slow
 def test_convergence_order_in_n_xi_at_fixed_courant_number():
     p_u, p_v = observed_orders([t72_tracers(3, 0.02 * 104 / n, n) for n in (208, 416, 832)])
     for p in (p_u, p_v):

@@ -3,7 +3,6 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
 import jaxbelt as jb
 from helpers import load, scene_with
@@ -22,7 +21,6 @@ def test_vmap_over_translations_equals_loop():
         np.testing.assert_allclose(np.asarray(batched[k]), np.asarray(run(ts[k])), rtol=1e-12, atol=1e-16)
 
 
-@pytest.mark.slow
 def test_vmap_2d_over_four_misalignments():
     model, opts = load(scene_with(lambda d: d["mesh"].update(n_eta=3), "three-roller"))
     rots = jnp.array([[0.0, 0.0], [4e-4, 0.0], [0.0, -3e-4], [2e-4, 2e-4]])
@@ -38,7 +36,6 @@ def test_vmap_2d_over_four_misalignments():
         np.testing.assert_allclose(np.asarray(batched[k]), np.asarray(run(rots[k])), rtol=1e-10, atol=1e-15)
 
 
-@pytest.mark.slow
 def test_vmap_over_time_steps_equals_loop():
     """``dt`` is traced: a batch of time steps runs as one program and gives the separate runs."""
     model, opts = load("two-roller-1d")

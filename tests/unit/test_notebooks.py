@@ -40,7 +40,6 @@ def execute(path, capsys) -> dict:
     return namespace
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_executes(path, capsys, monkeypatch):
     monkeypatch.setenv("JAXBELT_NOTEBOOK_SMALL", "1")
@@ -50,7 +49,6 @@ def test_notebook_executes(path, capsys, monkeypatch):
         assert namespace["N_ETA"] == 2
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_executes_full_size(path, capsys, monkeypatch):
     monkeypatch.delenv("JAXBELT_NOTEBOOK_SMALL", raising=False)

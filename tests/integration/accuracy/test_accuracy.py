@@ -45,7 +45,6 @@ def _true_error_um(scene):
     return float(np.max(np.abs(own.u - fu)) * 1e6), tv
 
 
-@pytest.mark.slow
 def test_estimate_1d_bounds_the_error_within_a_factor_of_three(scene_1d, estimate_1d):
     est = estimate_1d
     assert est.lateral_um is None and {d.direction for d in est.directions} == {"n_xi", "dt"}
@@ -59,7 +58,6 @@ def test_estimate_1d_bounds_the_error_within_a_factor_of_three(scene_1d, estimat
     assert set(d) >= {"longitudinal", "lateral", "dominant", "orders"} and d["orders"]["dt"] is not None
 
 
-@pytest.mark.slow  # ~25 s: seven 2D grids and the 4× refined one (benchmarks/error_estimate.py runs eleven such cases)
 def test_estimate_2d_with_a_walking_belt():
     scene = scene_with(_walking_2d)
     est = estimate_error(scene)
@@ -69,7 +67,6 @@ def test_estimate_2d_with_a_walking_belt():
     assert 1.0 <= est.lateral_um / true_v <= 3.0
 
 
-@pytest.mark.slow
 def test_chosen_grid_meets_the_accuracy_and_is_verified(scene_1d, estimate_1d):
     target = 0.5 * estimate_1d.longitudinal_um
     c = choose_grid(scene_1d, target, allow_float32=True)
@@ -110,7 +107,6 @@ def test_unreachable_accuracy_names_the_best_reachable(scene_1d):
             choose_grid(scene_1d, bad)
 
 
-@pytest.mark.slow
 def test_cli_error_estimate_and_accuracy(tmp_path, capsys):
     path = tmp_path / "short.toml"
     path.write_text('extends = "two-roller-1d"\n[time]\ndt_s = 0.005\nt_end_s = 0.05\n')
@@ -133,7 +129,6 @@ def test_scene_accuracy_key():
             scene_with(lambda d, b=bad: d.setdefault("solver", {}).update(accuracy_um=b))
 
 
-@pytest.mark.slow
 def test_info_says_what_the_program_decides(tmp_path, capsys):
     path = tmp_path / "acc.toml"
     path.write_text('extends = "two-roller-1d"\n[solver]\naccuracy_um = 50.0\nlinear_solver = "reuse"\n')
@@ -165,7 +160,6 @@ def _max_diff_um(a, b):
     return 1e6 * float(np.max(np.abs(np.asarray(a.tracer_u, np.float64) - np.asarray(b.tracer_u, np.float64))))
 
 
-@pytest.mark.slow
 def test_symmetric_2d_scene_runs_its_1d_counterpart_with_the_model_difference_measured():
     s2 = scene_with(_symmetric_2d)
     c = choose_grid(s2, 1e3, allow_1d=True)  # loose: the 1D grid is the scene's own

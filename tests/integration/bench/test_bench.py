@@ -40,7 +40,6 @@ def test_superlu_baseline_reproduces_jaxbelt_on_a_small_scene():
     assert all(np.isfinite(v) and v > 0 for v in out["ms_per_step"].values())
 
 
-@pytest.mark.slow
 def test_timed_programs_give_the_results_of_simulate():
     from jaxbelt.bench import timing
 

@@ -48,7 +48,6 @@ def test_scenes_lists_builtins(capsys):
     assert "two-roller-1d " in out and "two-roller-1d-train1" in out
 
 
-@pytest.mark.slow
 def test_simulate_writes_npz_plot_and_json(tmp_path, capsys):
     out, png = tmp_path / "run.npz", tmp_path / "run.png"
     rc = main(["simulate", "two-roller-1d-train2", "--t-end", "0.28", "--out", str(out), "--plot", str(png), "--json"])
@@ -62,7 +61,6 @@ def test_simulate_writes_npz_plot_and_json(tmp_path, capsys):
     assert png.stat().st_size > 10_000
 
 
-@pytest.mark.slow
 def test_simulate_integrator_and_dt_options(capsys):
     assert main(["simulate", "two-roller-1d", "--t-end", "0.018", "--dt", "0.002", "--integrator", "naive", "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
@@ -89,7 +87,6 @@ def test_bad_input_exits_nonzero_with_message(argv, fragment, capsys):
     assert fragment in err and "Traceback" not in err
 
 
-@pytest.mark.slow
 def test_bad_scene_file_no_traceback(tmp_path):
     from importlib import resources
 

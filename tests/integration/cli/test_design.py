@@ -36,7 +36,6 @@ def _json(capsys, argv):
     return json.loads(capsys.readouterr().out)
 
 
-@pytest.mark.slow
 def test_sensitivity_json_and_plot(files, capsys):
     r = _json(capsys, ["sensitivity", str(files / "small.toml"), "--metric", "lateral_max", "--solver", "reuse",
                        "--json", "--plot", str(files / "s.png")])
@@ -91,7 +90,6 @@ def test_sweep_json_store_and_resume(files, capsys):
     assert again["yield"] == r["yield"] and "discretisation" not in again
 
 
-@pytest.mark.slow
 def test_sweep_form_from_the_study_linearisation_equals_a_plain_study(files, capsys):
     """``sweep`` with FORM takes the Jacobian with its study (``make_study(..., jacobian=True)``):
     its FORM index and RSS stack-up equal those of the library on a plain study, whose Jacobian is

@@ -81,7 +81,6 @@ def test_a_configuration_outside_the_training_ones_is_named(held_out):
     assert len(outside) == 1 and outside[0].startswith("rate of az of 'drive'") and "trained over [10, 10]" in outside[0]
 
 
-@pytest.mark.slow
 def test_pod_multi_configuration_with_indicator(held_out, capsys):
     r = _reduce([held_out, "--method", "pod", *TRAIN, *SHORT, "--modes", "20", "--stride", "20"], capsys)
     _check_common(r, "pod")
@@ -169,7 +168,6 @@ rotation_mrad = [0.5, 0.0, 0.0]
 """
 
 
-@pytest.mark.slow
 def test_pdmd_2d_trains_from_the_step_after_the_start_up(tmp_path, capsys):
     """2D parametric DMD: the per-configuration DMDs start at step 1 (the start-up jump from the
     static state is no linear recurrence of the later states). On this coarse belt (idle roller

@@ -16,7 +16,6 @@ def _json(capsys, argv):
     return json.loads(capsys.readouterr().out)
 
 
-@pytest.mark.slow
 def test_tolerance_in_steady_operation(capsys):
     # the scene's drive is skewed 0.15 mrad: 35 µm of steady deviation before any tolerance
     r = _json(capsys, ["tolerance", SCENE, "--limit-um", "60", "--components", "idle:rotation,drive:dx",

@@ -2,12 +2,10 @@
 
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
 from jaxbelt import design
 
 
-@pytest.mark.slow
 def test_metrics_are_zero_for_the_aligned_machine_and_match_their_definitions(study):
     du, dv = design.tracer_deviation(study, jnp.zeros(study.space.size))
     k = study.n_steps - 1

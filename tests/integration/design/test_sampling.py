@@ -8,7 +8,6 @@ from jaxbelt import design
 from jaxbelt.design import sampling
 
 
-@pytest.mark.slow
 def test_monte_carlo_equals_a_brute_force_loop(study, metric_fn, dist, chunk):
     limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
     mc = design.monte_carlo(study, dist, 12, limit, seed=5, chunk=chunk)  # two chunks, the last padded
@@ -55,7 +54,6 @@ def limit_13(study, dist, chunk):
     return limit, design.monte_carlo(study, dist, 400, limit, seed=11, chunk=chunk)
 
 
-@pytest.mark.slow
 def test_form_and_importance_sampling_agree_with_monte_carlo(study, limit_13, dist, chunk):
     limit, mc = limit_13
     f = design.form(study, dist, limit)
@@ -65,7 +63,6 @@ def test_form_and_importance_sampling_agree_with_monte_carlo(study, limit_13, di
     assert is_.ci95[0] - 0.03 <= mc.yield_ <= is_.ci95[1] + 0.03
 
 
-@pytest.mark.slow
 def test_monte_carlo_and_form_match_openturns(study, metric_fn, limit_13, dist):
     """The same limit state (metric > limit under the same input laws) through OpenTURNS' FORM
     (Abdo–Rackwitz) and its Monte Carlo."""

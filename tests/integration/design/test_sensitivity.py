@@ -3,7 +3,6 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 from helpers import coarse, load
 
 from jaxbelt import design
@@ -19,7 +18,6 @@ def _fd_check(study, theta, h):
     return grad
 
 
-@pytest.mark.slow
 def test_gradient_2d_drive_idle_tension_translations_and_rotations():
     """Roller 1 drives, roller 2 is a tension roller (pulled along x), roller 3 idles.
 
@@ -36,14 +34,12 @@ def test_gradient_2d_drive_idle_tension_translations_and_rotations():
     assert float(jnp.min(jnp.abs(grad))) > 0
 
 
-@pytest.mark.slow
 def test_gradient_1d_translations():
     model, opts = load("two-roller-1d-idle-translated")
     st = design.make_study(model, "longitudinal_rms", opts, t_eval=0.1)
     _fd_check(st, jnp.zeros(st.space.size), 1e-4)
 
 
-@pytest.mark.slow
 def test_jacobian_forward_matches_the_reverse_gradient(study):
     """Forward-mode Jacobian J of the response r and the reverse-mode gradient of RMS(r) agree
     through the chain rule: ∇ = Jᵀ r / (n · RMS)."""

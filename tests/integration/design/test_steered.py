@@ -55,7 +55,6 @@ def _batch(rows):
     return th
 
 
-@pytest.mark.slow
 def test_window_and_reference(study):
     assert study.steered and study.window == 20 and study.t_window == pytest.approx((1.6, 2.0))
     assert study.range_mrad == pytest.approx(3.0)
@@ -65,7 +64,6 @@ def test_window_and_reference(study):
     assert 0 < out["steering_mrad"][0] < 0.1  # the loop answers the sensor noise and the edge profile
 
 
-@pytest.mark.slow
 def test_closed_loop_metrics_are_linear_below_saturation(study):
     rows = [[0.0, 0.0], [0.05, 0.0], [0.1, 0.0], [0.0, 0.02], [0.0, 0.04]]
     out = design.evaluate_configs(study, _batch(rows), CHUNK)
@@ -78,7 +76,6 @@ def test_closed_loop_metrics_are_linear_below_saturation(study):
     assert s[2] - s[0] == pytest.approx(2 * (s[1] - s[0]), rel=0.05)
 
 
-@pytest.mark.slow
 def test_box_with_several_limits_verified_by_closed_loop_runs(study, linear):
     box = design.tolerance_box(study, 20.0, limits={"longitudinal_max": 20.0, "steering_max": 3.0}, linear=linear)
     assert box.verified and 0.97 * 20 <= box.worst_case_um <= 20
@@ -167,7 +164,6 @@ def test_study_with_its_jacobian_predicts_full_runs(study, linear):
     np.testing.assert_allclose(full, predicted, rtol=1e-3)
 
 
-@pytest.mark.slow
 def test_study_with_its_jacobian_equals_a_study_and_then_its_jacobian(study, linear):
     """``make_study(..., jacobian=True)`` on the aligned machine: one forward-mode run gives the
     reference (its primal) and the derivatives; the linear response read from them, with several
@@ -199,7 +195,6 @@ def test_study_with_its_jacobian_equals_a_study_and_then_its_jacobian(study, lin
                                                                      rel=1e-9, abs=1e-12)
 
 
-@pytest.mark.slow
 def test_response_surface_stands_in_with_the_loop_closed(study):
     """``--rom auto`` on the steered machine: the surrogate, trained and validated by closed-loop
     runs, predicts the metric and the actuator angle of fresh configurations as the full runs do."""

@@ -10,7 +10,6 @@ import jaxbelt as jb
 from jaxbelt import design
 
 
-@pytest.mark.slow
 def test_parameter_space_excludes_structural_zeros(model2d):
     sp = design.parameter_space(model2d)
     assert sp.size == 15 and all(not lab.endswith(":az") for lab in sp.labels())

@@ -42,13 +42,11 @@ def pod_surrogate(study, dist):
     return fit_surrogate(study, dist, LIMIT, seed=3, method="pod")
 
 
-@pytest.mark.slow
 def test_training_runs_are_nominal_and_plus_minus_the_spread(dist):
     th = training_configurations(dist)
     np.testing.assert_allclose(th, [[0, 0], [0.3, 0], [-0.3, 0], [0, 0.2], [0, -0.2]])
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("which", ["surrogate", "pod_surrogate"])
 def test_validation_record(which, request):
     sur = request.getfixturevalue(which)
@@ -67,7 +65,6 @@ def test_validation_record(which, request):
     json.dumps(v.to_dict())
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("which", ["surrogate", "pod_surrogate"])
 def test_metric_within_its_bound_of_the_full_metric_on_fresh_samples(study, dist, which, request):
     sur = request.getfixturevalue(which)
@@ -82,7 +79,6 @@ def test_metric_within_its_bound_of_the_full_metric_on_fresh_samples(study, dist
     assert np.max(np.abs(pred["lateral_um"] - full["lateral_um"])) < 1e-2 * LIMIT
 
 
-@pytest.mark.slow
 def test_response_surface_reproduces_its_training_runs(study, dist, surrogate):
     train = training_configurations(dist)
     full = sampling.evaluate_configs(study, train, 64)
@@ -129,7 +125,6 @@ def test_sweep_with_rom_auto_matches_the_full_model_yield(study, dist):
     np.testing.assert_array_equal(auto.metric_values <= LIMIT, off.metric_values <= LIMIT)
 
 
-@pytest.mark.slow
 def test_sweep_falls_back_to_full_runs_when_the_bound_is_too_large(study, dist, surrogate):
     limit = 2 * surrogate.bound_um  # the bound is half of this limit: not trusted
     res = design.run_sweep(study, dist, 12, limit, seed=0, rom="auto", with_form=False)

@@ -8,7 +8,6 @@ from jaxbelt import design
 from jaxbelt.infra.store import load_sweep
 
 
-@pytest.mark.slow
 def test_sweep_store_resumes_and_extends(study, tmp_path, dist, chunk):
     limit = 1.1 * float(design.metric_value(study, jnp.zeros(4)))
     out = tmp_path / "sweep.zarr"

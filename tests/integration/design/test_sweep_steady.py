@@ -43,7 +43,6 @@ def test_steady_sweep_linear_response_agrees_with_steady_solves(steady_study):
     assert np.max(np.abs(full - res.metric_values[pick])) <= res.rom.validation.max_bound_um
 
 
-@pytest.mark.slow
 def test_sequential_batch_and_jacobian_equal_the_batched_ones(steady_study):
     """:func:`jaxbelt.steady.map_configurations` and :func:`jaxbelt.steady.forward_jacobian` give
     what ``vmap`` and ``jacfwd`` give (they only order the solves differently)."""

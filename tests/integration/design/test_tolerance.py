@@ -1,13 +1,11 @@
 """The tolerance box of a study, verified by full runs (jaxbelt.design.tolerance)."""
 
 import numpy as np
-import pytest
 from helpers import load
 
 from jaxbelt import design
 
 
-@pytest.mark.slow
 def test_box_on_the_default_scene_is_verified_by_full_runs():
     """The full-size scene (slow). Fast: the same box and verification on the coarse scene,
     through the CLI (tests/integration/cli/test_design.py::test_tolerance_json)."""

@@ -110,7 +110,6 @@ def _env(**extra):
     return env
 
 
-@pytest.mark.slow
 def test_batched_map_over_four_cpu_devices_equals_vmap():
     env = _env(XLA_FLAGS=_devices(4))
     r = subprocess.run([sys.executable, "-c", FOUR_DEVICES], env=env, capture_output=True,
@@ -124,7 +123,6 @@ def _free_port():
         return s.getsockname()[1]
 
 
-@pytest.mark.slow  # two worker processes; the sharded map itself runs in test_batched_map_over_four_cpu_devices_equals_vmap
 def test_distributed_map_two_processes_equals_single_process(tmp_path):
     port = _free_port()
     procs = []

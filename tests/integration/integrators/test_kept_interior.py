@@ -30,7 +30,6 @@ def _random_bordered(rng, n=7, b=4, q=5):
                                C=g(n, b, q), D=g(n, q, b), E=g(q, q) + 8 * jnp.eye(q))
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("method", ["thomas", "cyclic-reduction"])
 def test_refactorise_border_is_the_exact_factorisation(method):
     rng = np.random.default_rng(3)
@@ -96,7 +95,6 @@ def moved(walking, dt):
     return jax.jit(lambda m: run(m, FullFactorisation(), jb.initial_state(m), dt, 4)[0])(walking)
 
 
-@pytest.mark.slow
 def test_lever_columns_and_dynamic_rows(walking):
     cols, rows = lever_columns(walking)
     d = len(walking.dofs)
@@ -129,7 +127,6 @@ def test_kept_factors_solve_as_a_full_factorisation(walking, dt, moved):
     assert float(jnp.max(jnp.abs(frozen - dense))) > 1e-8 * scale  # the test can fail
 
 
-@pytest.mark.slow
 def test_run_equals_a_full_factorisation_every_step(walking, dt):
     """The kept interior against the full factorisation of every step's matrix, over a run whose
     lever arms move."""
@@ -147,7 +144,6 @@ def test_run_equals_a_full_factorisation_every_step(walking, dt):
     assert float(jnp.max(jnp.abs(s_full.u[:, 1::2] - s0.u[:, 1::2]))) > 1e-7
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("border", ["green", "sweep"])
 def test_border_first_run_equals_a_full_factorisation_every_step(drifting, dt, border):
     """Prescribed tilts: the kept factors, border first (the default) or sweeping the tilt columns,
@@ -176,7 +172,6 @@ def test_border_first_run_equals_a_full_factorisation_every_step(drifting, dt, b
     assert float(jnp.max(jnp.abs(s_full.u[:, 1::2] - s0.u[:, 1::2]))) > 1e-7  # the lever arms did move
 
 
-@pytest.mark.slow
 def test_gradient_through_the_kept_interior(walking, dt, moved):
     """Reverse mode through one step (its adjoint solve is the transposed kept-interior solve)
     equals reverse mode through the full factorisation."""
@@ -200,7 +195,6 @@ def test_gradient_through_the_kept_interior(walking, dt, moved):
     assert float(jnp.max(jnp.abs(g_full))) > 0
 
 
-@pytest.mark.slow
 def test_reuse_factors_come_from_the_start_state_of_the_run(walking, dt, moved):
     """:class:`jaxbelt.Reuse` factors the matrix of the state a run starts from (its ``init``,
     inside the run): without refinement, its first step from a state whose lever arms have moved
@@ -216,7 +210,6 @@ def test_reuse_factors_come_from_the_start_state_of_the_run(walking, dt, moved):
     assert float(jnp.max(jnp.abs(stale.u_dot - exact.u_dot))) > 1e-9 * scale  # the test can fail
 
 
-@pytest.mark.slow
 def test_source_transport_factors_every_step(walking, dt):
     s0 = jb.initial_state(walking)
     assert DirectBackwardEuler(KeptInterior(), transport="source").init(walking, s0, dt).linear is None
@@ -224,7 +217,6 @@ def test_source_transport_factors_every_step(walking, dt):
     assert FullFactorisation().init(walking, s0, dt).linear is None
 
 
-@pytest.mark.slow
 def test_stencil_product_equals_the_block_product(walking):
     from jaxbelt.assembly import free_belt_matvec, free_belt_stencil, stencil_matvec
 
@@ -240,7 +232,6 @@ def test_stencil_product_equals_the_block_product(walking):
     assert free_belt_stencil(jb.build_model(jb.load_scene("two-roller-1d"))) is None
 
 
-@pytest.mark.slow
 def test_roller_loads_on_the_contact_columns_equal_the_full_product(walking, dt):
     from jaxbelt.timeloop import make_step
 
@@ -265,7 +256,6 @@ def _random_interior(rng, breaks, b, w=None, shift=8.0):
     return diag, lower, upper
 
 
-@pytest.mark.slow
 def test_chained_sweeps_equal_the_plain_ones_and_their_transpose():
     """Blocks with zero couplings break the chain: the rearranged sweeps give the same solve,
     and its transpose (the adjoint solve) equals the plain one's."""
@@ -367,7 +357,6 @@ def test_sweeps_restricted_to_the_columns_a_chain_can_see_equal_the_full_sweeps(
         np.testing.assert_allclose(np.asarray(tr_restricted)[sel], np.asarray(tr_full)[sel], rtol=0, atol=1e-14)
 
 
-@pytest.mark.slow
 def test_contact_structure_narrows_block_0s_columns_and_solves_exactly():
     """With the roller columns known, ``T⁻¹`` of block 0's border columns is kept on the free
     spans next to block 0 only, and the roller rows' couplings on the roller columns and their

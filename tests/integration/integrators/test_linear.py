@@ -90,7 +90,6 @@ def test_lever_columns_are_the_tilts_in_2d(step_case):
 
 
 
-@pytest.mark.slow
 def test_chained_sweeps_batch_under_vmap():
     """The chained Thomas sweeps (the kept and frozen factors' interior) under ``vmap`` over the
     factors themselves, chains of equal length run side by side (2-D block-index tables): each
@@ -121,7 +120,6 @@ def test_chained_sweeps_batch_under_vmap():
         np.testing.assert_allclose(np.asarray(batched[i]), np.asarray(plain), rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.slow
 def test_reuse_runs_under_vmap_over_misalignments(step_case):
     """Each configuration factors its own first step inside the batched run; in 2D a tilt changes
     the factors, so the chained interior's block gathers are batched too."""

@@ -21,7 +21,6 @@ def state4(m, dt):
     return jb.simulate(m, n_steps=9, dt=dt)[0]
 
 
-@pytest.mark.slow
 def test_factor_solve_equals_structured_solve(m, dt):
     s = jb.initial_state(m)
     K, M = dae_matrices(m, s.m_e, roller_R(m, s.u))

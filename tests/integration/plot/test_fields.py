@@ -58,7 +58,6 @@ def _closed(a):
     return np.concatenate([a, a[..., :1]], axis=-1)
 
 
-@pytest.mark.slow
 def test_plot_fields_2d_draws_the_simulated_fields(run2d):
     _, _, model, _, traj = run2d
     t, u = np.asarray(traj.t), np.asarray(traj.u)

@@ -48,7 +48,6 @@ def test_proctor_form_matches_pydmd():
     assert np.allclose(np.asarray(d.B_full), ref.B, atol=1e-10)
 
 
-@pytest.mark.slow
 def test_interpolation_weights_reproduce_affine_functions():
     P = jnp.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 1.0]])
     mu = jnp.array([0.3, 0.7])
@@ -59,7 +58,6 @@ def test_interpolation_weights_reproduce_affine_functions():
     assert np.isclose(float(w @ f), float(mu @ jnp.array([2.0, -1.0]) + 5.0))
 
 
-@pytest.mark.slow
 def test_gradient_through_dmdc_fit_and_prediction():
     A, B, X, U = _linear_system(seed=5, n=5, l=1, m=30)
     X, U = jnp.asarray(X), jnp.asarray(U)
@@ -112,7 +110,6 @@ def test_dmdc_predicts_a_held_out_misalignment(belt):
     assert err_plain > 0.02
 
 
-@pytest.mark.slow
 def test_parametric_dmd_predicts_a_held_out_misalignment_and_speed(belt):
     runs, Cz, n = belt
     trajs = [z for _, z in runs.values()]
@@ -124,7 +121,6 @@ def test_parametric_dmd_predicts_a_held_out_misalignment_and_speed(belt):
     assert float(rmse(_truth(test, n), pred)) * 1e3 < 0.02
 
 
-@pytest.mark.slow
 def test_parametric_dmd_with_a_given_basis_equals_its_own_svd():
     """``basis=`` (one SVD reused over a rank study) gives the model of the SVD the fit would do."""
     rng = np.random.default_rng(3)

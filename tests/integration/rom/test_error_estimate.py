@@ -83,7 +83,6 @@ def test_error_rom_vanishes_on_a_full_order_trajectory(setup):
     assert est.error.shape == (40, m.n_tracers) and est.cost.full_steps == 41
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("r", [10, 20])
 def test_pod_effectivity_on_a_held_out_configuration(pod, r):
     p = pod[r]
@@ -103,14 +102,12 @@ def test_pod_effectivity_on_a_held_out_configuration(pod, r):
     assert cost.quasi_static_iterations <= 40
 
 
-@pytest.mark.slow
 def test_estimate_ranks_models_and_flags_the_one_above_tolerance(pod):
     est = {r: pod[r]["cal"].safety_factor * pod[r]["est"].rmse_um for r in pod}
     assert pod[10]["true_um"] > 20 > pod[20]["true_um"]
     assert est[10] > 20 > est[20]
 
 
-@pytest.mark.slow
 def test_dmdc_effectivity_on_a_held_out_configuration(setup):
     ms, runs, Cz = setup["ms"], setup["runs"], setup["Cz"]
     post = [r[2] for r in runs]
@@ -194,7 +191,6 @@ def test_safety_factor_rule():
     assert safety_factor([np.nan]) == pytest.approx(1.5)  # a calibration case without error says nothing
 
 
-@pytest.mark.slow
 def test_the_triangle_inequality_indicator_errs_high_by_far_more(setup, pod):
     """The sum of one-step residuals (kept for comparison): zero on a full-order trajectory, but
     tens of times the true error of a reduced one, where the error ROM is within 25 %."""
@@ -204,7 +200,6 @@ def test_the_triangle_inequality_indicator_errs_high_by_far_more(setup, pod):
     assert old > 10 * pod[20]["true_max_um"]
 
 
-@pytest.mark.slow
 def test_snapshot_rule_stops_when_new_data_are_predicted():
     m = jb.load_model("two-roller-1d-train1")
     C = tracer_operator(m)

@@ -10,7 +10,6 @@ from jaxbelt.integrators import eliminated_system
 from jaxbelt.rom.modal import forcing_order, modal_basis
 
 
-@pytest.mark.slow
 def test_modes_solve_the_generalised_eigenproblem_and_half_are_unforced():
     m, opts = load("two-roller-1d-train1")
     s, _ = jb.simulate(m, n_steps=200, dt=opts.dt)
@@ -32,7 +31,6 @@ def test_modes_solve_the_generalised_eigenproblem_and_half_are_unforced():
     assert np.abs(np.asarray(Phi.T @ force))[first] / omega[first] >= np.max(np.abs(np.asarray(Phi.T @ force)) / np.asarray(omega)) * (1 - 1e-12)
 
 
-@pytest.mark.slow
 def test_modal_integrator_with_all_modes_is_the_full_model_and_converges_with_modes():
     from jaxbelt.rom import fit_modal, rmse
 
@@ -50,8 +48,6 @@ def test_modal_integrator_with_all_modes_is_the_full_model_and_converges_with_mo
 
 
 def test_fit_modal_rejects_bad_input():
-    import pytest
-
     from jaxbelt.rom import fit_modal
 
     m, opts = load("two-roller-1d-train1")

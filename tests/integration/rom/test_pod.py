@@ -37,7 +37,6 @@ def test_pod_with_all_modes_reproduces_the_full_model(train1):
     assert float(jnp.max(jnp.abs(tr.tracer_u - ref.tracer_u))) < 1e-12
 
 
-@pytest.mark.slow
 def test_pod_error_decreases_with_modes_and_reaches_tolerance(train1):
     m, dt, state, X, ref = train1
     errs = []

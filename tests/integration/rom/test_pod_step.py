@@ -27,7 +27,6 @@ def _predict(rom, model, n=N_TEST):
     return rom.run(rom.project(model, jb.initial_state(model)), parameters(model), n)
 
 
-@pytest.mark.slow
 def test_full_basis_reproduces_the_full_model_exactly():
     # in 1D the solve is affine and the transport bilinear: the projection with V = I is exact
     m = jb.load_model("two-roller-1d-train1")
@@ -39,7 +38,6 @@ def test_full_basis_reproduces_the_full_model_exactly():
     assert float(jnp.max(jnp.abs(out.tracer_u_solved - ref.tracer_u_solved))) < 1e-12
 
 
-@pytest.mark.slow
 def test_single_configuration_error_falls_with_modes_and_meets_tolerance(runs):
     m, Z = runs["two-roller-1d-train1"]
     _, ref = jb.simulate(m, n_steps=N_TEST, dt=DT)  # 250 steps beyond the training window
@@ -50,7 +48,6 @@ def test_single_configuration_error_falls_with_modes_and_meets_tolerance(runs):
     assert errs[2] < 0.02  # mm
 
 
-@pytest.mark.slow
 def test_held_out_configuration_from_multi_configuration_training(runs):
     # trained on the nominal scene and Table 6.1 runs 1 and 2 (-10 mm / 10 rad/s, -4 mm / 7 rad/s);
     # tested on a configuration none of them had: -6 mm at 9 rad/s
@@ -65,7 +62,6 @@ def test_held_out_configuration_from_multi_configuration_training(runs):
     assert rom.A.shape == (30, 30) and rom.C_tracer.shape == (m0.n_tracers, 30)
 
 
-@pytest.mark.slow
 def test_gradient_of_pod_basis_wrt_snapshots_matches_finite_differences():
     X = jax.random.normal(jax.random.PRNGKey(0), (30, 8)) * jnp.logspace(0, -3, 8)[None, :]
     W = jax.random.normal(jax.random.PRNGKey(1), (30, 30))
@@ -81,7 +77,6 @@ def test_gradient_of_pod_basis_wrt_snapshots_matches_finite_differences():
     assert abs(float(g - fd)) < 1e-6 * max(1.0, abs(float(fd)))
 
 
-@pytest.mark.slow
 def test_gradient_through_the_whole_chain_wrt_a_misalignment():
     # misalignment -> full-order training run -> POD basis -> reduced operators -> reduced run
     m = jb.load_model("two-roller-1d-train1")

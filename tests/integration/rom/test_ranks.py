@@ -17,7 +17,6 @@ def training():
     return m, opts.dt, Z, fit_reduced_pod_ranks(m, Z, (4, 12, 8), opts.dt)
 
 
-@pytest.mark.slow
 def test_truncated_operators_equal_a_fit_at_that_rank(training):
     m, dt, Z, many = training
     assert sorted(many) == [4, 8, 12]

@@ -2,7 +2,6 @@
 
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
 import jaxbelt as jb
 from helpers import load
@@ -30,7 +29,6 @@ def test_tracer_operator_2d():
                                rtol=1e-12, atol=1e-16)
 
 
-@pytest.mark.slow
 def test_single_configuration_dmd_reaches_the_tolerance_1d():
     """Train on the first 150 steps of Table 6.1 run 1 (first-order pre-transport states, as the
     source), predict the next 200 steps' tracers: RMSE well below 0.02 mm."""

@@ -64,7 +64,6 @@ def test_reduce_over_a_box_rejects_bad_combinations(box_file, tmp_path, capsys):
     assert "no roller of that name" in capsys.readouterr().err
 
 
-@pytest.mark.slow
 def test_reduce_warns_when_the_scene_lies_outside_the_box(tmp_path, capsys):
     small = tmp_path / "small.toml"
     small.write_text('[roller."drive"]\ntranslation_mm = {dist = "uniform", half_width = [5.0, 0.0, 0.0]}\n')

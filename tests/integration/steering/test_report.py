@@ -31,13 +31,11 @@ def report(scene):
     return steering_report(m, jb.RunOptions.from_scene(scene).replace(n_steps=2000), sensitivity=False)
 
 
-@pytest.mark.slow
 def test_hold_angle_is_the_drive_skew(report):
     assert report.hold_angle_mrad == pytest.approx(0.150, rel=0.01)
     assert not report.saturated
 
 
-@pytest.mark.slow
 def test_coefficient_on_the_coarse_scene(scene, report):
     """The teaching scene's grid (30° arc elements, 34 mm span elements) walks 11 % faster than
     the reference; the resolved grid below is within 2 % (docs/steering.md)."""
@@ -46,7 +44,6 @@ def test_coefficient_on_the_coarse_scene(scene, report):
     assert report.coefficient_mm_s_per_mrad / (ref * 1e3) == pytest.approx(1.11, abs=0.03)
 
 
-@pytest.mark.slow
 def test_coefficient_on_a_resolved_grid_against_moving_beam_theory():
     """two-roller-steered with 48 elements per wrap and 64 per span (3.3 / 4.3 mm), the idle
     roller skewed by 1 mrad, loop open: the belt's walk (mean of the tracers, second half of 6 s)
@@ -63,7 +60,6 @@ def test_coefficient_on_a_resolved_grid_against_moving_beam_theory():
     assert c == pytest.approx(th.scene_walk_rate(sc, _skew()), rel=0.02)
 
 
-@pytest.mark.slow
 def test_pi_loop_holds_the_belt(scene, report):
     """The scene's PI gains against the drive's skew: the sensor error settles below 0.1 µm and
     the actuator ends at the hold angle of the open-loop report."""
@@ -116,7 +112,6 @@ def string_report():
     return sc, steering_report(jb.build_model(sc), jb.RunOptions.from_scene(sc), sensitivity=False)
 
 
-@pytest.mark.slow
 def test_plant_in_the_string_limit_is_sheltons_span_model(string_report):
     """Shelton's first-order spans closed around the loop (jaxbelt.lateral_theory.string_loop_response)
     against the model's frequency response from its step response (hold removed) and the
@@ -142,7 +137,6 @@ def test_saturation_is_reported(scene):
     assert r.saturated
 
 
-@pytest.mark.slow
 def test_coefficient_on_the_design_scene_against_moving_beam_theory():
     """three-roller-steered on its own grid, roller 2 tilted 1 mrad about y, loop open, 30 s: the
     belt's walk (mean of the tracers, second half) is the Timoshenko loop's within 2 %."""
@@ -157,7 +151,6 @@ def test_coefficient_on_the_design_scene_against_moving_beam_theory():
     assert c == pytest.approx(th.scene_walk_rate(sc, rot), rel=0.02)
 
 
-@pytest.mark.slow
 def test_walk_sensitivity_is_the_coefficient_and_the_disturbance(scene):
     """Forward-mode walk sensitivities (one run, every component) against the report's own
     stepped runs: the idle roller's y rotation walks the belt by the steering coefficient per

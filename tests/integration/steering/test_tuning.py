@@ -36,7 +36,6 @@ def result(setup):
     return tuning.tune(model, options, iterations=4, response=response)
 
 
-@pytest.mark.slow  # the closed-loop gradient in the gains is checked in integration/test_control.py; this adds the ISE objective's
 def test_gradient_matches_central_differences(setup):
     model, options, _ = setup
     g = np.array([1.5, 0.3])
@@ -49,7 +48,6 @@ def test_gradient_matches_central_differences(setup):
         assert grad[i] == pytest.approx(fd, rel=1e-4)
 
 
-@pytest.mark.slow
 def test_tuning_lowers_the_objective_within_the_margins(result, setup):
     r = result
     c = setup[0].control
@@ -89,7 +87,6 @@ def _control_margins(plant: SteeringPlant, kp, ki):
     return 20 * np.log10(gm), pm
 
 
-@pytest.mark.slow
 def test_margins_match_python_control(result):
     plant = result.plant
     assert plant.recirculating
