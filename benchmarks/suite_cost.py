@@ -98,7 +98,7 @@ def _run(extra_args, plugin_dir, out_dir, measured_split=True):
         raise RuntimeError(f"the suite did not run: {(r.stdout + r.stderr).strip().splitlines()[-3:]}")
     if r.returncode:
         failed = [ln for ln in r.stdout.splitlines() if ln.startswith("FAILED")]
-        print(f"  failing tests (their seconds are measured all the same):\n  " + "\n  ".join(failed),
+        print("  failing tests (their seconds are measured all the same):\n  " + "\n  ".join(failed),
               file=sys.stderr, flush=True)
     workers = {}
     for path in glob.glob(str(out_dir / "*.json")):
