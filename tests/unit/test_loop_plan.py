@@ -31,7 +31,7 @@ def _walk(plan):
 @pytest.mark.parametrize("n", [0, 1, 2, 3, 4, 5, 9, 10, 99, 100, 101, 4999, 5000, 5001, 10 ** 6])
 def test_default_chunk_is_the_ceiling_of_the_square_root(n):
     c = default_checkpoint_chunk(n)
-    assert c == max(1, math.ceil(math.sqrt(n)) if n < 10 ** 6 else 1000)
+    assert c == max(1, math.ceil(math.sqrt(n)))
     assert c * c >= n and (c - 1) ** 2 < max(n, 1)
 
 
