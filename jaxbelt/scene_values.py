@@ -77,14 +77,22 @@ def number_tuples(d: dict, key: str, where: str, n: int, what: str) -> list:
     return v
 
 
+def _toml(c) -> str:
+    """A choice as the scene file spells it (``true``/``false`` for booleans)."""
+    return str(c).lower() if isinstance(c, bool) else str(c)
+
+
 def choice(d: dict, key: str, where: str, choices, default=None):
+    """``d[key]``, one of ``choices`` (of the same type: ``1`` is not ``true``), else ``default``
+    where given; a missing required key or another value is a :class:`SceneError`."""
+    names = ", ".join(_toml(c) for c in choices)
     if key not in d:
         if default is None:
-            raise key_error(f"{where}.{key}", None, f"required key is missing (one of {', '.join(choices)})")
+            raise key_error(f"{where}.{key}", None, f"required key is missing (one of {names})")
         return default
     v = d[key]
-    if v not in choices:
-        raise key_error(f"{where}.{key}", v, f"must be one of {', '.join(choices)}")
+    if not any(type(v) is type(c) and v == c for c in choices):
+        raise key_error(f"{where}.{key}", v, f"must be one of {names}")
     return v
 
 

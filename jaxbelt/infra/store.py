@@ -59,6 +59,8 @@ def append_chunk(path: str | Path, identity: dict, labels, theta, outputs: dict,
     xr = _xr()
     theta = np.asarray(theta, float)
     n = theta.shape[0]
+    if isinstance(model, str) and model not in MODEL_CODES:
+        raise ValueError(f"model = {model!r}: one of {', '.join(MODEL_CODES)}")
     codes = np.full(n, MODEL_CODES[model], np.int8) if isinstance(model, str) else np.asarray(model, np.int8)
     data = {"theta": (("config", "param"), theta), "metric": (("config",), np.asarray(outputs["metric"], float)),
             "model": (("config",), codes)}

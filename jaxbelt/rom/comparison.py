@@ -107,8 +107,9 @@ class ReductionResult(Result):
 
     @property
     def effectivity(self) -> float | None:
-        """Estimated over true tracer RMSE (``None`` without an estimate)."""
-        if self.estimate is None or self.estimate.rmse_um is None:
+        """Estimated over true tracer RMSE (``None`` without an estimate, or where the true error is
+        zero: no ratio, as in the calibration's cases)."""
+        if self.estimate is None or self.estimate.rmse_um is None or self.rmse_um == 0:
             return None
         return self.estimate.rmse_um / self.rmse_um
 

@@ -79,5 +79,5 @@ def test_steered_outputs_are_stored_with_their_types(tmp_path):
 
 def test_unknown_model_name_is_refused(tmp_path):
     t, o = _chunk(1)
-    with pytest.raises(KeyError, match="surrogate"):
+    with pytest.raises(ValueError, match="model = 'surrogate': one of full, reduced"):
         append_chunk(tmp_path / "s", IDENTITY, LABELS, t, o, "surrogate")

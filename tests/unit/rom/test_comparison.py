@@ -45,6 +45,7 @@ def test_effectivity_is_the_estimated_over_the_true_error_where_there_is_an_esti
     assert _result().effectivity is None
     assert _result(estimate=_estimate(rmse_um=None)).effectivity is None
     assert _result(estimate=_estimate(6.0)).effectivity == pytest.approx(1.5)
+    assert _result(rmse_um=0.0, estimate=_estimate(6.0)).effectivity is None  # no ratio to a zero error
 
 
 def test_json_form_names_the_method_and_nests_the_estimate_and_the_costs():
