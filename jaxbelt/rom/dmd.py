@@ -286,7 +286,7 @@ class DMD(AbstractReduction):
     name: ClassVar[str] = "dmd"
 
     def fit(self, training: TrainingRuns) -> DMDReducedModel:
-        Zpre = collect_first_order(training.models[0], training.options(0))[1]
+        Zpre = collect_first_order(training.models[0], training.runs[0])[1]
         full = fit_dmd(Zpre, rank=self.modes)
         return DMDReducedModel(fit=full, stable=full.stable(), snapshots=Zpre, basis=snapshot_basis(Zpre),
                                observe=training.observe)

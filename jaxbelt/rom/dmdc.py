@@ -292,7 +292,7 @@ def calibration_cases(cfit: DMDcModel, runs, steps: int):
 
 def _post_transport_runs(training: TrainingRuns) -> tuple:
     """The post-transport snapshots ``Z_post`` (2N, n_steps + 1) of every training run."""
-    return tuple(collect_first_order(m, training.options(i))[2] for i, m in enumerate(training.models))
+    return tuple(collect_first_order(m, training.runs[i])[2] for i, m in enumerate(training.models))
 
 
 def _controlled_pairs(trajectories, params):

@@ -116,8 +116,8 @@ def reduce_and_compare(model, train, config: ReduceConfig, train_solvers=None, t
         raise FullRunDivergedError("the full simulation diverged; nothing to compare with")
     mode = reuse_mode if reuse_factors else (lambda s: s)
     test_solver = mode(solver)
-    training = TrainingRuns(models=train, solvers=tuple(mode(s) for s in train_solvers), own_solvers=train_solvers,
-                            n_steps=config.train_window, dt=dt, calibration_runs=config.calibration_runs)
+    runs = tuple(config.options.replace(solver=mode(s), n_steps=config.train_window) for s in train_solvers)
+    training = TrainingRuns(models=train, runs=runs, own_solvers=train_solvers, calibration_runs=config.calibration_runs)
     clock = _once if clock is None else clock
 
     if trained is not None:  # the sized training's runs and fit (its calibration is taken too)

@@ -322,7 +322,7 @@ class ReducedPOD(AbstractReduction):
     name: ClassVar[str] = "pod"
 
     def fit(self, training: TrainingRuns) -> ReducedPODModel:
-        snaps = tuple(collect_first_order(m, training.options(i))[1:] for i, m in enumerate(training.models))
+        snaps = tuple(collect_first_order(m, training.runs[i])[1:] for i, m in enumerate(training.models))
         Z = jnp.concatenate([z for p in snaps for z in p], axis=1)
         step = fit_reduced_pod(training.models[0], Z, training.dt, training.own_solvers[0], n_modes=self.modes)
         return ReducedPODModel(step=step, snapshots=snaps)

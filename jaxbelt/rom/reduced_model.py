@@ -94,22 +94,38 @@ class TrainingRuns:
     """The full-order runs a reduction is fitted to.
 
     **Fields:** ``models`` the training configurations (same mesh; the nominal one first);
-    ``solvers`` the solver each training run uses; ``own_solvers`` each configuration's own solver
-    (the fully reduced POD step is linearised with the first one's); ``n_steps`` full-order steps
-    per run; ``dt`` the time step, s; ``calibration_runs`` how many of the runs (the first ones)
-    the error estimate's safety factor is calibrated on.
+    ``runs`` the run settings of each (:class:`~jaxbelt.RunOptions`: the solver it uses, and the
+    full-order steps and time step, which all runs share); ``own_solvers`` each configuration's own
+    solver (the fully reduced POD step is linearised with the first one's); ``calibration_runs``
+    how many of the runs (the first ones) the error estimate's safety factor is calibrated on.
+    ``solvers``, ``n_steps`` and ``dt`` read the runs.
     """
 
     models: tuple
-    solvers: tuple
+    runs: tuple[RunOptions, ...]
     own_solvers: tuple
-    n_steps: int
-    dt: float
     calibration_runs: int = CALIBRATION_RUNS
 
-    def options(self, i: int) -> RunOptions:
-        """The run settings of training run ``i``."""
-        return RunOptions(self.solvers[i], int(self.n_steps), self.dt)
+    def __post_init__(self):
+        if len(self.runs) != len(self.models):
+            raise ValueError(f"{len(self.runs)} run settings for {len(self.models)} training models")
+        if len({(r.n_steps, r.dt) for r in self.runs}) > 1:
+            raise ValueError("the training runs share their steps and time step")
+
+    @property
+    def solvers(self) -> tuple:
+        """The solver of each training run."""
+        return tuple(r.solver for r in self.runs)
+
+    @property
+    def n_steps(self) -> int:
+        """Full-order steps per training run."""
+        return int(self.runs[0].n_steps)
+
+    @property
+    def dt(self) -> float:
+        """The time step, s."""
+        return self.runs[0].dt
 
     def calibration_subset(self, items) -> list:
         """The first :attr:`calibration_runs` of ``items`` (one per training run)."""

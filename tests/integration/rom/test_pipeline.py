@@ -45,8 +45,8 @@ def test_a_prediction_observes_the_predicted_configurations_tracers(method, setu
     same, other = (rom.reduce_and_compare(m, models, config) for m in (moved, shifted))
     assert same.rmse_um < 5.0 and other.rmse_um < 2 * same.rmse_um + 1.0
     # the tracers of the predicted states at the predicted configuration's tracers
-    training = rom.TrainingRuns(models=tuple(models), solvers=(opts.solver,) * 2, own_solvers=(opts.solver,) * 2,
-                                n_steps=N_STEPS, dt=opts.dt)
+    training = rom.TrainingRuns(models=tuple(models), runs=(opts.replace(n_steps=N_STEPS),) * 2,
+                                own_solvers=(opts.solver,) * 2)
     fitted = method.fit(training)
     _, z0 = fitted.start(shifted, opts.dt)
     p = fitted.predict(z0, rom.parameters(shifted), N_STEPS, rom.observation(shifted))

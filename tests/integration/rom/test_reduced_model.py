@@ -16,8 +16,8 @@ from .conftest import N_STEPS, TRAIN_STEPS
 def test_each_method_fits_and_predicts_one_prediction_type(method, setup):
     models, opts = setup
     train = models[:1] if isinstance(method, rom.DMD) else models
-    training = rom.TrainingRuns(models=tuple(train), solvers=(opts.solver,) * len(train),
-                                own_solvers=(opts.solver,) * len(train), n_steps=TRAIN_STEPS, dt=opts.dt)
+    training = rom.TrainingRuns(models=tuple(train), runs=(opts.replace(n_steps=TRAIN_STEPS),) * len(train),
+                                own_solvers=(opts.solver,) * len(train))
     fitted = method.fit(training)
     assert isinstance(fitted, rom.AbstractReducedModel) and fitted.n_modes >= 1
     start, z0 = fitted.start(models[0], opts.dt)
