@@ -50,6 +50,7 @@ def _shift_down(a):
 def bcr_factor(diag, lower, upper) -> CyclicReductionFactors:
     """Factor the block-tridiagonal matrix with blocks ``diag[i]``, ``lower[i]`` (coupling to
     ``i - 1``; ``lower[0]`` ignored) and ``upper[i]`` (to ``i + 1``; ``upper[-1]`` ignored)."""
+    diag, lower, upper = jnp.asarray(diag), jnp.asarray(lower), jnp.asarray(upper)
     b = diag.shape[1]
     eye, zero = jnp.eye(b, dtype=diag.dtype), jnp.zeros((b, b), diag.dtype)
     D, L, U = diag, lower.at[0].set(0.0), upper.at[-1].set(0.0)

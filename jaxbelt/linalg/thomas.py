@@ -24,6 +24,8 @@ class ThomasFactors(eqx.Module):
 def thomas_factor(diag, lower, upper, rhs=None):
     """Block Thomas factors; with ``rhs`` (m, b, k) also solves for it in the same sweep and
     returns ``(factors, solution)`` (one scan instead of two for the border columns)."""
+    diag, lower, upper = jnp.asarray(diag), jnp.asarray(lower), jnp.asarray(upper)
+    rhs = None if rhs is None else jnp.asarray(rhs)
     b = diag.shape[1]
     eye = jnp.eye(b, dtype=diag.dtype)
     lower = lower.at[0].set(0.0)

@@ -92,3 +92,11 @@ def test_derivative_of_a_solve_equals_the_dense_implicit_derivative():
     A, Ed = _dense(diag, lower, upper), _dense(E, 0 * E, 0 * E)
     x = np.linalg.solve(A, r.ravel())
     np.testing.assert_allclose(float(jax.jit(jax.grad(f))(0.0)), w @ -np.linalg.solve(A, Ed @ x), rtol=1e-10)
+
+
+def test_numpy_blocks_factor_outside_jit():
+    m, b = 5, 2
+    diag, lower, upper = _blocks(m, b, seed=3)
+    r = np.random.default_rng(3).standard_normal((m, b, 1))
+    ref = np.linalg.solve(_dense(diag, lower, upper), r.reshape(m * b, 1)).reshape(m, b, 1)
+    np.testing.assert_allclose(np.asarray(bcr_apply(bcr_factor(diag, lower, upper), r)), ref, rtol=1e-11, atol=1e-12)

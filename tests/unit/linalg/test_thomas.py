@@ -119,3 +119,10 @@ def test_take_blocks_equals_fancy_indexing_for_any_index_shape():
     a = jnp.asarray(np.random.default_rng(0).standard_normal((7, 2, 3)))
     for index in ([4], [[0, 6], [3, 3]], np.arange(6).reshape(3, 2, 1)):
         np.testing.assert_array_equal(np.asarray(take_blocks(a, index)), np.asarray(a)[np.asarray(index)])
+
+
+def test_numpy_blocks_factor_outside_jit():
+    diag, lower, upper = _blocks(4, 2, seed=5)
+    r = np.random.default_rng(5).standard_normal((4, 2, 1))
+    x = thomas_apply(thomas_factor(diag, lower, upper), r)
+    np.testing.assert_allclose(np.asarray(x), _dense_solve(diag, lower, upper, r), rtol=1e-12, atol=1e-13)
