@@ -352,7 +352,10 @@ def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_st
       condition when concrete (:func:`check_time_step`).
     - ``saveat``: what to record (:class:`SaveAt`).
     - ``adjoint``: checkpointing of reverse mode (:class:`Checkpointed`).
-    - ``y0``: start state; default :func:`jaxbelt.initial_state` (static equilibrium).
+    - ``y0``: start state; default :func:`jaxbelt.initial_state` (static equilibrium). The
+      default solver keeps its factors at the model's element masses (``m_e0``), which the shift
+      transport never changes; a ``y0`` whose masses differ needs a solver that factors every
+      step (``DirectBackwardEuler(Structured())``).
     - ``check``: raise :class:`NonFiniteStateError` (step, time, cause) if the state became NaN/inf
       — a flag computed inside the scan and read once here; skipped under ``jit``/``grad``/``vmap``,
       where ``Trajectory.nonfinite`` carries it to the caller.
