@@ -1,28 +1,31 @@
 """Where the test suite's time goes, and the slow/fast split it sets: every test's measured cost.
 
-Runs the test suite twice in fresh processes, each with a small pytest plugin that listens to
+Runs the test suite in fresh processes, each with a small pytest plugin that listens to
 JAX's compile events (``jax.monitoring``) per test:
 
 * in one process (``-n 0``) with the split off, so that **every** test runs: test seconds, and
   of them the seconds spent tracing to jaxprs, lowering to MLIR and compiling with XLA (a load
   from the run's compilation cache counts as a compile), the number of programs whose compile took
-  over half a second, and the slowest modules. Writes ``tests/test_seconds.json``, the
-  one-process seconds of every test, by which ``tests/conftest.py`` marks a test slow (over
-  ``SLOW_TEST_S``, unless it is a ``reference`` check): the split is this measurement, no test is
-  marked slow by hand;
-* then the README's test command as configured (``pyproject.toml``: two xdist workers, the
-  default run under the split just written), for the wall time a user sees and the test seconds
-  of each worker.
+  over half a second, and the slowest modules. Its seconds are ``tests/test_seconds.json``, by
+  which ``tests/conftest.py`` marks a test slow (over ``SLOW_TEST_S``, unless it is a
+  ``reference`` check): the split is this measurement, no test is marked slow by hand;
+* then the default run under that split, in one process, measured again — a test whose programs
+  a test now slow used to compile pays for them itself — until no test crosses the split (at most
+  ``ROUNDS`` times; its seconds replace the every-test pass's);
+* then the README's test command as configured (``pyproject.toml``: two xdist workers), for the
+  wall time a user sees and the test seconds of each worker.
 
-``default_run`` sums the one-process seconds of the tests the default run keeps;
-``wall_s_if_split_perfectly`` is half of that: the wall time two workers could reach at best,
-before start-up and their competition for memory bandwidth. Writes ``results/suite_cost.json`` and
-``tests/module_seconds.json``: the one-process seconds of every test module in the default run,
-which ``tests/conftest.py`` schedules the workers by (heaviest module first). Takes about an hour
-on two cores (the slow tests run once).
+``wall_s_if_split_perfectly`` is half of the default run's one-process seconds: the wall time two
+workers could reach at best, before start-up and their competition for the two cores (each XLA
+compile is multi-threaded). Writes ``results/suite_cost.json`` and ``tests/module_seconds.json``:
+the one-process seconds of every test module in the default run, which ``tests/conftest.py``
+schedules the workers by (heaviest module first). Takes about 40 minutes on two cores (the slow
+tests run once); ``--split-only`` starts from ``tests/test_seconds.json`` instead of running every
+test (a few minutes).
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/suite_cost.py``.
 """
 
+import argparse
 import collections
 import glob
 import json
@@ -133,47 +136,76 @@ def _slow_test_s() -> float:
     return float(re.search(r"^SLOW_TEST_S = ([0-9.]+)", (ROOT / "tests" / "conftest.py").read_text(), re.M).group(1))
 
 
-def main():
+ROUNDS = 4  # at most this many one-process default runs to settle the split
+
+
+def _kept(per_test, reference, slow_s) -> dict:
+    return {t: v for t, v in per_test.items() if v <= slow_s or t in reference}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--split-only", action="store_true",
+                    help="start from tests/test_seconds.json (an earlier every-test pass) instead of running every test")
+    args = ap.parse_args(argv)
     slow_s = _slow_test_s()
+    results, reference = {"slow_test_s": slow_s}, set()
     with tempfile.TemporaryDirectory(prefix="jaxbelt-suite-cost-") as d:
         d = Path(d)
         (d / "suite_cost_plugin.py").write_text(PLUGIN)
-        results = {}
-        # first every test in one process (the split off), whose seconds are the split; then the
-        # default run under that split, as a user runs it
-        for label, args in (("one_process", ["-n", "0"]), ("two_workers", [])):
+
+        def run(label, extra, measured_split):
             out = d / label
             out.mkdir()
             print(f"running the suite: {label}", file=sys.stderr, flush=True)
-            wall, summary, workers = _run(args, d, out, measured_split=label == "two_workers")
-            results[label] = {"wall_s": wall, "pytest_summary": summary, **_totals(workers)}
+            wall, summary, workers = _run(extra, d, out, measured_split=measured_split)
+            reference.update(t for w in workers.values() for t in w.get("reference", []))
             print(f"  {wall:.1f} s: {summary}", file=sys.stderr, flush=True)
-            if label == "one_process":
-                per_test = results[label]["per_test_s"]
-                reference = {t for w in workers.values() for t in w.get("reference", [])}
-                # the split tests/conftest.py reads: seconds per test, one process, every test
-                TEST_SECONDS.write_text(json.dumps({t: round(v, 2) for t, v in sorted(per_test.items())}, indent=1)
-                                        + "\n")
-    one = results["one_process"]
-    kept = {t: v for t, v in per_test.items() if v <= slow_s or t in reference}
-    module_s = collections.Counter()
-    for t, v in kept.items():
-        module_s[re.sub(r"::.*", "", t).removeprefix("tests/")] += v
-    results["slow_test_s"] = slow_s
-    results["default_run"] = {"tests": len(kept), "test_s": sum(kept.values()),
-                              "slow_tests": len(per_test) - len(kept),
+            return {"wall_s": wall, "pytest_summary": summary, **_totals(workers)}
+
+        if args.split_only:
+            per_test = json.loads(TEST_SECONDS.read_text())
+            earlier = ROOT / "benchmarks" / "results" / "suite_cost.json"  # the pass those seconds came from
+            if earlier.exists():
+                prev = json.loads(earlier.read_text())
+                if "every_test" in prev or "one_process" in prev:
+                    results["every_test"] = prev.get("every_test", prev.get("one_process"))
+        else:  # every test in one process, the split off: the cost of each
+            results["every_test"] = run("every_test", ["-n", "0"], False)
+            per_test = dict(results["every_test"]["per_test_s"])
+        # the default run under the split, in one process, measured again until no test crosses the
+        # split: a test whose programs a test now slow used to compile pays for them itself
+        results["rounds"] = []
+        for k in range(ROUNDS):
+            TEST_SECONDS.write_text(json.dumps({t: round(v, 2) for t, v in sorted(per_test.items())}, indent=1)
+                                    + "\n")
+            one = run(f"default_one_process_{k}", ["-n", "0"], True)
+            measured = one["per_test_s"]
+            crossed = sorted(t for t, v in measured.items() if v > slow_s and t not in reference)
+            per_test.update(measured)
+            results["rounds"].append({"tests": len(measured), "test_s": one["test_s"], "crossed_the_split": crossed})
+            if not crossed:
+                break
+        TEST_SECONDS.write_text(json.dumps({t: round(v, 2) for t, v in sorted(per_test.items())}, indent=1) + "\n")
+        results["default_one_process"] = one
+        results["two_workers"] = run("two_workers", [], True)
+    kept = _kept(per_test, reference, slow_s)
+    results["default_run"] = {"tests": len(kept), "slow_tests": len(per_test) - len(kept),
                               "references_over_the_split": sorted(t for t in reference if per_test.get(t, 0) > slow_s)}
-    results["wall_s_if_split_perfectly"] = results["default_run"]["test_s"] / 2
-    for label in ("one_process", "two_workers"):
-        results[label].pop("module_s")
-        results[label].pop("per_test_s")
+    results["wall_s_if_split_perfectly"] = one["test_s"] / 2
+    module_s = one["module_s"]
+    for r in results.values():
+        if isinstance(r, dict):
+            r.pop("module_s", None)
+            r.pop("per_test_s", None)
     write("suite_cost", results)
     # the scheduling table tests/conftest.py reads: seconds per test module of the default run (its
     # path under tests/ without .py, tests/conftest.py: module_key), one process, measured
     table = {m.removesuffix(".py"): max(1, round(v)) for m, v in sorted(module_s.items(), key=lambda kv: -kv[1])}
     MODULE_SECONDS.write_text(json.dumps(table, indent=1) + "\n")
     print(f"wrote {MODULE_SECONDS} and {TEST_SECONDS}", file=sys.stderr)
-    print(json.dumps({k: v for k, v in one.items() if k != "slowest_modules_s"}, indent=1))
+    print(json.dumps({k: v for k, v in one.items() if k not in ("slowest_modules_s", "per_test_s", "module_s")},
+                     indent=1))
 
 
 if __name__ == "__main__":

@@ -81,7 +81,7 @@ TEST_SECONDS_FILE = TESTS / "test_seconds.json"
 TEST_SECONDS = json.loads(TEST_SECONDS_FILE.read_text()) if TEST_SECONDS_FILE.exists() else {}
 if os.environ.get("JAXBELT_MEASURED_SPLIT", "1") == "0":  # suite_cost.py measures every test
     TEST_SECONDS = {}
-SLOW_TEST_S = 2.0  # so that the default run stays under two minutes on two cores
+SLOW_TEST_S = 1.0  # so that the default run stays under two minutes on two cores
 
 
 @pytest.hookimpl(tryfirst=True)  # before the mark plugin deselects by ``-m``

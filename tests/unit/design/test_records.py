@@ -58,7 +58,7 @@ def test_tolerance_box_json_keys():
     r = _round_trip(_box())
     assert set(r) == {"metric", "limit_um", "t_eval_s", "box", "worst_case_um", "predicted_worst_um", "verified",
                       "binding", "unconstrained", "verification", "iterations", "rss_um", "limits", "binding_limit",
-                      "half_widths"}
+                      "half_widths", "unit"}
     assert r["box"]["roller 2"] == {"translation_mm": [0.0, 0.0, 0.0], "rotation_mrad": [0.02, 0.03, 0.0]}
     row = r["verification"][0]
     assert set(row) == {"kind", "corner", "predicted_um", "full_um"}  # one limit: no full_by_limit
