@@ -68,7 +68,7 @@ def _unit(metric):
 
 def scale_unit(r) -> str:
     """The unit of a design answer's metric values (its worst case, stack-up, samples): the record's
-    ``unit`` (:func:`jaxbelt.design.metrics.value_unit`)."""
+    ``unit`` (:attr:`jaxbelt.design.Study.unit`)."""
     return r["unit"]
 
 

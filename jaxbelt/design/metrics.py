@@ -206,13 +206,6 @@ def metric_unit(name: str) -> str:
     return METRICS[name].unit
 
 
-def value_unit(study) -> str:
-    """The unit of a study's metric values (its worst case, stack-up, samples): its first limit's with
-    several limits (the combined measure is on that limit's scale, :func:`on_limit_scale`), else
-    its metric's."""
-    return metric_unit(study.limit_names[0] if study.limit_names else study.metric)
-
-
 def _single_response(study, name: str, du, dv, angle):
     return METRICS[name].response(study, du, dv, angle)
 

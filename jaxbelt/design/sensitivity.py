@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .metrics import metric_unit, response_from_deviation
+from .metrics import response_from_deviation
 from .records import ComponentGradient, RollerSensitivity, StructuralZero, sensitivity_per_roller
 from .linear_box import LinearDeviation
 from .study import Study, metric_value, response
@@ -160,4 +160,4 @@ def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> Sensitivity
         parameters=tuple(ComponentGradient(lab, unit, float(g))
                          for lab, unit, g in zip(sp.labels(), sp.units(), np.asarray(grad))),
         gradient=sensitivity_per_roller(sp, np.asarray(grad)), structural_zero=structural, at_kink=at_kink,
-        forward_s=forward_s, gradient_s=gradient_s, compile_s=compile_s, unit=metric_unit(study.metric))
+        forward_s=forward_s, gradient_s=gradient_s, compile_s=compile_s, unit=study.unit)

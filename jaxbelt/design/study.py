@@ -54,8 +54,9 @@ class Study(eqx.Module):
     where the study's runs start, so they belong to the study; the linear response of the
     deviations, which no run reads, is a :class:`~jaxbelt.design.linear_box.LinearDeviation` beside it.
     Set from those: ``aggregate`` how the response is aggregated (``"max"`` with several limits,
-    else the metric's) and ``steered`` whether the machine has steering loops (then its metrics
-    read the window in closed loop).
+    else the metric's), ``steered`` whether the machine has steering loops (then its metrics
+    read the window in closed loop) and ``unit`` the unit of the metric values (µm, mrad or µm/s:
+    the first limit's with several limits, whose measure is on that limit's scale).
     """
 
     model: BeltModel
@@ -78,11 +79,14 @@ class Study(eqx.Module):
     steady_tangents: tuple | None = None
     aggregate: str = eqx.field(static=True, init=False)
     steered: bool = eqx.field(static=True, init=False)
+    unit: str = eqx.field(static=True, init=False)
 
     def __post_init__(self):
         # read by every evaluation: plain attributes, set once from the fields they follow
         self.aggregate = "max" if self.limit_names else METRICS[self.metric].aggregate
         self.steered = self.model.control is not None  # steering loops: metrics read the window closed-loop
+        # the unit of the metric values: the first limit's with several (on_limit_scale), else the metric's
+        self.unit = METRICS[self.limit_names[0] if self.limit_names else self.metric].unit
 
     @property
     def limits(self) -> tuple:

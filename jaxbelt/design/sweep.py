@@ -47,7 +47,7 @@ from ..infra.results import Result, to_json
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearDeviation, LinearResponse, rss_stackup
-from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale, value_unit
+from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale
 from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
                        sample_configurations, wilson_interval)
 from .sensitivity import response_jacobian
@@ -380,4 +380,4 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
         full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_use.validation_runs,
         reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_use, metric_values=metric,
         wall_s=wall, configs_per_s=(n - done) / wall,
-        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in limits) or None, unit=value_unit(study), **extra)
+        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in limits) or None, unit=study.unit, **extra)

@@ -33,7 +33,7 @@ from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
 from .metrics import (METRICS, aggregate, aligned_values, limit_values_from_deviation, metric_unit, on_limit_scale,
-                      response_sizes, value_unit)
+                      response_sizes)
 from .records import RollerMisalignment, misalignment_per_roller
 from .configurations import at_configurations
 from .study import Study, study_on, with_limits
@@ -274,7 +274,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
         binding=binding, unconstrained=[labels[k] for k in range(len(h)) if not felt[k]],
         verification=table, iterations=iterations,
         rss_um=rss_stackup(lin, h / 3.0).three_sigma_um, jacobian_um=J, response0_um=r0,
-        limits=per_limit, binding_limit=binding_limit, corners=thetas, limit_names=names, unit=value_unit(study))
+        limits=per_limit, binding_limit=binding_limit, corners=thetas, limit_names=names, unit=study.unit)
 
 
 NEAR_WORST = 1e-3  # corners run on the finer grid: within this fraction of the worst excess over the floor
