@@ -337,6 +337,26 @@ def check_time_step(model: BeltModel, dt) -> None:
                          f"= {V * dt * 1e3:.4g} mm >= smallest element {h * 1e3:.4g} mm); {cfl_advice(h, V)}")
 
 
+def check_start_masses(model: BeltModel, solver: AbstractIntegrator, y0: BeltState | None) -> None:
+    """``ValueError`` where ``solver`` keeps its factors at the model's element masses for the whole
+    run (:class:`~jaxbelt.integrators.KeptInterior` under the shift transport, which never changes
+    them) and the start state ``y0`` has other masses: every step would solve with the wrong
+    matrix. Round-off is allowed (``10⁴ ε`` relative, at least ``10⁻⁶``: a state carried from
+    another run or grid); skipped for traced values."""
+    linear = getattr(solver, "linear_solver", None)
+    if y0 is None or linear is None or isinstance(y0.m_e, jax.core.Tracer) \
+            or isinstance(model.m_e0, jax.core.Tracer) \
+            or not linear.keeps_model_masses(model, getattr(solver, "transport", "shift")):
+        return
+    m, m0 = np.asarray(y0.m_e), np.asarray(model.m_e0)
+    rtol = max(1e-6, 1e4 * float(np.finfo(m0.dtype).eps))
+    if m.shape != m0.shape or not np.allclose(m, m0, rtol=rtol, atol=0.0):
+        worst = float(np.max(np.abs(m / m0 - 1.0))) if m.shape == m0.shape else float("nan")
+        raise ValueError(f"y0's element masses differ from the model's (by up to {worst:.3g} relative) and "
+                         f"{type(linear).__name__} keeps its factors at the model's for the whole run; "
+                         "step it with a solver that factors every step (DirectBackwardEuler(Structured()))")
+
+
 def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,
              saveat: SaveAt = SaveAt(), adjoint: Checkpointed = Checkpointed(), y0: BeltState | None = None,
              check: bool = True, progress: bool = False):
@@ -354,8 +374,8 @@ def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_st
     - ``adjoint``: checkpointing of reverse mode (:class:`Checkpointed`).
     - ``y0``: start state; default :func:`jaxbelt.initial_state` (static equilibrium). The
       default solver keeps its factors at the model's element masses (``m_e0``), which the shift
-      transport never changes; a ``y0`` whose masses differ needs a solver that factors every
-      step (``DirectBackwardEuler(Structured())``).
+      transport never changes; a ``y0`` whose masses differ is refused (:func:`check_start_masses`):
+      it needs a solver that factors every step (``DirectBackwardEuler(Structured())``).
     - ``check``: raise :class:`NonFiniteStateError` (step, time, cause) if the state became NaN/inf
       — a flag computed inside the scan and read once here; skipped under ``jit``/``grad``/``vmap``,
       where ``Trajectory.nonfinite`` carries it to the caller.
@@ -372,6 +392,7 @@ def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_st
     if n_steps < 0:
         raise ValueError(f"n_steps = {n_steps}: must be at least 0")
     check_time_step(model, dt)
+    check_start_masses(model, solver, y0)
     dt = jnp.asarray(dt, dtype=model.ell.dtype)
     if progress:
         chunked = simulate_in_chunks(model, solver, n_steps=n_steps, dt=dt, saveat=saveat, adjoint=adjoint, y0=y0)
@@ -423,6 +444,7 @@ def simulate_in_chunks(model: BeltModel, solver: AbstractIntegrator | None = Non
     solver = make_solver() if solver is None else solver
     n_steps = int(n_steps)
     check_time_step(model, dt)
+    check_start_masses(model, solver, y0)
     dt = jnp.asarray(dt, dtype=model.ell.dtype)
     run_saveat = SaveAt(saveat.every, fields=saveat.fields or field_rows is not None)
     chunk = max(saveat.every, (chunk // saveat.every) * saveat.every)

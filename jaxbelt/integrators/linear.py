@@ -89,6 +89,11 @@ class AbstractLinearSolver(eqx.Module):
         """Whether the step's ``R`` may come on the roller columns only (cheaper to form)."""
         return False
 
+    def keeps_model_masses(self, model: BeltModel, transport: str = "shift") -> bool:
+        """Whether the kept data assume the model's element masses (``m_e0``) for the whole run, so
+        that a start state with other masses would be stepped with the wrong matrix."""
+        return False
+
     @abc.abstractmethod
     def init(self, operator: StepOperator, reference) -> Any:
         """The solver state for ``operator`` (factors; never differentiated)."""
@@ -214,9 +219,12 @@ class KeptInterior(AbstractLinearSolver):
             raise ValueError(f"KeptInterior(border={self.border!r}): 'green' or 'sweep'")
 
     def reference(self, model, state, dt, transport="shift"):
-        if transport != "shift" or model.n_xi < 3:
+        if not self.keeps_model_masses(model, transport):
             return None
         return _kept_interior(model, dt, self.interior, self.border == "green")
+
+    def keeps_model_masses(self, model, transport="shift"):
+        return transport == "shift" and model.n_xi >= 3
 
     def uses_roller_columns(self, reference) -> bool:
         return reference is not None

@@ -8,6 +8,7 @@ one :class:`jaxbelt.RunOptions`; bad input fails with a clear message before any
 importing the package changes no process-wide setting; a run with a progress bar is the same run.
 """
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -22,6 +23,7 @@ import jaxbelt as jb
 from helpers import COARSE_2D_TWO_ROLLER, COMPILE_EVENT, TRACE_EVENT, counting_compiles, load, scene_with
 from jaxbelt.integrators import solver_name
 from jaxbelt.registry import INTEGRATORS, LINEAR_SOLVERS
+from jaxbelt.timeloop import check_start_masses
 
 # the idle roller of the two-roller machine misaligned; 30 steps: whole checkpoint chunks, the run
 # length other modules compile for the 1D scenes
@@ -225,3 +227,17 @@ def test_solver_objects_reject_bad_settings_when_built():
         jb.NaiveBackwardEuler(transport="upwind")
     with pytest.raises(TypeError, match="a linear solver object"):
         jb.DirectBackwardEuler("dense")
+
+
+def test_a_start_state_with_other_masses_is_refused_by_the_kept_interior_solver_only():
+    """The kept-interior solver keeps its factors at the model's element masses; a start state with
+    other masses would be stepped with the wrong matrix. A solver that factors every step takes it,
+    and round-off in the masses (a state carried from another run) is no reason to refuse."""
+    model, opts = load(SCENE_1D)
+    y0 = jb.initial_state(model)
+    moved = dataclasses.replace(y0, m_e=y0.m_e * 1.01)
+    kept = jb.DirectBackwardEuler(jb.KeptInterior())
+    with pytest.raises(ValueError, match=r"element masses differ .*Structured"):
+        jb.simulate(model, kept, n_steps=1, dt=opts.dt, y0=moved)
+    check_start_masses(model, jb.DirectBackwardEuler(jb.Structured()), moved)  # factors every step: taken
+    check_start_masses(model, kept, dataclasses.replace(y0, m_e=y0.m_e * (1.0 + 1e-12)))
