@@ -84,3 +84,8 @@ def test_chunks_equal_one_call_and_compile_one_shape(axis, chunk):
     np.testing.assert_array_equal(out, np.cumsum(X ** 2, axis=1 - axis))
     assert len(shapes) == -(-7 // chunk) and len(set(shapes)) == 1
     assert shapes[0][axis] == chunk
+
+
+def test_no_columns_give_an_empty_result_of_the_outputs_shape():
+    out = in_chunks(lambda part: jnp.concatenate([part, part], axis=0), np.zeros((3, 0)), 4, 1)
+    assert isinstance(out, np.ndarray) and out.shape == (6, 0)
