@@ -23,7 +23,7 @@ import numpy as np
 import jaxbelt as jb
 from jaxbelt.mesh import build_mesh
 from jaxbelt.state import start_swing
-from jaxbelt.timeloop import belt_speed
+from jaxbelt.run_checks import belt_speed
 from _common import load, write
 
 T_END = 0.2

@@ -17,7 +17,7 @@ from _common import write
 from jaxbelt import lateral_theory as th
 from jaxbelt.steering import margins, stability_boundary, steering_report, walk_rate
 from jaxbelt.steering.response import response_transfer
-from jaxbelt.timeloop import belt_speed
+from jaxbelt.run_checks import belt_speed
 
 BASE = "two-roller-steered"
 GRIDS = [(6, 8), (12, 16), (24, 32), (48, 64), (96, 128), (6, 16), (6, 32), (24, 8)]

@@ -25,7 +25,8 @@ from _common import clock, write
 from jaxbelt.assembly import dae_apply, dae_rhs, roller_R, static_surface_offset
 from jaxbelt.integrators import StepOperator
 from jaxbelt.linalg.bordered import factor_solve
-from jaxbelt.timeloop import compile_simulation, edge_margin, make_step, nonfinite_code, tracer_values
+from jaxbelt.run_checks import nonfinite_code
+from jaxbelt.timeloop import compile_simulation, edge_margin, make_step, tracer_values
 from jaxbelt.transport import transport_step_with_weights
 
 

@@ -28,11 +28,11 @@ from .scene import scene_from_dict as scene_from_dict
 from .state import BeltState as BeltState
 from .state import initial_state as initial_state
 from .timeloop import Checkpointed as Checkpointed
-from .timeloop import NonFiniteStateError as NonFiniteStateError
+from .run_checks import NonFiniteStateError as NonFiniteStateError
 from .timeloop import RunOptions as RunOptions
 from .timeloop import SaveAt as SaveAt
 from .timeloop import Trajectory as Trajectory
-from .timeloop import check_finite as check_finite
+from .run_checks import check_finite as check_finite
 from .timeloop import simulate as simulate
 from .transport import transport_step as transport_step
 

@@ -32,8 +32,8 @@ from .control import controller_update, measure, sensor_displacement
 from .integrators import AbstractIntegrator, make_solver
 from .linalg import join
 from .loop_plan import checkpointed, loop_plan, scan_or_inline
-from .mesh import cfl_advice
 from .model import BeltModel
+from .run_checks import check_finite, check_start_masses, check_time_step, nonfinite_code
 from .infra.programs import stored_jit
 from .scene import Scene
 from .state import BeltState, initial_state
@@ -84,7 +84,7 @@ class Trajectory(eqx.Module):
     (:func:`edge_margin`; ``None`` in 1D);
     ``nonfinite`` (k,) int8 NaN/inf guard: 0 while the state is finite, else the first part of
     it that is not (:data:`NONFINITE_CAUSES`: 1 belt displacement, 2 belt velocity, 3 roller
-    state) — evaluated inside the scan, read once at the end (:func:`check_finite`), no host sync
+    state) — evaluated inside the scan, read once at the end (:func:`~jaxbelt.run_checks.check_finite`), no host sync
     per step;
     ``u`` (k, n_xi, b) or ``None``;
     ``control_u`` (k, n_c) the steering actuators' angles during each step, rad (added to the
@@ -107,43 +107,6 @@ class Trajectory(eqx.Module):
     u: jax.Array | None
     control_u: jax.Array | None = None
     sensor_v: jax.Array | None = None
-
-
-NONFINITE_CAUSES = {1: "belt displacement", 2: "belt velocity", 3: "roller state"}
-
-
-class NonFiniteStateError(FloatingPointError):
-    """The simulated state became NaN or infinite (the step, its time and which part)."""
-
-
-def nonfinite_code(u, u_dot, chi, chi_dot):
-    """0 if the state is finite, else the code (:data:`NONFINITE_CAUSES`) of its first bad part."""
-    fin = lambda a: jnp.all(jnp.isfinite(a))  # noqa: E731
-    return jnp.where(~fin(u), 1, jnp.where(~fin(u_dot), 2, jnp.where(~(fin(chi) & fin(chi_dot)), 3, 0))).astype(jnp.int8)
-
-
-def first_nonfinite(traj: "Trajectory"):
-    """``(k, t, cause)`` of the first recorded step whose state is not finite, or ``None``."""
-    code = np.asarray(traj.nonfinite)
-    bad = np.flatnonzero(code)
-    if bad.size == 0:
-        return None
-    k = int(bad[0])
-    return k, float(np.asarray(traj.t)[k]), NONFINITE_CAUSES[int(code[k])]
-
-
-def check_finite(traj: "Trajectory", dt: float | None = None):
-    """Raise :class:`NonFiniteStateError` naming the step, its time and the cause if the run's
-    state became NaN/inf; nothing otherwise. Skipped (returns) when ``traj`` holds tracers (inside
-    ``jit``/``grad``/``vmap`` the check belongs to the caller)."""
-    if isinstance(traj.nonfinite, jax.core.Tracer):
-        return
-    hit = first_nonfinite(traj)
-    if hit is not None:
-        k, t, cause = hit
-        step = round(t / float(dt)) if dt is not None else k + 1
-        raise NonFiniteStateError(f"the simulation diverged: non-finite {cause} at step {step} (t = {t:g} s); "
-                                  "check the time step against the CFL limit, the transport weights and the scene")
 
 
 def tracer_values(model: BeltModel, u):
@@ -316,47 +279,6 @@ def _init_run(model, solver, y0, dt):
     return state, solver.init(model, state, dt)
 
 
-def belt_speed(model: BeltModel) -> float:
-    """The belt speed the drive rollers impose, m/s (concrete models only)."""
-    v = np.einsum("nbq,q->nb", np.asarray(model.R), np.asarray(model.omega))
-    return float(np.max(np.abs(v[:, 0::2] if model.kind == "2d" else v), initial=0.0))
-
-
-def check_time_step(model: BeltModel, dt) -> None:
-    """``ValueError`` unless ``dt`` is a positive finite number meeting the transport step's CFL
-    condition ``V Δt < ℓ_min`` (the belt moves less than the shortest element per step); skipped
-    for traced values."""
-    if isinstance(dt, jax.core.Tracer) or any(isinstance(a, jax.core.Tracer) for a in (model.R, model.omega, model.ell)):
-        return
-    dt = float(np.asarray(dt))
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt = {dt}: must be a positive number of seconds")
-    V, h = belt_speed(model), float(np.min(np.asarray(model.ell)))
-    if V * dt >= h:
-        raise ValueError(f"dt = {dt:g} s violates the CFL condition of the transport step (belt speed {V:g} m/s × dt "
-                         f"= {V * dt * 1e3:.4g} mm >= smallest element {h * 1e3:.4g} mm); {cfl_advice(h, V)}")
-
-
-def check_start_masses(model: BeltModel, solver: AbstractIntegrator, y0: BeltState | None) -> None:
-    """``ValueError`` where ``solver`` keeps its factors at the model's element masses for the whole
-    run (:class:`~jaxbelt.integrators.KeptInterior` under the shift transport, which never changes
-    them) and the start state ``y0`` has other masses: every step would solve with the wrong
-    matrix. Round-off is allowed (``10⁴ ε`` relative, at least ``10⁻⁶``: a state carried from
-    another run or grid); skipped for traced values."""
-    linear = getattr(solver, "linear_solver", None)
-    if y0 is None or linear is None or isinstance(y0.m_e, jax.core.Tracer) \
-            or isinstance(model.m_e0, jax.core.Tracer) \
-            or not linear.keeps_model_masses(model, getattr(solver, "transport", "shift")):
-        return
-    m, m0 = np.asarray(y0.m_e), np.asarray(model.m_e0)
-    rtol = max(1e-6, 1e4 * float(np.finfo(m0.dtype).eps))
-    if m.shape != m0.shape or not np.allclose(m, m0, rtol=rtol, atol=0.0):
-        worst = float(np.max(np.abs(m / m0 - 1.0))) if m.shape == m0.shape else float("nan")
-        raise ValueError(f"y0's element masses differ from the model's (by up to {worst:.3g} relative) and "
-                         f"{type(linear).__name__} keeps its factors at the model's for the whole run; "
-                         "step it with a solver that factors every step (DirectBackwardEuler(Structured()))")
-
-
 def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_steps: int, dt,
              saveat: SaveAt = SaveAt(), adjoint: Checkpointed = Checkpointed(), y0: BeltState | None = None,
              check: bool = True, progress: bool = False):
@@ -369,14 +291,14 @@ def simulate(model: BeltModel, solver: AbstractIntegrator | None = None, *, n_st
       ``DirectBackwardEuler(KeptInterior())`` with the shift transport.
     - ``n_steps``: number of steps (static: a new count is a new compile).
     - ``dt``: time step, s (traced: a new value is not). Checked against the transport step's CFL
-      condition when concrete (:func:`check_time_step`).
+      condition when concrete (:func:`~jaxbelt.run_checks.check_time_step`).
     - ``saveat``: what to record (:class:`SaveAt`).
     - ``adjoint``: checkpointing of reverse mode (:class:`Checkpointed`).
     - ``y0``: start state; default :func:`jaxbelt.initial_state` (static equilibrium). The
       default solver keeps its factors at the model's element masses (``m_e0``), which the shift
-      transport never changes; a ``y0`` whose masses differ is refused (:func:`check_start_masses`):
+      transport never changes; a ``y0`` whose masses differ is refused (:func:`~jaxbelt.run_checks.check_start_masses`):
       it needs a solver that factors every step (``DirectBackwardEuler(Structured())``).
-    - ``check``: raise :class:`NonFiniteStateError` (step, time, cause) if the state became NaN/inf
+    - ``check``: raise :class:`~jaxbelt.run_checks.NonFiniteStateError` (step, time, cause) if the state became NaN/inf
       — a flag computed inside the scan and read once here; skipped under ``jit``/``grad``/``vmap``,
       where ``Trajectory.nonfinite`` carries it to the caller.
     - ``progress``: run in compiled chunks of ~200 steps with a progress bar (the result is the

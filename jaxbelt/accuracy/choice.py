@@ -59,7 +59,7 @@ import numpy as np
 
 from ..infra.results import to_json
 from ..scene import Scene
-from ..timeloop import NonFiniteStateError
+from ..run_checks import NonFiniteStateError
 from .estimate import (DIRECTIONS, DiscretisationError, TracerRun, admissible, at_times, estimate_error, refine,
                        scene_grid, tracer_run)
 

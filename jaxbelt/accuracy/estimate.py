@@ -46,7 +46,8 @@ from ..infra.results import to_json
 from ..mesh import build_mesh
 from ..scene import Scene, SceneError
 from ..state import initial_state
-from ..timeloop import RunOptions, SaveAt, check_finite, simulate
+from ..run_checks import check_finite
+from ..timeloop import RunOptions, SaveAt, simulate
 
 DIRECTIONS = ("n_xi", "n_eta", "dt")
 SAFETY_FACTOR = 1.25  # Roache's F_s for a three-grid study

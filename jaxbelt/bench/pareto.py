@@ -53,7 +53,8 @@ from ..integrators import DirectBackwardEuler, KeptInterior, Reuse, make_solver
 from ..rom import collect_first_order, fit_dmd, fit_reduced_pod_ranks, parameters, tracer_operator
 from ..scene import TimeSpec, load_scene
 from ..state import initial_state
-from ..timeloop import RunOptions, check_finite, simulate
+from ..run_checks import check_finite
+from ..timeloop import RunOptions, simulate
 from .timing import clock, compile_run, compiled_bytes, write_json
 
 SCENE = "three-roller-t72"

@@ -16,7 +16,8 @@ from ..control import loop_summary
 from ..prestress import overstrain_message, overstrained_spans, slack_message, slack_spans, span_forces
 from ..registry import INTEGRATORS, LINEAR_SOLVERS, START_RULES, TRANSPORT_RULES
 from ..state import SWING_WARN_FRACTION, initial_state, start_swing
-from ..timeloop import NonFiniteStateError, check_finite, simulate_in_chunks
+from ..run_checks import NonFiniteStateError, check_finite
+from ..timeloop import simulate_in_chunks
 from ._accuracy import add_accuracy_arguments, choose_accuracy, error_estimate, print_accuracy
 from ._common import SCENE_HELP, SimulationError, UsageError, emit, load_run, output_file, rebuild
 

@@ -22,7 +22,8 @@ from ..model import BeltModel
 from ..state import BeltState, prolongate
 from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward_jacobian, linear_start,
                       period_steps, steady_states, steady_state, steady_with_tangents, walks)
-from ..timeloop import RunOptions, check_finite, simulate
+from ..run_checks import check_finite
+from ..timeloop import RunOptions, simulate
 from .linear_box import LinearDeviation, linear_deviation
 from .metrics import (CLOSED_LOOP_WINDOW, METRICS, M_TO_UM, OPEN_LOOP_WINDOW, RAD_TO_MRAD, limit_values_from_deviation,
                       metric_from_deviation, response_from_deviation, saturation)

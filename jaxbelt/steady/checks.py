@@ -9,7 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model import BeltModel
-from ..timeloop import SaveAt, belt_speed, simulate
+from ..run_checks import belt_speed
+from ..timeloop import SaveAt, simulate
 from .fixed_point import NoSteadyStateError, SteadyState
 
 JITTER_TURNS = 2.0  # belt turns of the time-stepped run that measures the actuator jitter

@@ -81,7 +81,8 @@ from ..infra.programs import stored_jit
 from ..linalg.newton import (DEFAULT_GMRES_CYCLES, DEFAULT_GMRES_RESTART, krylov_solve, newton_krylov,
                             newton_krylov_tangents)
 from ..state import BeltState, initial_state
-from ..timeloop import check_time_step, edge_margin, make_step, tracer_values
+from ..run_checks import check_time_step
+from ..timeloop import edge_margin, make_step, tracer_values
 from .preconditioner import mass_transport_preconditioner, preconditioned
 
 UNIT = 1e6  # m → µm, rad → µrad: the scaled unknowns' unit

@@ -43,7 +43,8 @@ from ..control import samples_per_update, walk_rate
 from ..infra.results import Result
 from ..misalignment import dof_directions, parameter_space
 from ..steady import check_steady, steady_with_tangents
-from ..timeloop import RunOptions, belt_speed
+from ..run_checks import belt_speed
+from ..timeloop import RunOptions
 from .plant import SteeringPlant, identify_plant
 from .response import DiscreteLoop, open_loop_response, open_loops, run_batch
 from .transfer import margins

@@ -66,7 +66,8 @@ import optax
 from ..infra.programs import stored_jit
 from ..infra.results import Result
 from ..model import BeltModel
-from ..timeloop import RunOptions, belt_speed, simulate
+from ..run_checks import belt_speed
+from ..timeloop import RunOptions, simulate
 from .plant import SteeringPlant, fit_plant, identify_plant
 from .response import MeasuredResponse, open_loop_response
 from .transfer import margins

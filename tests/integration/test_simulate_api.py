@@ -23,7 +23,7 @@ import jaxbelt as jb
 from helpers import COARSE_2D_TWO_ROLLER, COMPILE_EVENT, TRACE_EVENT, counting_compiles, load, scene_with
 from jaxbelt.integrators import solver_name
 from jaxbelt.registry import INTEGRATORS, LINEAR_SOLVERS
-from jaxbelt.timeloop import check_start_masses
+from jaxbelt.run_checks import check_start_masses
 
 # the idle roller of the two-roller machine misaligned; 30 steps: whole checkpoint chunks, the run
 # length other modules compile for the 1D scenes

@@ -18,7 +18,7 @@ from helpers import load, solve_step
 from jaxbelt.cli import main
 from jaxbelt.mesh import build_mesh
 from jaxbelt.state import start_swing
-from jaxbelt.timeloop import belt_speed
+from jaxbelt.run_checks import belt_speed
 
 
 def base_1d():
