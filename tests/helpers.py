@@ -6,13 +6,15 @@ import tomllib
 from importlib import resources
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxbelt as jb
-from jaxbelt.linalg import BorderedBlockCyclic
+from jaxbelt.assembly import dae_matrices, dae_rhs
+from jaxbelt.linalg import BorderedBlockCyclic, join
 
 REPO = Path(__file__).resolve().parent.parent  # the repository's root
 
@@ -183,3 +185,53 @@ def random_bordered(n, b, q, seed=0):
         D=jnp.asarray(rng.normal(size=(n, q, b))),
         E=jnp.asarray(rng.normal(size=(q, q)) + 8 * np.eye(q)),
     ), jnp.asarray(rng.normal(size=(n, b))), jnp.asarray(rng.normal(size=q))
+
+
+def pretensioned_idle_translated_machine():
+    """A coarse ``two-roller-1d`` belt (5 elements per arc, 6 per span), 863 mm long (shorter than
+    the path: pre-tension rows), the idle roller 0.5 mm out along x: a small DAE for one-step checks."""
+    def machine(d):
+        d["mesh"].update(roller_elements=[5, 5], free_elements=[6, 6])
+        d["belt"]["length_mm"] = 863.0
+        d["roller"][1]["translation_mm"] = [0.5, 0.0, 0.0]
+
+    return load(scene_with(machine))[0]
+
+
+def perturbed_state(model, seed: int = 0, moved_masses: bool = True):
+    """The initial state with belt displacements and velocities and the roller states perturbed at
+    random; with ``moved_masses`` the element masses no longer uniform (as the source transport rule
+    moves them), else the model's (as the shift rule keeps them)."""
+    s = jb.initial_state(model)
+    rng = np.random.default_rng(seed)
+    n, b, q = model.n_xi, model.block, model.n_roller_dofs
+    u, u_dot = s.u + 1e-5 * rng.standard_normal((n, b)), s.u_dot + 1e-3 * rng.standard_normal((n, b))
+    chi, chi_dot = s.chi + 1e-4 * rng.standard_normal(q), s.chi_dot + 1e-2 * rng.standard_normal(q)
+    m_e = s.m_e * (1.0 + 0.2 * rng.random(n)) if moved_masses else s.m_e
+    return eqx.tree_at(lambda s: (s.u, s.u_dot, s.chi, s.chi_dot, s.m_e), s, (u, u_dot, chi, chi_dot, m_e))
+
+
+def dense_backward_euler(model, state, dt):
+    """``(x₁, ẋ₁)`` of one Backward-Euler step ``(M + Δt² K) ẍ = F − K (x + Δt ẋ)`` by a dense numpy
+    solve."""
+    K, M = jax.jit(dae_matrices)(model, state.m_e)
+    K, M = np.asarray(K.to_dense()), np.asarray(M.to_dense())
+    F = np.asarray(join(*dae_rhs(model, state.u, state.chi, dt)))
+    x0, v0 = np.asarray(join(state.u, state.chi)), np.asarray(join(state.u_dot, state.chi_dot))
+    a = np.linalg.solve(M + dt ** 2 * K, F - K @ (x0 + dt * v0))
+    v1 = v0 + dt * a
+    return x0 + dt * v1, v1
+
+
+def dense_block_tridiagonal(diag, lower, upper):
+    """The assembled matrix of blocks: row block ``i`` holds ``lower[i]`` at column block ``i-1``,
+    ``diag[i]`` at ``i``, ``upper[i]`` at ``i+1`` (``lower[0]`` and ``upper[-1]`` fall outside)."""
+    m, b = diag.shape[:2]
+    A = np.zeros((m * b, m * b))
+    for i in range(m):
+        A[i * b:(i + 1) * b, i * b:(i + 1) * b] = diag[i]
+        if i:
+            A[i * b:(i + 1) * b, (i - 1) * b:i * b] = lower[i]
+        if i < m - 1:
+            A[i * b:(i + 1) * b, (i + 1) * b:(i + 2) * b] = upper[i]
+    return A

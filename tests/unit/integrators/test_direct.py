@@ -3,64 +3,34 @@ linear solver of the registry, on a coarse pre-tensioned idle-translated 1D belt
 state, against numpy: ``(M + Δt² K) ẍ = F − K (x + Δt ẋ)`` solved densely
 (``np.linalg.solve``), then ``ẋ₁ = ẋ + Δt ẍ``, ``x₁ = x + Δt ẋ₁``; masses and step count untouched."""
 
-import equinox as eqx
-import jax
 import numpy as np
 import pytest
 
 import jaxbelt as jb
-from jaxbelt.assembly import dae_matrices, dae_rhs
 from jaxbelt.integrators.direct import DirectBackwardEuler
 from jaxbelt.linalg import join
 from jaxbelt.registry import LINEAR_SOLVERS
-from helpers import load, scene_with, solve_step
+from helpers import dense_backward_euler, perturbed_state, pretensioned_idle_translated_machine, solve_step
 
 DT = 0.004
 
 
-def _machine(d):
-    d["mesh"].update(roller_elements=[5, 5], free_elements=[6, 6])
-    d["belt"]["length_mm"] = 863.0  # shorter than the path: pre-tension rows
-    d["roller"][1]["translation_mm"] = [0.5, 0.0, 0.0]
-
-
 @pytest.fixture(scope="module")
 def model():
-    return load(scene_with(_machine))[0]
-
-
-def _perturbed(model, masses):
-    s = jb.initial_state(model)
-    rng = np.random.default_rng(0)
-    n, b, q = model.n_xi, model.block, model.n_roller_dofs
-    m_e = s.m_e * (1.0 + 0.2 * rng.random(n)) if masses == "moved" else s.m_e
-    return eqx.tree_at(lambda s: (s.u, s.u_dot, s.chi, s.chi_dot, s.m_e), s,
-                       (s.u + 1e-5 * rng.standard_normal((n, b)), s.u_dot + 1e-3 * rng.standard_normal((n, b)),
-                        s.chi + 1e-4 * rng.standard_normal(q), s.chi_dot + 1e-2 * rng.standard_normal(q), m_e))
+    return pretensioned_idle_translated_machine()
 
 
 @pytest.fixture(scope="module")
 def state(model):
     """The initial state, displacements and velocities perturbed; the element masses the model's
     (as the shift transport rule keeps them)."""
-    return _perturbed(model, "kept")
+    return perturbed_state(model, moved_masses=False)
 
 
 @pytest.fixture(scope="module")
 def moved_masses_state(model):
     """The same, the element masses no longer uniform (as the source transport rule moves them)."""
-    return _perturbed(model, "moved")
-
-
-def dense_backward_euler(model, state, dt):
-    """``(x₁, ẋ₁)`` of one Backward-Euler step by a dense numpy solve."""
-    K, M = jax.jit(dae_matrices)(model, state.m_e)
-    K, M = np.asarray(K.to_dense()), np.asarray(M.to_dense())
-    F = np.asarray(join(*dae_rhs(model, state.u, state.chi, dt)))
-    x0, v0 = np.asarray(join(state.u, state.chi)), np.asarray(join(state.u_dot, state.chi_dot))
-    a = np.linalg.solve(M + dt ** 2 * K, F - K @ (x0 + dt * v0))
-    v1 = v0 + dt * a
-    return x0 + dt * v1, v1
+    return perturbed_state(model)
 
 
 @pytest.mark.parametrize("linear_solver", list(LINEAR_SOLVERS))

@@ -4,39 +4,26 @@ condensed map ``x_e = g + P x_f`` satisfies the algebraic rows for any ``x_f``; 
 Schur-type combinations of the dense blocks; one step equals the dense Backward-Euler step of the
 full DAE (``np.linalg.solve``); the recovered state puts ``x_f`` and ``x_e`` back in place."""
 
-import equinox as eqx
 import jax
 import numpy as np
 import pytest
 
-import jaxbelt as jb
 from jaxbelt.assembly import dae_matrices, dae_rhs
 from jaxbelt.integrators.eliminated import EliminatedBackwardEuler, eliminated_system, recover_state
 from jaxbelt.linalg import join
-from helpers import load, scene_with, solve_step
+from helpers import perturbed_state, pretensioned_idle_translated_machine, solve_step
 
 DT = 0.004
 
 
 @pytest.fixture(scope="module")
 def model():
-    def machine(d):
-        d["mesh"].update(roller_elements=[5, 5], free_elements=[6, 6])
-        d["belt"]["length_mm"] = 863.0
-        d["roller"][1]["translation_mm"] = [0.5, 0.0, 0.0]
-
-    return load(scene_with(machine))[0]
+    return pretensioned_idle_translated_machine()
 
 
 @pytest.fixture(scope="module")
 def state(model):
-    s = jb.initial_state(model)
-    rng = np.random.default_rng(1)
-    n, b, q = model.n_xi, model.block, model.n_roller_dofs
-    return eqx.tree_at(lambda s: (s.u, s.u_dot, s.chi, s.chi_dot, s.m_e), s,
-                       (s.u + 1e-5 * rng.standard_normal((n, b)), s.u_dot + 1e-3 * rng.standard_normal((n, b)),
-                        s.chi + 1e-4 * rng.standard_normal(q), s.chi_dot + 1e-2 * rng.standard_normal(q),
-                        s.m_e * (1.0 + 0.2 * rng.random(n))))
+    return perturbed_state(model, seed=1)
 
 
 @pytest.fixture(scope="module")

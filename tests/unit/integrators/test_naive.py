@@ -3,53 +3,27 @@ pre-tensioned idle-translated 1D belt from a perturbed state with non-uniform ma
 its step equals the N-unknown dense step ``(M + Δt² K) ẍ = F − K (x + Δt ẋ)`` (``np.linalg.solve``);
 the drive turns by its prescribed ``ω Δt``; the transport rule it carries is the one asked for."""
 
-import equinox as eqx
-import jax
 import numpy as np
 import pytest
 
 import jaxbelt as jb
-from jaxbelt.assembly import dae_matrices, dae_rhs
 from jaxbelt.integrators.naive import NaiveBackwardEuler
 from jaxbelt.linalg import join
-from helpers import load, scene_with, solve_step
+from helpers import (dense_backward_euler, load, perturbed_state, pretensioned_idle_translated_machine, scene_with,
+                     solve_step)
 
 DT = 0.004
 
 
 @pytest.fixture(scope="module")
 def model():
-    def machine(d):
-        d["mesh"].update(roller_elements=[5, 5], free_elements=[6, 6])
-        d["belt"]["length_mm"] = 863.0
-        d["roller"][1]["translation_mm"] = [0.5, 0.0, 0.0]
-
-    return load(scene_with(machine))[0]
-
-
-def _state(model, seed=2):
-    s = jb.initial_state(model)
-    rng = np.random.default_rng(seed)
-    n, b, q = model.n_xi, model.block, model.n_roller_dofs
-    return eqx.tree_at(lambda s: (s.u, s.u_dot, s.chi, s.chi_dot, s.m_e), s,
-                       (s.u + 1e-5 * rng.standard_normal((n, b)), s.u_dot + 1e-3 * rng.standard_normal((n, b)),
-                        s.chi + 1e-4 * rng.standard_normal(q), s.chi_dot + 1e-2 * rng.standard_normal(q),
-                        s.m_e * (1.0 + 0.2 * rng.random(n))))
-
-
-def _dense_step(model, state, dt):
-    K, M = jax.jit(dae_matrices)(model, state.m_e)
-    K, M = np.asarray(K.to_dense()), np.asarray(M.to_dense())
-    F = np.asarray(join(*dae_rhs(model, state.u, state.chi, dt)))
-    x0, v0 = np.asarray(join(state.u, state.chi)), np.asarray(join(state.u_dot, state.chi_dot))
-    a = np.linalg.solve(M + dt ** 2 * K, F - K @ (x0 + dt * v0))
-    return x0 + dt * (v0 + dt * a), v0 + dt * a
+    return pretensioned_idle_translated_machine()
 
 
 @pytest.mark.parametrize("seed", [2, 3])
 def test_step_equals_the_n_unknown_dense_step(model, seed):
-    state = _state(model, seed)
-    x_ref, v_ref = _dense_step(model, state, DT)
+    state = perturbed_state(model, seed)
+    x_ref, v_ref = dense_backward_euler(model, state, DT)
     s1 = solve_step(model, NaiveBackwardEuler(), state, DT)
     np.testing.assert_allclose(np.asarray(join(s1.u, s1.chi)), x_ref, rtol=1e-8, atol=1e-9 * np.abs(x_ref).max())
     np.testing.assert_allclose(np.asarray(join(s1.u_dot, s1.chi_dot)), v_ref, rtol=1e-7,

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from helpers import dense_block_tridiagonal
 from jaxbelt.linalg.cyclic_reduction import bcr_apply, bcr_factor
 
 
@@ -17,18 +18,6 @@ def _blocks(m, b, seed=0):
     rng = np.random.default_rng(seed)
     return rng.standard_normal((m, b, b)) + 3.0 * b * np.eye(b), rng.standard_normal((m, b, b)), \
         rng.standard_normal((m, b, b))
-
-
-def _dense(diag, lower, upper):
-    m, b = diag.shape[:2]
-    A = np.zeros((m * b, m * b))
-    for i in range(m):
-        A[i * b:(i + 1) * b, i * b:(i + 1) * b] = diag[i]
-        if i:
-            A[i * b:(i + 1) * b, (i - 1) * b:i * b] = lower[i]
-        if i < m - 1:
-            A[i * b:(i + 1) * b, (i + 1) * b:(i + 2) * b] = upper[i]
-    return A
 
 
 solve = jax.jit(lambda d, lo, up, r: bcr_apply(bcr_factor(d, lo, up), r))
@@ -48,7 +37,7 @@ def test_solve_equals_the_dense_solve_and_ignores_the_outer_couplings(m):
     b, k = 3, 2
     diag, lower, upper = _blocks(m, b, seed=m)
     r = np.random.default_rng(m).standard_normal((m, b, k))
-    ref = np.linalg.solve(_dense(diag, lower, upper), r.reshape(m * b, k)).reshape(m, b, k)
+    ref = np.linalg.solve(dense_block_tridiagonal(diag, lower, upper), r.reshape(m * b, k)).reshape(m, b, k)
     lower[0], upper[-1] = 50.0, -50.0  # outside the matrix
     np.testing.assert_allclose(np.asarray(solve(diag, lower, upper, r)), ref, rtol=1e-11, atol=1e-12)
 
@@ -71,7 +60,7 @@ def test_factors_serve_many_right_hand_sides_and_batch_under_vmap():
     F = jax.jit(bcr_factor)(diag, lower, upper)
     R = np.random.default_rng(3).standard_normal((4, m, b, 1))
     X = jax.jit(jax.vmap(bcr_apply, in_axes=(None, 0)))(F, R)
-    A = _dense(diag, lower, upper)
+    A = dense_block_tridiagonal(diag, lower, upper)
     for q in range(4):
         np.testing.assert_allclose(np.asarray(X[q]).ravel(), np.linalg.solve(A, R[q].ravel()), rtol=1e-11, atol=1e-12)
 
@@ -89,7 +78,7 @@ def test_derivative_of_a_solve_equals_the_dense_implicit_derivative():
         return jnp.asarray(w) @ bcr_apply(bcr_factor(diag + s * E, jnp.asarray(lower), jnp.asarray(upper)),
                                           r).reshape(-1)
 
-    A, Ed = _dense(diag, lower, upper), _dense(E, 0 * E, 0 * E)
+    A, Ed = dense_block_tridiagonal(diag, lower, upper), dense_block_tridiagonal(E, 0 * E, 0 * E)
     x = np.linalg.solve(A, r.ravel())
     np.testing.assert_allclose(float(jax.jit(jax.grad(f))(0.0)), w @ -np.linalg.solve(A, Ed @ x), rtol=1e-10)
 
@@ -98,5 +87,5 @@ def test_numpy_blocks_factor_outside_jit():
     m, b = 5, 2
     diag, lower, upper = _blocks(m, b, seed=3)
     r = np.random.default_rng(3).standard_normal((m, b, 1))
-    ref = np.linalg.solve(_dense(diag, lower, upper), r.reshape(m * b, 1)).reshape(m, b, 1)
+    ref = np.linalg.solve(dense_block_tridiagonal(diag, lower, upper), r.reshape(m * b, 1)).reshape(m, b, 1)
     np.testing.assert_allclose(np.asarray(bcr_apply(bcr_factor(diag, lower, upper), r)), ref, rtol=1e-11, atol=1e-12)

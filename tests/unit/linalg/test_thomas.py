@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from helpers import dense_block_tridiagonal
 from jaxbelt.linalg.thomas import (band_diagonals, band_times, chain_thomas, chained_thomas_apply, elimination_chains,
                                    take_blocks, thomas_apply, thomas_factor)
 
@@ -26,23 +27,9 @@ def _blocks(m, b, seed=0, breaks=None, w=None):
     return diag, lower, upper
 
 
-def _dense(diag, lower, upper):
-    """The assembled matrix: row block ``i`` holds ``lower[i]`` at column block ``i-1``, ``diag[i]``
-    at ``i``, ``upper[i]`` at ``i+1`` (``lower[0]`` and ``upper[-1]`` fall outside)."""
-    m, b = diag.shape[:2]
-    A = np.zeros((m * b, m * b))
-    for i in range(m):
-        A[i * b:(i + 1) * b, i * b:(i + 1) * b] = diag[i]
-        if i:
-            A[i * b:(i + 1) * b, (i - 1) * b:i * b] = lower[i]
-        if i < m - 1:
-            A[i * b:(i + 1) * b, (i + 1) * b:(i + 2) * b] = upper[i]
-    return A
-
-
 def _dense_solve(diag, lower, upper, r):
     m, b, k = r.shape
-    return np.linalg.solve(_dense(diag, lower, upper), r.reshape(m * b, k)).reshape(m, b, k)
+    return np.linalg.solve(dense_block_tridiagonal(diag, lower, upper), r.reshape(m * b, k)).reshape(m, b, k)
 
 
 @pytest.mark.parametrize("m,b,k", [(1, 3, 1), (2, 2, 3), (9, 4, 2)])
