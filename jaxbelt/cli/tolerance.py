@@ -4,7 +4,6 @@ verified by full runs."""
 from __future__ import annotations
 
 from ..design import parameter_space, tolerance_box
-from ..design.metrics import metric_unit
 from ..design.tolerance import box_discretisation, weights_from_dict
 from ._common import UsageError
 from ._design import (add_design_arguments, add_steering_limit_argument, check_limit, check_plot, check_steering_limit,
@@ -62,16 +61,6 @@ def run(args):
     return finish(args, out, _print, "plot_tolerance_box", res)
 
 
-def _unit(metric):
-    return metric_unit(metric)
-
-
-def scale_unit(r) -> str:
-    """The unit of a design answer's metric values (its worst case, stack-up, samples): the record's
-    ``unit`` (:attr:`jaxbelt.design.Study.unit`)."""
-    return r["unit"]
-
-
 def _print(r):
     if r["limits"]:
         held = ", ".join(f"{x['metric']} ≤ {x['limit']:g} {x['unit']}" for x in r["limits"])
@@ -82,7 +71,7 @@ def _print(r):
             print(f"  (the aligned machine's actuator jitter from sensor noise and edge profile, "
                   f"{max(r['actuator_jitter_mrad']):.3g} mrad, is held inside the range)")
     else:
-        print(f"largest box with {r['metric']} ≤ {r['limit_um']:g} {_unit(r['metric'])} at t = {r['t_eval_s']:g} s "
+        print(f"largest box with {r['metric']} ≤ {r['limit_um']:g} {r['unit']} at t = {r['t_eval_s']:g} s "
               f"(half-widths around the scene's misalignment):")
     for row in r["half_widths"]:
         note = " (not felt: capped)" if row["component"] in r["unconstrained"] else (
@@ -91,7 +80,7 @@ def _print(r):
         bar = "" if bar is None or row["component"] in r["unconstrained"] else f" (± {bar:.2g} discretisation)"
         print(f"  {row['component']:16s} ± {row['half_width']:.4g} {row['unit']}{bar}{note}")
     how = "steady solves" if r["operation"] == "steady" else "full runs"
-    unit = scale_unit(r)
+    unit = r["unit"]  # of the metric values: the metric's, the first limit's with several
     print(f"verified worst case {r['worst_case_um']:.4g} {unit} by {len(r['verification'])} {how} "
           f"({'within' if r['verified'] else 'NOT within'} [0.97, 1] × limit, {r['iterations']} iteration(s)); "
           f"linear model {r['predicted_worst_um']:.4g} {unit}")

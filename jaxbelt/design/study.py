@@ -174,10 +174,9 @@ def make_study(model: BeltModel, metric: str, options: RunOptions, *, t_eval: fl
         check_finite(ref, frame["dt"])  # a diverging reference is named, as simulate names it
         u, v, angle = ref.tracer_u, ref.tracer_v, ref.control_u
         zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
-        study, angle_mrad, dangle_mrad = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle)), _mrad(angle), \
-            _mrad(dangle)
-        return study, linear_deviation((zero(u), zero(v), angle_mrad),
-                                        (du * M_TO_UM, None if dv is None else dv * M_TO_UM, dangle_mrad))
+        study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle))
+        return study, linear_deviation((zero(u), zero(v), study.ref_angle),
+                                        (du * M_TO_UM, None if dv is None else dv * M_TO_UM, _mrad(dangle)))
     _, ref = simulate(aligned(model), frame["solver"], n_steps=frame["n_steps"], dt=frame["dt"])
     study = Study(**frame, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
                   ref_angle=_mrad(ref.control_u))

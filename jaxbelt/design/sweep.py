@@ -167,12 +167,9 @@ class SweepResult(Result):
         return to_json(out)
 
 
-def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "",
-                   limits: tuple | None = None) -> dict:
-    """What a stored sweep is of (its store resumes only a sweep with the same identity);
-    ``limits`` the study's (:attr:`~jaxbelt.design.study.Study.limits`, read from it when not given)."""
-    limits = study.limits if limits is None else limits
-    return _identity(study, study.t_eval, limits, dist.to_dict(), limit_um, seed, scene)
+def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "") -> dict:
+    """What a stored sweep is of (its store resumes only a sweep with the same identity)."""
+    return _identity(study, study.t_eval, study.limits, dist.to_dict(), limit_um, seed, scene)
 
 
 def _identity(study, t_eval, limits, distribution: dict, limit_um, seed, scene) -> dict:
