@@ -77,7 +77,7 @@ def part(which, out_path):
     yield_at = time.time()  # the yield is known: the process's time to it ends here (the check below apart)
     info = res.to_dict()
     info.update(chunk=chunk, yield_at=yield_at, study_s=t_study, n_unknowns=int(model.n_unknowns),
-                n_steps=int(study.n_steps), labels=study.space.labels())
+                n_steps=int(study.options.n_steps), labels=study.space.labels())
     arrays = {"metric": np.asarray(res.metric_values)}
     if method is not None:
         from jaxbelt.design.sampling import sample_configurations

@@ -18,6 +18,7 @@ once per run, whatever its length and record interval (:func:`jaxbelt.loop_plan.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 
 import equinox as eqx
@@ -408,6 +409,8 @@ def compile_simulation(model: BeltModel, solver: AbstractIntegrator | None = Non
     return lambda m, t: compiled(m, solver, y0, jnp.asarray(t, dtype=dt.dtype), int(n_steps), saveat, adjoint, None)
 
 
+@functools.partial(jax.tree_util.register_dataclass, data_fields=["solver", "dt"],
+                   meta_fields=["n_steps", "saveat", "adjoint"])
 @dataclasses.dataclass(frozen=True)
 class RunOptions:
     """A scene's own run settings, as :func:`simulate`'s keyword arguments.
@@ -416,7 +419,13 @@ class RunOptions:
     (from ``[output]``), ``adjoint`` the checkpointing of reverse mode through the run
     (:class:`Checkpointed`; a scene does not set it). A mapping, so ``simulate(model, **options)``
     works; :meth:`replace` changes some. The one way run settings travel: every function of the
-    package that runs a model takes them as ``options``."""
+    package that runs a model takes them as ``options``, and what keeps run settings (a
+    :class:`~jaxbelt.design.Study`, a reduction's config) keeps a ``RunOptions``.
+
+    A pytree: ``solver`` and ``dt`` are its leaves (a ``dt`` held as an array is traced, so runs at
+    other time steps share compiled programs; a Python float stays static under
+    :func:`equinox.filter_jit`), ``n_steps``, ``saveat`` and ``adjoint`` shape the program and are
+    static."""
 
     solver: AbstractIntegrator
     n_steps: int

@@ -144,7 +144,7 @@ t0 = time.perf_counter()
 study = design.make_study(dmodel, "lateral_max",
                           jb.RunOptions.from_scene(dscene).replace(solver=jb.make_solver("direct", "reuse")), t_eval=T_EVAL)
 report = design.sensitivity_report(study, repeat=1)
-print(f"N = {dmodel.n_unknowns}, {study.n_steps} steps; study + sensitivities in {time.perf_counter() - t0:.1f} s "
+print(f"N = {dmodel.n_unknowns}, {study.options.n_steps} steps; study + sensitivities in {time.perf_counter() - t0:.1f} s "
       f"(forward {report.forward_s:.2f} s, gradient {report.gradient_s:.2f} s, at the kink: {report.at_kink})")
 for p in report.parameters:
     print(f"  {p.component:12s} {p.gradient:9.3f} µm/{p.unit}")

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..design import distribution_from_dict, run_sweep, with_limits
+from ..infra.results import unit_key
 from ..infra.store import open_sweep
 from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
@@ -84,7 +85,7 @@ def _print(r):
         held = ", ".join(f"{x['metric']} ≤ {x['limit']:g} {x['unit']}" for x in r["limits"])
         what = f"every limit held ({held})"
     else:
-        what = f"{r['metric']} ≤ {r['limit_um']:g} {r['unit']}"
+        what = f"{r['metric']} ≤ {r[unit_key('limit_um', r['unit'])]:g} {r['unit']}"
     print(f"yield {r['yield']:.4f} (95 % Wilson interval {lo:.4f}–{hi:.4f}): {r['passed']} of {r['samples']} "
           f"configurations with {what}" + (" and the steering within its range" if steered else ""))
     d = r.get("discretisation")
@@ -96,7 +97,7 @@ def _print(r):
               f"and count as failures; largest actuator angle {r['steering_max_mrad']:.4g} mrad")
     if "form_yield" in r:
         print(f"FORM: β = {r['form_beta']:.3f}, yield {r['form_yield']:.6f}; "
-              f"linear RSS stack-up (3σ) {r['rss_3sigma_um']:.4g} {r['unit']}")
+              f"linear RSS stack-up (3σ) {r[unit_key('rss_3sigma_um', r['unit'])]:.4g} {r['unit']}")
     if "is_yield" in r:
         print(f"importance sampling ({r['is_samples']} samples): yield {r['is_yield']:.6f} "
               f"(95 %: {r['is_ci95'][0]:.6f}–{r['is_ci95'][1]:.6f})")

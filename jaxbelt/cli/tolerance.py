@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from ..design import parameter_space, tolerance_box
 from ..design.tolerance import box_discretisation, weights_from_dict
+from ..infra.results import unit_key
 from ._common import UsageError
 from ._design import (add_design_arguments, add_steering_limit_argument, check_limit, check_plot, check_steering_limit,
                       finer_model, finish, limits_of, load_design_model, make_design_study, read_toml, stage)
@@ -62,6 +63,8 @@ def run(args):
 
 
 def _print(r):
+    unit = r["unit"]  # of the metric values: the metric's, the first limit's with several
+    k = lambda name: unit_key(name, unit)  # noqa: E731  (their keys name it)
     if r["limits"]:
         held = ", ".join(f"{x['metric']} ≤ {x['limit']:g} {x['unit']}" for x in r["limits"])
         when = "in steady operation" if r["operation"] == "steady" else \
@@ -71,7 +74,7 @@ def _print(r):
             print(f"  (the aligned machine's actuator jitter from sensor noise and edge profile, "
                   f"{max(r['actuator_jitter_mrad']):.3g} mrad, is held inside the range)")
     else:
-        print(f"largest box with {r['metric']} ≤ {r['limit_um']:g} {r['unit']} at t = {r['t_eval_s']:g} s "
+        print(f"largest box with {r['metric']} ≤ {r[k('limit_um')]:g} {unit} at t = {r['t_eval_s']:g} s "
               f"(half-widths around the scene's misalignment):")
     for row in r["half_widths"]:
         note = " (not felt: capped)" if row["component"] in r["unconstrained"] else (
@@ -80,19 +83,18 @@ def _print(r):
         bar = "" if bar is None or row["component"] in r["unconstrained"] else f" (± {bar:.2g} discretisation)"
         print(f"  {row['component']:16s} ± {row['half_width']:.4g} {row['unit']}{bar}{note}")
     how = "steady solves" if r["operation"] == "steady" else "full runs"
-    unit = r["unit"]  # of the metric values: the metric's, the first limit's with several
-    print(f"verified worst case {r['worst_case_um']:.4g} {unit} by {len(r['verification'])} {how} "
+    print(f"verified worst case {r[k('worst_case_um')]:.4g} {unit} by {len(r['verification'])} {how} "
           f"({'within' if r['verified'] else 'NOT within'} [0.97, 1] × limit, {r['iterations']} iteration(s)); "
-          f"linear model {r['predicted_worst_um']:.4g} {unit}")
+          f"linear model {r[k('predicted_worst_um')]:.4g} {unit}")
     for x in r["limits"]:
         print(f"  {x['metric']:17s} verified worst {x['worst_case']:.4g} {x['unit']} of {x['limit']:g} "
               f"({100 * x['ratio']:.0f} %; linear model {x['predicted_worst']:.4g}){'  <- binds' if x['binds'] else ''}")
-    print(f"binding: {', '.join(r['binding'][:5]) or '-'}; RSS stack-up with σ = h/3: {r['rss_um']:.4g} {unit}")
+    print(f"binding: {', '.join(r['binding'][:5]) or '-'}; RSS stack-up with σ = h/3: {r[k('rss_um')]:.4g} {unit}")
     d = r.get("discretisation")
     if d is not None:
         g = d["grid_fine"]
         print(f"discretisation: one level finer (n_xi {g['n_xi']}, n_eta {g['n_eta']}, dt {g['dt']:g} s) the worst corner "
-              f"reads {d['worst_case_fine_um']:.4g} against {d['worst_case_um']:.4g} {unit}: the half-widths change by "
+              f"reads {d[k('worst_case_fine_um')]:.4g} against {d[k('worst_case_um')]:.4g} {unit}: the half-widths change by "
               f"{100 * d['half_width_relative_change']:+.2g} %")
     if not r["verified"]:
         print("warning: the verified worst case is outside [0.97, 1] × limit (strongly nonlinear response)")

@@ -44,6 +44,6 @@ def at_configurations(study: Study, thetas, from_deviation):
     if not study.steady:
         return _from_runs(study, thetas, from_deviation)
     chis, starts = _steady_inputs(study, thetas)
-    states = steady_states(study.model, study.solver, dt=study.dt, chis=chis, y0s=starts,
+    states = steady_states(study.model, study.options.solver, dt=study.options.dt, chis=chis, y0s=starts,
                            period_steps=study.period_steps)
     return _from_steady(study, states, from_deviation)

@@ -114,7 +114,7 @@ class Metric(abc.ABC):
 
 
 def _window(study) -> slice:
-    k = study.n_steps - 1
+    k = study.options.n_steps - 1
     return slice(k + 1 - study.window, k + 1)
 
 
@@ -127,7 +127,7 @@ class TracerDeviation(Metric):
 
     def response(self, study, du, dv, angle):
         d = dv if self.direction == "lateral" else du
-        return d[_window(study)].reshape(-1) if study.steered else d[study.n_steps - 1]
+        return d[_window(study)].reshape(-1) if study.steered else d[study.options.n_steps - 1]
 
     def steps_read(self, study):
         return study.window if study.steered else 1
@@ -155,11 +155,11 @@ class WalkRate(Metric):
     of the run (:func:`jaxbelt.control.walk_rate`), µm/s."""
 
     def response(self, study, du, dv, angle):
-        t = (jnp.arange(study.n_steps) + 1.0) * study.dt
-        return walk_rate(t, jnp.mean(dv, axis=1), (t[study.n_steps // 2], t[-1]))[None]
+        t = (jnp.arange(study.options.n_steps) + 1.0) * study.options.dt
+        return walk_rate(t, jnp.mean(dv, axis=1), (t[study.options.n_steps // 2], t[-1]))[None]
 
     def steps_read(self, study):
-        return study.n_steps - study.n_steps // 2
+        return study.options.n_steps - study.options.n_steps // 2
 
     def quantities(self):
         return ("lateral",)
@@ -267,14 +267,14 @@ def response_sizes(study) -> list[int]:
     """The length of each limited metric's response block, in the order of ``study.limits``."""
     du = jnp.zeros(study.ref_u.shape)
     dv = None if study.ref_v is None else jnp.zeros(study.ref_v.shape)
-    angle = None if study.model.control is None else jnp.zeros((study.n_steps, study.model.control.n_loops))
+    angle = None if study.model.control is None else jnp.zeros((study.options.n_steps, study.model.control.n_loops))
     return [int(_single_response(study, n, du, dv, angle).shape[0]) for n in study.limit_names]
 
 
 def saturation(study, angle):
     """``(steering_mrad, saturated)`` from the actuator angles (n_steps, n_c) mrad: the largest
     |angle| in the window, and whether it reached ``SATURATION_FRACTION`` of its loop's range."""
-    w = angle[study.n_steps - study.window:]
+    w = angle[study.options.n_steps - study.window:]
     if study.steady and study.jitter_mrad is not None:
         w = jnp.abs(w) + study.jitter_mrad
     limit = study.model.control.limit * RAD_TO_MRAD

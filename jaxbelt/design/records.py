@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from ..infra.results import Result, to_json
+from ..infra.results import Result, in_metric_unit, json_fields, to_json, unit_field
 from ..misalignment import TRANSLATIONS, ParameterSpace
 
 
@@ -29,12 +29,14 @@ class RollerMisalignment(Result):
 
 @dataclasses.dataclass(frozen=True)
 class RollerSensitivity(Result):
-    """One roller's gradient of a metric (µm; µm/s for ``walk_rate``, mrad for
-    ``steering_max``). **Fields:** ``translation_um_per_mm`` (3,) per mm along x, y, z;
-    ``rotation_um_per_mrad`` (3,) per mrad about x, y, z."""
+    """One roller's gradient of a metric, in ``unit`` (the metric's: µm; µm/s for ``walk_rate``,
+    mrad for ``steering_max``) per mm or mrad. **Fields:** ``translation_um_per_mm`` (3,) per mm
+    along x, y, z; ``rotation_um_per_mrad`` (3,) per mrad about x, y, z; ``unit``. Their JSON
+    keys name the unit (``translation_mrad_per_mm`` of ``steering_max``)."""
 
-    translation_um_per_mm: tuple
-    rotation_um_per_mrad: tuple
+    translation_um_per_mm: tuple = in_metric_unit()
+    rotation_um_per_mrad: tuple = in_metric_unit()
+    unit: str = unit_field()
 
 
 def _groups(space: ParameterSpace, values) -> dict[str, tuple[tuple, tuple]]:
@@ -52,9 +54,9 @@ def misalignment_per_roller(space: ParameterSpace, theta) -> dict[str, RollerMis
     return {name: RollerMisalignment(t, r) for name, (t, r) in _groups(space, theta).items()}
 
 
-def sensitivity_per_roller(space: ParameterSpace, gradient) -> dict[str, RollerSensitivity]:
-    """``{roller: RollerSensitivity}`` of a gradient (P,), per mm / per mrad."""
-    return {name: RollerSensitivity(t, r) for name, (t, r) in _groups(space, gradient).items()}
+def sensitivity_per_roller(space: ParameterSpace, gradient, unit: str = "µm") -> dict[str, RollerSensitivity]:
+    """``{roller: RollerSensitivity}`` of a gradient (P,) in ``unit`` (the metric's) per mm / per mrad."""
+    return {name: RollerSensitivity(t, r, unit) for name, (t, r) in _groups(space, gradient).items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,7 +100,8 @@ class SurrogateValidation(Result):
     ``n_validation``; ``seed`` of the validation samples; ``training_widths`` (P,) the training
     widths ``w``, mm / mrad; ``safety`` the factor on the largest validation error; ``rho_max``
     the largest ``ρ`` of a validation sample; ``max_true_error_um``, ``median_true_error_um``
-    the metric errors on the validation samples; ``max_bound_um`` the bound there;
+    the metric errors on the validation samples; ``max_bound_um`` the bound there (these and
+    ``metric_range_um`` in ``unit``, the metric's, which their JSON keys name);
     ``effectivity_min`` / ``effectivity_median`` bound over true error there (``inf`` where no
     sample has an error); ``loo_effectivity_min`` the leave-one-out check (:mod:`jaxbelt.design.surrogate`);
     ``metric_range_um`` ``[min, max]`` of the validation samples' full metric; ``training_s``,
@@ -106,7 +109,7 @@ class SurrogateValidation(Result):
     Where they apply (else ``None``, left out of :meth:`to_dict`): ``steps_kept`` the steps the
     response surface keeps; ``snapshots``, ``n_modes``, ``sv_tol``, ``singular_value_ratio`` of
     the POD basis; ``max_true_steering_error_mrad`` and ``steering_bound_mrad`` on a steered
-    machine."""
+    machine; ``unit`` the metric's."""
 
     method: str
     description: str
@@ -117,13 +120,13 @@ class SurrogateValidation(Result):
     training_widths: tuple
     safety: float
     rho_max: float
-    max_true_error_um: float
-    median_true_error_um: float
-    max_bound_um: float
+    max_true_error_um: float = in_metric_unit()
+    median_true_error_um: float = in_metric_unit()
+    max_bound_um: float = in_metric_unit()
     effectivity_min: float
     effectivity_median: float
     loo_effectivity_min: float
-    metric_range_um: tuple
+    metric_range_um: tuple = in_metric_unit()
     training_s: float
     fit_s: float
     validation_s: float
@@ -135,8 +138,9 @@ class SurrogateValidation(Result):
     singular_value_ratio: float | None = None
     max_true_steering_error_mrad: float | None = None
     steering_bound_mrad: float | None = None
+    unit: str = unit_field()
 
     def to_dict(self) -> dict:
-        """The record as JSON-able data, the fields that are ``None`` left out."""
-        return to_json({f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                        if getattr(self, f.name) is not None})
+        """The record as JSON-able data, the fields that are ``None`` left out, metric values keyed
+        by ``unit``."""
+        return to_json({k: v for k, v in json_fields(self).items() if v is not None})

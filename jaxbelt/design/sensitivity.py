@@ -24,7 +24,7 @@ from .records import ComponentGradient, RollerSensitivity, StructuralZero, sensi
 from .linear_box import LinearDeviation
 from .study import Study, metric_value, response
 from ..infra.programs import stored_jit
-from ..infra.results import Result
+from ..infra.results import Result, in_metric_unit
 
 
 KINK_UM = 1e-6  # a metric at or below this is at its kink r = 0
@@ -107,7 +107,8 @@ class SensitivityReport(Result):
     """A metric and its gradient w.r.t. every misalignment component (:func:`sensitivity_report`).
 
     **Fields:** ``metric``; ``value_um`` the metric in ``unit`` (µm; mrad for ``steering_max``, µm/s for ``walk_rate``),
-    the gradients in ``unit`` per mm / mrad; ``t_eval_s``;
+    the gradients in ``unit`` per mm / mrad (the JSON keys of the value and the gradients name
+    ``unit``: ``value_mrad``); ``t_eval_s``;
     ``parameters`` one :class:`~jaxbelt.design.records.ComponentGradient` per varied component;
     ``gradient`` ``{roller: RollerSensitivity}`` (:class:`~jaxbelt.design.records.RollerSensitivity`,
     0 for components that are not parameters); ``structural_zero`` the components that cannot
@@ -117,7 +118,7 @@ class SensitivityReport(Result):
     """
 
     metric: str
-    value_um: float
+    value_um: float = in_metric_unit()
     t_eval_s: float
     parameters: tuple[ComponentGradient, ...]
     gradient: dict[str, RollerSensitivity]
@@ -159,5 +160,5 @@ def sensitivity_report(study: Study, theta=None, repeat: int = 3) -> Sensitivity
         metric=study.metric, value_um=float(value), t_eval_s=study.t_eval,
         parameters=tuple(ComponentGradient(lab, unit, float(g))
                          for lab, unit, g in zip(sp.labels(), sp.units(), np.asarray(grad))),
-        gradient=sensitivity_per_roller(sp, np.asarray(grad)), structural_zero=structural, at_kink=at_kink,
+        gradient=sensitivity_per_roller(sp, np.asarray(grad), study.unit), structural_zero=structural, at_kink=at_kink,
         forward_s=forward_s, gradient_s=gradient_s, compile_s=compile_s, unit=study.unit)

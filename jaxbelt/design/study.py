@@ -16,7 +16,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..infra.programs import stored_jit
-from ..integrators import AbstractIntegrator
 from ..misalignment import TO_SI, ParameterSpace, aligned, apply, dof_directions, parameter_space
 from ..model import BeltModel
 from ..state import BeltState, prolongate
@@ -33,18 +32,20 @@ class Study(eqx.Module):
     """One tolerance question on one model: the metric, its evaluation time, the varied
     components and the aligned reference run. Build with :func:`make_study`.
 
-    **Fields:** ``model``; ``solver`` the integrator of every run; ``dt`` the time step, s (an
-    array: traced, so studies at other time steps share compiled programs); ``ref_u``, ``ref_v``
+    **Fields:** ``model``; ``options`` the run settings of every run (:class:`jaxbelt.RunOptions`:
+    its ``solver``; its ``dt`` the time step, s, held as an array, so studies at other time steps
+    share compiled programs; its ``n_steps`` the run length, the evaluation step; its ``adjoint``
+    the checkpointing of gradients through the runs; every step recorded, :func:`study_options`);
+    ``ref_u``, ``ref_v``
     (n_steps, n_tr) tracer displacements of the aligned run, m, every step recorded (``ref_v``
     ``None`` in 1D); ``base`` (q,) the scene's own misalignment around which ``theta`` is
-    measured; ``space`` the varied components; ``metric``; ``n_steps`` the run length (the
-    evaluation step); ``window`` the steps of the evaluation window (``lateral_peak``, and every
+    measured; ``space`` the varied components; ``metric``; ``window`` the steps of the evaluation window (``lateral_peak``, and every
     windowed metric of a steered machine); ``limit_names`` the metrics of a study with several
     limits at once (module docstring), else ``()``, and ``limit_values`` (n_limits,) their limits
     (an array: studies that differ in the limits only share compiled programs); ``ref_angle``
     (n_steps, n_c) the aligned run's steering actuator angles, mrad (``None`` without a loop);
     ``steady`` whether the study judges steady operation (module
-    docstring, *Steady operation*): then ``n_steps = window = 1`` and every history above has one
+    docstring, *Steady operation*): then ``options.n_steps = window = 1`` and every history above has one
     row, the steady state's; ``period_steps`` the steady map's period in steps; ``jitter_mrad``
     (n_c,) the aligned machine's actuator jitter around its steady angle from sensor noise and
     edge profile, mrad (steady studies of a steered machine, else ``None``); ``steady_start``
@@ -61,14 +62,12 @@ class Study(eqx.Module):
     """
 
     model: BeltModel
-    solver: AbstractIntegrator
-    dt: jax.Array
+    options: RunOptions
     ref_u: jax.Array
     ref_v: jax.Array | None
     base: jax.Array
     space: ParameterSpace = eqx.field(static=True)
     metric: str = eqx.field(static=True)
-    n_steps: int = eqx.field(static=True)
     window: int = eqx.field(static=True)
     limit_names: tuple = eqx.field(static=True, default=())
     limit_values: jax.Array | None = None
@@ -100,26 +99,19 @@ class Study(eqx.Module):
     def t_eval(self) -> float | None:
         """The evaluation time ``n_steps × dt``, s (concrete studies only); ``None`` for steady
         operation."""
-        return None if self.steady else self.n_steps * float(self.dt)
+        return None if self.steady else self.options.n_steps * float(self.options.dt)
 
     @property
     def t_window(self) -> tuple[float, float] | None:
         """The evaluation window ``(start, end)``, s: the last ``window`` steps of the run;
         ``None`` for steady operation."""
-        return None if self.steady else ((self.n_steps - self.window) * float(self.dt), self.t_eval)
+        return None if self.steady else ((self.options.n_steps - self.window) * float(self.options.dt), self.t_eval)
 
     @property
     def range_mrad(self) -> float | None:
         """The steering actuators' range limit, mrad (the smallest over the loops); ``None``
         without a loop."""
         return None if self.model.control is None else float(jnp.min(self.model.control.limit)) * RAD_TO_MRAD
-
-    @property
-    def options(self) -> RunOptions:
-        """The study's run settings (solver, run length, time step) as :class:`jaxbelt.RunOptions`:
-        what a study of the same question on the same machine is built with (a steady study's run
-        length is 1, which steady studies do not read)."""
-        return RunOptions(self.solver, self.n_steps, float(self.dt))
 
     def configured(self, theta) -> BeltModel:
         """The model at design vector ``theta`` (P,), mm / mrad around the scene's misalignment."""
@@ -169,15 +161,14 @@ def make_study(model: BeltModel, metric: str, options: RunOptions, *, t_eval: fl
         return _make_steady_study(model, metric, options, components, jacobian)
     frame = _study_frame(model, metric, t_eval, options, components, window_fraction)
     if jacobian and not np.any(np.asarray(frame["base"])):
-        ref, (du, dv, dangle) = _reference_and_tangents(model, frame["space"], frame["solver"], frame["dt"],
-                                                        frame["n_steps"])
-        check_finite(ref, frame["dt"])  # a diverging reference is named, as simulate names it
+        ref, (du, dv, dangle) = _reference_and_tangents(model, frame["space"], frame["options"])
+        check_finite(ref, frame["options"].dt)  # a diverging reference is named, as simulate names it
         u, v, angle = ref.tracer_u, ref.tracer_v, ref.control_u
         zero = lambda a: None if a is None else jnp.zeros_like(a)  # noqa: E731
         study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle))
         return study, linear_deviation((zero(u), zero(v), study.ref_angle),
                                         (du * M_TO_UM, None if dv is None else dv * M_TO_UM, _mrad(dangle)))
-    _, ref = simulate(aligned(model), frame["solver"], n_steps=frame["n_steps"], dt=frame["dt"])
+    _, ref = simulate(aligned(model), **frame["options"])
     study = Study(**frame, ref_u=ref.tracer_u, ref_v=ref.tracer_v,
                   ref_angle=_mrad(ref.control_u))
     return (study, linearise(study)) if jacobian else study
@@ -195,10 +186,9 @@ DESIGN_TANGENT_RTOL = 1e-6  # GMRES's relative residual of a steady study's tang
 
 def _steady_frame(model, metric, options, components) -> dict:
     _check_metric(model, metric)
-    dt = jnp.asarray(options.dt, model.ell.dtype)
-    return dict(model=model, solver=options.solver, dt=dt,
-                base=model.chi_static, space=parameter_space(model, components), metric=metric, n_steps=1, window=1,
-                steady=True, period_steps=period_steps(model, dt))
+    options = study_options(model, options, 1)
+    return dict(model=model, options=options, base=model.chi_static, space=parameter_space(model, components),
+                metric=metric, window=1, steady=True, period_steps=period_steps(model, options.dt))
 
 
 def _make_steady_study(model, metric, options, components, jacobian):
@@ -214,14 +204,16 @@ def _make_steady_study(model, metric, options, components, jacobian):
         # solve of this model's shapes runs (jaxbelt.steady.steady_with_tangents)
         q, P = model.chi_static.shape[0], frame["space"].size
         directions = dof_directions(model, frame["space"].chi_index, TO_SI, rows=q)
-        s, J = steady_with_tangents(model, frame["solver"], dt=frame["dt"], directions=directions, n_tangents=P,
+        s, J = steady_with_tangents(model, frame["options"].solver, dt=frame["options"].dt, directions=directions,
+                                    n_tangents=P,
                                     period_steps=frame["period_steps"], tangent_rtol=DESIGN_TANGENT_RTOL)
         (du, dv, dangle), tangents = jax.tree.map(lambda a: a[..., :P], (J[:3], J[3]))
     else:  # the same compiled program, asked for no tangents (the verification solves' program)
-        s = steady_with_tangents(aligned(model), frame["solver"], dt=frame["dt"], n_tangents=0,
+        s = steady_with_tangents(aligned(model), frame["options"].solver, dt=frame["options"].dt, n_tangents=0,
                                  period_steps=frame["period_steps"])[0]
     check_steady(s, model)
-    jitter = None if model.control is None else actuator_jitter(aligned(model), frame["solver"], frame["dt"], s)
+    jitter = (None if model.control is None else
+              actuator_jitter(aligned(model), frame["options"].solver, frame["options"].dt, s))
     u, v, angle = _steady_rows(s)
     study = Study(**frame, ref_u=u, ref_v=v, ref_angle=_mrad(angle), jitter_mrad=jitter,
                   steady_start=s.state, steady_tangents=tangents)
@@ -236,13 +228,13 @@ def _make_steady_study(model, metric, options, components, jacobian):
 
 
 @stored_jit
-def _reference_and_tangents(model, space, solver, dt, n_steps):
+def _reference_and_tangents(model, space, options):
     """The run of ``model`` (aligned; its :class:`~jaxbelt.timeloop.Trajectory`) and the
     derivatives of its tracer histories and actuator angles with respect to ``θ`` at ``θ = 0``,
     each with a trailing axis P: one forward-mode pass, the run itself its primal."""
 
     def run(theta):
-        _, tr = simulate(apply(model, space, theta), solver, n_steps=n_steps, dt=dt)
+        _, tr = simulate(apply(model, space, theta), **options)
         return (tr.tracer_u, tr.tracer_v, tr.control_u), tr
 
     J, ref = jax.jacfwd(run, has_aux=True)(jnp.zeros(space.size, model.chi_static.dtype))
@@ -266,25 +258,32 @@ def linearise(study: Study) -> LinearDeviation:
 def _study_frame(model, metric, t_eval, options, components, window_fraction) -> dict:
     """A study's fields but the aligned reference, validated (:func:`make_study`)."""
     _check_metric(model, metric)
-    dt = options.dt
-    n_steps = _evaluation_step(t_eval, dt, options.n_steps)
+    n_steps = _evaluation_step(t_eval, options.dt, options.n_steps)
     if window_fraction is None:
         window_fraction = OPEN_LOOP_WINDOW if model.control is None else CLOSED_LOOP_WINDOW
     if not 0.0 < window_fraction <= 1.0:
         raise ValueError(f"window_fraction = {window_fraction}: must lie in (0, 1]")
-    return dict(model=model, solver=options.solver, dt=jnp.asarray(dt, model.ell.dtype), base=model.chi_static, space=parameter_space(model, components),
-                metric=metric, n_steps=n_steps, window=max(1, int(round(window_fraction * n_steps))))
+    return dict(model=model, options=study_options(model, options, n_steps), base=model.chi_static,
+                space=parameter_space(model, components), metric=metric,
+                window=max(1, int(round(window_fraction * n_steps))))
+
+
+def study_options(model: BeltModel, options: RunOptions, n_steps: int) -> RunOptions:
+    """The run settings of a study's runs from the caller's ``options``: its solver, time step
+    (held as an array of the model's dtype: traced, so studies at other time steps share
+    programs) and adjoint, ``n_steps`` steps, every step recorded (a study reads whole histories)."""
+    return RunOptions(options.solver, int(n_steps), jnp.asarray(options.dt, model.ell.dtype), adjoint=options.adjoint)
 
 
 @stored_jit
-def _aligned_and_configured(model, space, solver, dt, n_steps, thetas):
+def _aligned_and_configured(model, space, options, thetas):
     """The tracer histories (m + 1, n_steps, n_tr) and actuator angles of the aligned machine and
     of ``model`` at each row of ``thetas`` (m, P), as one ``vmap`` batch."""
     chis = jnp.concatenate([jnp.zeros_like(model.chi_static)[None],
                             jax.vmap(lambda t: apply(model, space, t).chi_static)(thetas)])
 
     def one(chi):
-        _, tr = simulate(model.replace(chi_static=chi), solver, n_steps=n_steps, dt=dt)
+        _, tr = simulate(model.replace(chi_static=chi), **options)
         return tr.tracer_u, tr.tracer_v, tr.control_u
 
     return jax.vmap(one)(chis)
@@ -310,7 +309,7 @@ def make_study_at(model: BeltModel, metric: str, thetas, options: RunOptions, *,
         thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
         chis = jnp.concatenate([jnp.zeros_like(model.chi_static)[None],
                                 jax.vmap(lambda t: apply(model, frame["space"], t).chi_static)(thetas)])
-        first = steady_states(model, frame["solver"], dt=frame["dt"], chis=chis, y0s=starts,
+        first = steady_states(model, frame["options"].solver, dt=frame["options"].dt, chis=chis, y0s=starts,
                               period_steps=frame["period_steps"])
         (u, v, angle), converged = jax.vmap(_steady_rows)(first), first.converged
         if not np.all(np.asarray(converged)):
@@ -318,13 +317,12 @@ def make_study_at(model: BeltModel, metric: str, thetas, options: RunOptions, *,
                                      f"{len(chis)} configurations: the fixed-point iteration did not converge")
         aligned_steady = jax.tree.map(lambda a: a[0], first)
         if model.control is not None and jitter_mrad is None:
-            jitter_mrad = actuator_jitter(aligned(model), frame["solver"], frame["dt"], aligned_steady)
+            jitter_mrad = actuator_jitter(aligned(model), frame["options"].solver, frame["options"].dt, aligned_steady)
         frame.update(jitter_mrad=jitter_mrad, steady_start=aligned_steady.state)
     else:
         frame = _study_frame(model, metric, t_eval, options, components, window_fraction)
         thetas = jnp.asarray(thetas, model.chi_static.dtype).reshape(-1, frame["space"].size)
-        u, v, angle = _aligned_and_configured(model, frame["space"], frame["solver"], frame["dt"],
-                                              frame["n_steps"], thetas)
+        u, v, angle = _aligned_and_configured(model, frame["space"], frame["options"], thetas)
     angle = _mrad(angle)
     study = Study(**frame, ref_u=u[0], ref_v=None if v is None else v[0], ref_angle=None if angle is None else angle[0])
     if limits:
@@ -349,7 +347,7 @@ def study_on(model: BeltModel, study: Study, thetas, options: RunOptions, *, lim
                              limits=limits, steady=True, jitter_mrad=study.jitter_mrad,
                              starts=_carried_starts(study, model, thetas))
     return make_study_at(model, study.metric, thetas, options, t_eval=study.t_eval, components=list(study.space.labels()),
-                         window_fraction=study.window / study.n_steps, limits=limits)
+                         window_fraction=study.window / study.options.n_steps, limits=limits)
 
 
 def _carried_starts(study: Study, model: BeltModel, thetas):
@@ -382,8 +380,8 @@ def with_limits(study: Study, limits) -> Study:
             raise ValueError(f"limits: {name} = {limit}: must be a positive number")
     if len({n for n, _ in pairs}) != len(pairs):
         raise ValueError(f"limits: {[n for n, _ in pairs]} names a metric twice")
-    return Study(model=study.model, solver=study.solver, dt=study.dt, ref_u=study.ref_u, ref_v=study.ref_v,
-                 base=study.base, space=study.space, metric=study.metric, n_steps=study.n_steps, window=study.window,
+    return Study(model=study.model, options=study.options, ref_u=study.ref_u, ref_v=study.ref_v,
+                 base=study.base, space=study.space, metric=study.metric, window=study.window,
                  limit_names=tuple(n for n, _ in pairs),
                  limit_values=jnp.asarray([v for _, v in pairs], study.base.dtype) if pairs else None,
                  ref_angle=study.ref_angle, steady=study.steady,
@@ -411,10 +409,11 @@ def run_deviation(study: Study, theta):
     (n_steps, n_tr) µm (``d_v`` ``None`` in 1D), and the steering actuators' angles (n_steps,
     n_c), mrad (``None`` without a loop)."""
     if study.steady:
-        s = steady_state(study.configured(theta), study.solver, dt=study.dt, period_steps=study.period_steps,
+        s = steady_state(study.configured(theta), study.options.solver, dt=study.options.dt,
+                         period_steps=study.period_steps,
                          y0=steady_start(study, theta))
         return steady_deviation(study, s)
-    _, tr = simulate(study.configured(theta), study.solver, n_steps=study.n_steps, dt=study.dt)
+    _, tr = simulate(study.configured(theta), **study.options)
     return deviation(study, tr.tracer_u, tr.tracer_v, tr.control_u)
 
 

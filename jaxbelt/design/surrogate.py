@@ -101,7 +101,7 @@ from ..infra.programs import stored_jit
 from ..rom import ReducedStep, collect_first_order, parameters, pod_basis, tracer_operator
 from ..rom.pod_step import reduced_operators
 from ..state import initial_state
-from ..timeloop import RunOptions, simulate
+from ..timeloop import simulate
 from .metrics import METRICS
 from .linear_box import LinearDeviation
 from .study import Study, deviation, evaluate_deviation, linearise
@@ -171,7 +171,7 @@ def full_deviations(study: Study, theta):
     the study compiled for its aligned reference run (the same shapes), so no new compilation; a
     non-finite run comes back non-finite."""
     model = _configured(study, jnp.asarray(theta, study.base.dtype))
-    _, tr = simulate(model, study.solver, n_steps=study.n_steps, dt=study.dt, check=False)
+    _, tr = simulate(model, **study.options, check=False)
     return jax.tree.map(np.asarray, deviation(study, tr.tracer_u, tr.tracer_v, tr.control_u))
 
 
@@ -184,7 +184,7 @@ def _metric_jit(study: Study, du, dv, angle):
 def _reduced_tracers(study: Study, rom: ReducedStep, theta):
     """Reduced-run tracers ``(u, v)`` (n_steps, n_tr) at ``theta``, m (``v`` ``None`` in 1D)."""
     model = study.configured(theta)
-    run = rom.run(rom.project(model, initial_state(model)), parameters(model), study.n_steps)
+    run = rom.run(rom.project(model, initial_state(model)), parameters(model), study.options.n_steps)
     return run.tracer_u, None if study.ref_v is None else run.tracer_v
 
 
@@ -304,7 +304,7 @@ def _fit_response(study: Study, train, widths) -> ResponseSurface:
 
     d0, linear, curvature = surface(runs, 3)
     a0, a1, a2 = surface(angles, 2) if angles else (None, None, None)
-    return ResponseSurface(d0=d0, linear=linear, curvature=curvature, n_steps=study.n_steps,
+    return ResponseSurface(d0=d0, linear=linear, curvature=curvature, n_steps=study.options.n_steps,
                            angle0=a0, angle_linear=a1, angle_curvature=a2)
 
 
@@ -326,8 +326,7 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     """Fully reduced POD step from the training runs' snapshots, and its nominal anchor."""
     snaps = []
     for theta in train:
-        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)),
-                                               RunOptions(study.solver, study.n_steps, study.dt))
+        _, z_pre, z_post = collect_first_order(study.configured(jnp.asarray(theta)), study.options)
         snaps += [z_pre, z_post]
     Z = jnp.concatenate(snaps, axis=1)
     x_nominal = snaps[1][:study.model.n_unknowns, 1:]  # the nominal run after each transport
@@ -340,8 +339,8 @@ def _fit_pod(study: Study, train, sv_tol: float, max_modes: int):
     s = np.asarray(s)
     r = max(1, min(int(np.sum(s > sv_tol * s[0])), V.shape[1]))
     nominal = study.configured(jnp.zeros(study.space.size))
-    rom = reduced_operators(nominal, V[:, :r], study.dt, study.solver, singular_values=jnp.asarray(s))
-    info = {"snapshots": int(len(train) * (2 * study.n_steps + 1)), "n_modes": int(r), "sv_tol": float(sv_tol),
+    rom = reduced_operators(nominal, V[:, :r], study.options.dt, study.options.solver, singular_values=jnp.asarray(s))
+    info = {"snapshots": int(len(train) * (2 * study.options.n_steps + 1)), "n_modes": int(r), "sv_tol": float(sv_tol),
             "singular_value_ratio": float(s[r - 1] / s[0])}
     return rom, _anchor(study, rom, full_u, full_v), info, t_train
 
@@ -456,5 +455,6 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
         fit_s=t_fitted - t_train,
         validation_s=t_full,
         offline_s=time.perf_counter() - t0,
+        unit=study.unit,
     )
     return surrogate

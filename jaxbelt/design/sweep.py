@@ -43,7 +43,7 @@ import time
 import numpy as np
 
 from ..accuracy import Grid
-from ..infra.results import Result, to_json
+from ..infra.results import Result, in_metric_unit, json_key, to_json, unit_key
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearDeviation, LinearResponse, rss_stackup
@@ -112,7 +112,8 @@ class SweepResult(Result):
       decided.
     - ``rom``: whether a surrogate stood in and its validation record (:class:`ReducedModelUse`).
     - ``unit``: the unit of ``limit_um``, ``metric_values`` and ``rss_3sigma_um`` (the metric's: µm,
-      mrad or µm/s; the first limit's with several limits).
+      mrad or µm/s; the first limit's with several limits); the JSON keys of the first and last name
+      it (:func:`jaxbelt.infra.results.unit_key`).
     - ``metric_values`` (samples,): the metric of every configuration.
     - ``speedup_estimate``: with a reduced model, the full model's time per configuration in the
       validation runs (compilation included) times the configurations run, over the wall time —
@@ -127,7 +128,7 @@ class SweepResult(Result):
     """
 
     metric: str
-    limit_um: float
+    limit_um: float = in_metric_unit()
     samples: int
     seed: int
     yield_: float
@@ -143,7 +144,7 @@ class SweepResult(Result):
     saturated: int | None = None
     range_mrad: float | None = None
     steering_max_mrad: float | None = None
-    rss_3sigma_um: float | None = None
+    rss_3sigma_um: float | None = in_metric_unit(default=None)
     form_yield: float | None = None
     form_beta: float | None = None
     form_converged: bool | None = None
@@ -156,14 +157,16 @@ class SweepResult(Result):
 
     def to_dict(self, values: bool = False) -> dict:
         """The result as JSON-able data (``jaxbelt sweep --json``): ``yield_`` as ``"yield"``, the
-        fields that are ``None`` left out, ``metric_values`` only with ``values``."""
+        fields that are ``None`` left out, ``metric_values`` only with ``values``, metric values
+        keyed by ``unit``."""
         out = {}
         last = ("wall_s", "configs_per_s")  # the timings close the record
-        for name in [f.name for f in dataclasses.fields(self) if f.name not in last] + list(last):
-            v = getattr(self, name)
-            if v is None or (name == "metric_values" and not values):
+        fields = [f for f in dataclasses.fields(self) if f.name not in last]
+        for f in fields + [f for f in dataclasses.fields(self) if f.name in last]:
+            v = getattr(self, f.name)
+            if v is None or (f.name == "metric_values" and not values):
                 continue
-            out["yield" if name == "yield_" else name] = v.to_dict() if name == "rom" else v
+            out["yield" if f.name == "yield_" else json_key(self, f)] = v.to_dict() if f.name == "rom" else v
         return to_json(out)
 
 
@@ -173,7 +176,7 @@ def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, se
 
 
 def _identity(study, t_eval, limits, distribution: dict, limit_um, seed, scene) -> dict:
-    return {"scene": scene, "metric": study.metric, "t_eval_s": t_eval, "limit_um": float(limit_um),
+    return {"scene": scene, "metric": study.metric, "t_eval_s": t_eval, unit_key("limit_um", study.unit): float(limit_um),
             "limits": [[n, float(v)] for n, v in limits],
             "seed": int(seed), "distribution": distribution,
             "tracers": int(study.ref_u.shape[1])}

@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..accuracy import Grid
-from ..infra.results import Result, to_json
+from ..infra.results import Result, in_metric_unit, json_fields, json_key, to_json, unit_field
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
@@ -67,20 +67,21 @@ class VerificationRun(Result):
     """One full run of a box's verification (:func:`tolerance_box`). **Fields:** ``kind``
     ``"worst corner"`` or ``"random corner"``; ``corner`` the configuration run, ``{roller:
     RollerMisalignment}`` (mm / mrad around the scene's own misalignment); ``predicted_um`` the
-    linear model's metric there; ``full_um`` the full run's (with several limits both on the scale
-    of ``limit_um``: the largest ratio to its limit times ``limit_um``); ``full_by_limit`` with
-    several limits ``{metric: value}``, each in its metric's own unit, else ``None`` (left out of
-    :meth:`to_dict`)."""
+    linear model's metric there; ``full_um`` the full run's (both in ``unit``, the box's; with
+    several limits both on the scale of ``limit_um``: the largest ratio to its limit times
+    ``limit_um``); ``full_by_limit`` with several limits ``{metric: value}``, each in its metric's
+    own unit, else ``None`` (left out of :meth:`to_dict`)."""
 
     kind: str
     corner: dict[str, RollerMisalignment]
-    predicted_um: float
-    full_um: float
+    predicted_um: float = in_metric_unit()
+    full_um: float = in_metric_unit()
     full_by_limit: dict[str, float] | None = None
+    unit: str = unit_field()
 
     def to_dict(self) -> dict:
         """The run as JSON-able data, ``full_by_limit`` only with several limits."""
-        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out = json_fields(self)
         if self.full_by_limit is None:
             del out["full_by_limit"]
         return to_json(out)
@@ -119,29 +120,30 @@ class ToleranceBox(Result):
     ``()``; ``binding_limit`` the metric whose limit
     binds (the study's metric with a single limit); ``unit`` the unit of ``limit_um``, the worst
     cases, the stack-up and the linear response (the metric's: µm, mrad or µm/s; the first
-    limit's with several limits). With several limits ``worst_case_um``,
+    limit's with several limits; the JSON keys of those fields name it,
+    :func:`jaxbelt.infra.results.unit_key`). With several limits ``worst_case_um``,
     ``predicted_worst_um``, the verification values and the linear response are the largest ratio
     to its limit times ``limit_um``, and every verification run has ``full_by_limit``.
     """
 
     metric: str
-    limit_um: float
+    limit_um: float = in_metric_unit()
     t_eval_s: float
     half_widths: np.ndarray
     units: list
     labels: list
     box: dict[str, RollerMisalignment]
     share: np.ndarray
-    predicted_worst_um: float
-    worst_case_um: float
+    predicted_worst_um: float = in_metric_unit()
+    worst_case_um: float = in_metric_unit()
     verified: bool
     binding: list
     unconstrained: list
     verification: tuple[VerificationRun, ...]
     iterations: int
-    rss_um: float
-    jacobian_um: np.ndarray
-    response0_um: np.ndarray
+    rss_um: float = in_metric_unit()
+    jacobian_um: np.ndarray = in_metric_unit()
+    response0_um: np.ndarray = in_metric_unit()
     limits: tuple[LimitCheck, ...] = ()
     binding_limit: str = ""
     corners: np.ndarray | None = None  # (m, P) the verified worst corners, as parameter vectors
@@ -150,17 +152,19 @@ class ToleranceBox(Result):
 
     def to_dict(self) -> dict:
         """The box as JSON-able data (``jaxbelt tolerance --json``): the scalar and table fields
-        and ``half_widths`` as ``[{"component", "half_width", "unit", "share"}]``."""
-        out = {k: getattr(self, k) for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um",
-                                              "predicted_worst_um", "verified", "binding", "unconstrained",
-                                              "iterations", "rss_um", "limits", "binding_limit", "unit")}
+        (metric values keyed by ``unit``) and ``half_widths`` as ``[{"component", "half_width",
+        "unit", "share"}]``."""
+        fields = {f.name: f for f in dataclasses.fields(self)}
+        out = {json_key(self, fields[k]): getattr(self, k)
+               for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um", "predicted_worst_um", "verified",
+                         "binding", "unconstrained", "iterations", "rss_um", "limits", "binding_limit", "unit")}
         out["verification"] = [row.to_dict() for row in self.verification]
         out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
                               for lab, h, u, s in zip(self.labels, self.half_widths, self.units, self.share)]
         return to_json(out)
 
 
-def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners, max_iter, space, names=None):
+def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners, max_iter, space, names, unit):
     """Full runs at the worst and the random corners, the box scaled (uniform factor, secant)
     until the verified worst case lies in ``[0.97, 1] × limit``. ``evaluate_many`` returns the
     metric (m,), or with several limits (``names``: ``((metric, limit), ...)``) each limit's
@@ -180,7 +184,7 @@ def _verify(lin, h_lin, felt, limit_um, evaluate_many, corners_random, n_corners
         pred_all = np.concatenate([pred, [lin.metric(c * h) for c in corners_random]])
         kinds = ["worst corner"] * len(signs) + ["random corner"] * n_random
         by_limit = [{n: float(x) for (n, _), x in zip(names, v)} for v in values] if names else [None] * len(full)
-        table = tuple(VerificationRun(k, misalignment_per_roller(space, c * h), float(p), float(f), b)
+        table = tuple(VerificationRun(k, misalignment_per_roller(space, c * h), float(p), float(f), b, unit)
                       for k, c, p, f, b in zip(kinds, corners, pred_all, full, by_limit))
         worst = float(np.max(full))
         history.append((s, worst))
@@ -258,7 +262,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     felt = np.any(J != 0, axis=0) & (h_lin < CAP_FRACTION * h_max)
     rand = np.random.default_rng(seed).choice([-1.0, 1.0], size=(n_random, len(h_lin)))  # the same in every iteration
     h, worst, table, iterations, thetas = _verify(lin, h_lin, felt, limit_um, evaluate_many, rand, n_corners, max_iter, sp,
-                                          names)
+                                                  names, study.unit)
     W = worst_case(lin, h)
     per_limit, binding_limit = ((), study.metric) if not names else _per_limit(
         lin, h, names, response_sizes(work), limit_um, table)
@@ -294,17 +298,19 @@ class BoxDiscretisation(Result):
     of every half-width the finer grid asks for (the box scaled until its worst corner is back at
     the verified level, the excess over the floor taken as linear in the scale);
     ``half_width_uncertainty`` (P,) its size per half-width, in their units; ``grid``/``grid_fine``
-    the two grids (:class:`~jaxbelt.accuracy.Grid`, ``None`` where not given); ``runs`` the full runs made on the finer grid (its aligned reference included)."""
+    the two grids (:class:`~jaxbelt.accuracy.Grid`, ``None`` where not given); ``runs`` the full runs made on the finer grid (its aligned reference included);
+    ``unit`` the unit of the metric values (the box's; named by the JSON keys)."""
 
-    worst_case_um: float
-    worst_case_fine_um: float
-    floor_um: float
-    floor_fine_um: float
+    worst_case_um: float = in_metric_unit()
+    worst_case_fine_um: float = in_metric_unit()
+    floor_um: float = in_metric_unit()
+    floor_fine_um: float = in_metric_unit()
     half_width_relative_change: float
     half_width_uncertainty: np.ndarray
     grid: Grid | None
     grid_fine: Grid | None
     runs: int
+    unit: str = unit_field()
 
 
 
@@ -347,7 +353,7 @@ def box_discretisation(box: ToleranceBox, study: Study, fine_model, fine_options
         worst_case_um=worst, worst_case_fine_um=worst_f, floor_um=floor, floor_fine_um=floor_f,
         half_width_relative_change=float(scale - 1.0),
         half_width_uncertainty=np.abs(scale - 1.0) * np.asarray(box.half_widths),
-        grid=grid, grid_fine=grid_fine, runs=len(thetas) + 1)
+        grid=grid, grid_fine=grid_fine, runs=len(thetas) + 1, unit=box.unit)
 
 
 def weights_from_dict(data: dict, space: ParameterSpace) -> np.ndarray:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 
-from ..infra.results import to_json
+from ..infra.results import json_key, to_json
 
 
 def pyplot():
@@ -35,11 +35,13 @@ def axes_or_new(ax, figsize=(6, 4.5)):
 
 
 def result_record(result) -> Mapping:
-    """A result's entries by name: a mapping as it is; a dataclass (the results of
-    :mod:`jaxbelt.design`) as its fields, ``yield_`` under ``"yield"``."""
+    """A result's entries by their JSON keys: a mapping (a result's ``to_dict()``) as it is; a
+    dataclass (the results of :mod:`jaxbelt.design`) as every field, keyed as in JSON
+    (:func:`jaxbelt.infra.results.json_key`: metric values keyed by the record's unit), ``yield_``
+    under ``"yield"``."""
     if isinstance(result, Mapping):
         return result
     if dataclasses.is_dataclass(result):  # nested records as JSON-able data, as in their to_dict()
-        return {("yield" if f.name == "yield_" else f.name): to_json(getattr(result, f.name))
+        return {("yield" if f.name == "yield_" else json_key(result, f)): to_json(getattr(result, f.name))
                 for f in dataclasses.fields(result)}
     raise TypeError(f"expected a result of jaxbelt.design or a mapping, got {type(result).__name__}")

@@ -86,7 +86,7 @@ def test_study_and_its_values_in_one_batch_equal_the_reference_run_and_single_ru
     thetas = np.array([[0.0, 0.0, 0.0, 0.0], [0.05, -0.1, 0.2, -0.3]])
     st, values = make_study_at(model2d, "lateral_rms", thetas, study.options, t_eval=0.24,
                                components="roller 2:rotation,roller 3:dx,roller 3:dz")
-    assert st.n_steps == study.n_steps and st.window == study.window and st.space == study.space
+    assert st.options.n_steps == study.options.n_steps and st.window == study.window and st.space == study.space
     assert np.allclose(st.ref_u, study.ref_u, rtol=0, atol=1e-15) and np.allclose(st.ref_v, study.ref_v, rtol=0, atol=1e-15)
     single = [float(metric_fn(jnp.asarray(t))) for t in thetas]
     assert values.shape == (2,) and single[0] > 0 and values == pytest.approx(single, rel=1e-9)

@@ -133,3 +133,33 @@ def test_sensitivity_report_json_keys():
     assert r["parameters"][0] == {"component": "roller 1:dz", "unit": "mm", "gradient": 1000.0}
     assert r["gradient"]["roller 2"]["rotation_um_per_mrad"] == [5.0, 0.0, 0.0]
     assert r["structural_zero"] == [{"component": "roller 1:az", "reason": "no static effect"}]
+
+
+def test_a_metric_in_mrad_or_um_per_s_is_keyed_by_its_unit_never_as_um():
+    """A ``steering_max`` box (mrad), a ``walk_rate`` sensitivity (µm/s), a steered sweep with its
+    surrogate: every key of a metric value names the record's unit, nested records included."""
+    space = _space()
+    h = np.array([0.004, 0.02, 0.03])
+    runs = (VerificationRun("worst corner", misalignment_per_roller(space, h), 1.9, 1.8, None, "mrad"),)
+    box = ToleranceBox(metric="steering_max", limit_um=2.0, t_eval_s=None, half_widths=h, units=["mm", "mrad", "mrad"],
+                       labels=space.labels(), box=misalignment_per_roller(space, h), share=np.array([0.2, 0.5, 0.3]),
+                       predicted_worst_um=1.9, worst_case_um=1.8, verified=False, binding=[], unconstrained=[],
+                       verification=runs, iterations=1, rss_um=1.0, jacobian_um=np.ones((2, 3)),
+                       response0_um=np.zeros(2), binding_limit="steering_max", unit="mrad")
+    rep = SensitivityReport(metric="walk_rate", value_um=3.0, t_eval_s=2.0, parameters=(),
+                            gradient=sensitivity_per_roller(space, [1.0, 5.0, 0.0], "µm/s"), structural_zero=(),
+                            at_kink=False, forward_s=0.1, gradient_s=0.2, compile_s=1.0, unit="µm/s")
+    sweep = _sweep(ReducedModelUse(used=False, validation=_validation(unit="mrad")), rss_3sigma_um=1.2, unit="mrad")
+    sweep = SweepResult(**{**{f: getattr(sweep, f) for f in sweep.__dataclass_fields__}, "metric": "steering_max"})
+    bars = BoxDiscretisation(worst_case_um=1.8, worst_case_fine_um=1.81, floor_um=0.0, floor_fine_um=0.0,
+                             half_width_relative_change=-0.01, half_width_uncertainty=np.array([1e-4]),
+                             grid=None, grid_fine=None, runs=2, unit="mrad")
+    b, s, y, d = _round_trip(box), _round_trip(rep), _round_trip(sweep), _round_trip(bars)
+    assert {"limit_mrad", "worst_case_mrad", "predicted_worst_mrad", "rss_mrad"} <= set(b)
+    assert set(b["verification"][0]) == {"kind", "corner", "predicted_mrad", "full_mrad"}
+    assert s["value_um_per_s"] == 3.0 and s["gradient"]["roller 1"] == {
+        "translation_um_per_s_per_mm": [0.0, 0.0, 1.0], "rotation_um_per_s_per_mrad": [0.0, 0.0, 0.0]}
+    assert y["limit_mrad"] == 20.0 and y["rss_3sigma_mrad"] == 1.2 and y["rom"]["max_bound_mrad"] == 1e-2
+    assert set(d) >= {"worst_case_mrad", "worst_case_fine_mrad", "floor_mrad", "floor_fine_mrad"}
+    for r in (b, s, y, d):
+        assert not [k for k in json.dumps(r).split('"') if k.endswith("_um") or "_um_per_m" in k]

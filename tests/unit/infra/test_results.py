@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxbelt.infra.results import Result, to_json
+from jaxbelt.infra.results import Result, in_metric_unit, json_fields, to_json, unit_field, unit_key
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,3 +64,37 @@ def test_strings_none_and_dataclass_types_pass_through_unchanged():
     assert to_json("µm") == "µm" and to_json(None) is None
     assert to_json(_Inner) is _Inner  # the class itself is not an instance to serialise
     assert to_json(((1, 2), [np.float64(3.0)])) == [[1, 2], [3.0]]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Run(Result):
+    full_um: float = in_metric_unit()
+    note: str = ""
+    unit: str = unit_field()
+
+
+@dataclasses.dataclass(frozen=True)
+class _Box(Result):
+    limit_um: float = in_metric_unit()
+    gap_um: float = 0.0
+    runs: tuple = ()
+    unit: str = "µm"
+
+
+@pytest.mark.parametrize("unit, suffix", [("µm", "um"), ("mrad", "mrad"), ("µm/s", "um_per_s")])
+def test_metric_values_are_keyed_by_the_records_unit_and_a_nested_unit_is_left_to_its_keys(unit, suffix):
+    box = _Box(limit_um=2.0, gap_um=1.0, runs=(_Run(1.5, "corner", unit),), unit=unit)
+    # the metric-valued fields name the record's unit; a field that is always in µm keeps its name
+    assert box.to_dict() == {f"limit_{suffix}": 2.0, "gap_um": 1.0, "runs": [{f"full_{suffix}": 1.5, "note": "corner"}],
+                             "unit": unit}
+    assert json_fields(box.runs[0]) == {f"full_{suffix}": 1.5, "note": "corner"}
+
+
+def test_unit_key_renames_the_micrometre_part_only():
+    assert unit_key("translation_um_per_mm", "mrad") == "translation_mrad_per_mm"
+    assert unit_key("rss_3sigma_um", "µm/s") == "rss_3sigma_um_per_s"
+    assert unit_key("max_true_error_um", "µm") == "max_true_error_um"
+    with pytest.raises(ValueError, match="not a metric unit"):
+        unit_key("limit_um", "mm")
+    with pytest.raises(ValueError, match="named for µm"):
+        unit_key("limit", "mrad")
