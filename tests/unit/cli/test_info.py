@@ -95,12 +95,14 @@ def test_the_text_output_states_the_counts(coarse_path, compiled_assembly, capsy
     out = capsys.readouterr().out
     assert out.startswith("scene coarse (1d): Two equal rollers")
     assert "unknowns N = 26  (belt 22 + rollers 4); algebraic 15, dynamic 11 (= N after elimination)" in out
-    assert "grid n_xi × n_eta = 22 × 1, block size 1, bandwidth 1, path 864.159 mm, elements 31.416–45.833 mm" in out
+    assert ("grid n_xi × n_eta = 22 × 1, block size 1, bandwidth 1, path 864.159 mm, "
+            "elements 31.416–45.833 mm") in out
     assert "time dt = 0.01 s, 20 steps to 0.2 s, CFL number 0.159" in out
     assert "pre-tension strain 0.00134" in out
     assert "roller 'idle': idle, internal, r = 50 mm at [275.0, 0.0], wrap 180.0° (5 elements), dynamic DOFs " \
            "['az'], prescribed {'dx': 0.0005}" in out
-    assert "roller 'drive': drive, internal, r = 50 mm at [0.0, 0.0], wrap 180.0° (5 elements), dynamic DOFs -\n" in out
+    assert ("roller 'drive': drive, internal, r = 50 mm at [0.0, 0.0], wrap 180.0° (5 elements), "
+            "dynamic DOFs -\n") in out
     assert out.count("  automatic: ") == 2
     assert out.endswith("\n    free   idle → drive                275.000 mm     6 elements\n")
 
