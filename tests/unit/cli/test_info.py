@@ -17,8 +17,7 @@ import jaxbelt as jb
 from helpers import scene_with
 from jaxbelt.assembly import dae_matrices
 from jaxbelt.cli import info
-from jaxbelt.cli._common import load_run
-from jaxbelt.cli.info import automatic_choices, bandwidth, loop_info, model_info
+from jaxbelt.cli.info import automatic_choices, bandwidth, load_run, loop_info, model_info
 
 COARSE = """\
 extends = "two-roller-1d"
