@@ -49,8 +49,8 @@ def plot_run(traj, mesh, path=None, times=None, title: str = ""):
         idx = [int(i) for i in np.linspace(0, len(t) - 1, 4).astype(int)]
     else:  # the nearest recorded times; ValueError for a time outside the run
         idx = select_times(t, times)
-    seg_x = np.asarray(mesh.x)[np.asarray(mesh.segment_starts)] * 1e3
     segs = belt_segments(mesh)
+    seg_x = np.array([g["x0"] for g in segs]) * 1e3  # where each segment begins (a span: its arc's exit contact)
     for comp, ax2 in zip(("u", "v"), profile_axes):
         if traj.u is not None:
             x = np.asarray(mesh.x) * 1e3
