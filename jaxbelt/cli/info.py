@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 
 from ..accuracy import one_d_counterpart
@@ -36,12 +37,16 @@ def bandwidth(K) -> int:
     return bw
 
 
+# the assembly as one compiled program, not op by op (~0.1 s instead of ~0.8 s on a small scene)
+_compiled_dae_matrices = jax.jit(dae_matrices)
+
+
 def model_info(scene, mesh, model, options: RunOptions | None = None) -> dict:
     """What the model of a scene contains and how the scene runs it (``jaxbelt info``): the run
     settings come from ``options`` (default :meth:`jaxbelt.RunOptions.from_scene`), the solver's
     names from the scene's ``[solver]``."""
     options = RunOptions.from_scene(scene) if options is None else options
-    K, _ = dae_matrices(model, model.m_e0)
+    K, _ = _compiled_dae_matrices(model, model.m_e0)
     dyn = np.asarray(model.dynamic).reshape(model.n_rollers, len(model.dofs))
     chi = np.asarray(model.chi_static).reshape(dyn.shape)
     rollers = []

@@ -9,13 +9,11 @@ import dataclasses
 import math
 from types import SimpleNamespace
 
-import jax
 import numpy as np
 import pytest
 
 import jaxbelt as jb
 from helpers import scene_with
-from jaxbelt.assembly import dae_matrices
 from jaxbelt.cli import info
 from jaxbelt.cli.info import automatic_choices, bandwidth, load_run, loop_info, model_info
 
@@ -44,16 +42,7 @@ def coarse_path(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def compiled_assembly():
-    """The stiffness that ``info`` reads assembled as one compiled program instead of op by op: the
-    same values, ~0.1 s instead of ~0.8 s."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(info, "dae_matrices", jax.jit(dae_matrices))
-        yield
-
-
-@pytest.fixture(scope="module")
-def coarse_info(coarse_path, compiled_assembly):
+def coarse_info(coarse_path):
     return model_info(*load_run(coarse_path))
 
 
@@ -89,7 +78,7 @@ def test_rollers_and_segments_of_the_coarse_belt(coarse_info):
     assert [s["length_mm"] for s in segs] == pytest.approx([ARC_MM, SPAN_MM, ARC_MM, SPAN_MM])
 
 
-def test_the_text_output_states_the_counts(coarse_path, compiled_assembly, capsys):
+def test_the_text_output_states_the_counts(coarse_path, capsys):
     assert info.run(argparse.Namespace(scene=coarse_path, json=False)) == 0
     out = capsys.readouterr().out
     assert out.startswith("scene coarse (1d): Two equal rollers")
