@@ -55,8 +55,8 @@ def main():
         i64, u64, v64 = run(name, steps, solver, True)
         i32, u32, v32 = run(name, steps, solver, False)
         row = {"scene": name, "steps": steps, "solver": solver, "dtype_64": i64["dtype"], "dtype_32": i32["dtype"],
-               "max_tracer_error_mm": float(max(np.abs(u32 - u64).max(), np.abs(v32 - v64).max()) * 1e3),
-               "max_tracer_displacement_mm": float(max(np.abs(u64).max(), np.abs(v64).max()) * 1e3),
+               "max_tracer_error_um": float(max(np.abs(u32 - u64).max(), np.abs(v32 - v64).max()) * 1e6),
+               "max_tracer_displacement_um": float(max(np.abs(u64).max(), np.abs(v64).max()) * 1e6),
                "mass_drift_64": i64["mass_drift"], "mass_drift_32": i32["mass_drift"],
                "wall_s_64": i64["wall_s"], "wall_s_32": i32["wall_s"]}
         rows.append(row)

@@ -36,8 +36,8 @@ def main():
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     out = {"scene": args.scene, "solver": args.solver, "device": str(jax.devices()[0]), "n_steps": n_steps,
            "t_end_s": float(tr.t[-1]), "compile_s": compile_s, "run_s": run_s, "per_step_ms": run_s / n_steps * 1e3,
-           "peak_rss_mb": peak_mb, "tracer_u_max_abs_mm": float(np.max(np.abs(np.asarray(tr.tracer_u)))) * 1e3,
-           "tracer_v_max_abs_mm": float(np.max(np.abs(np.asarray(tr.tracer_v)))) * 1e3}
+           "peak_rss_mb": peak_mb, "tracer_u_max_abs_um": float(np.max(np.abs(np.asarray(tr.tracer_u)))) * 1e6,
+           "tracer_v_max_abs_um": float(np.max(np.abs(np.asarray(tr.tracer_v)))) * 1e6}
     print(out)
     write("full_run_2d" + (f"_{args.tag}" if args.tag else ""), out)
 

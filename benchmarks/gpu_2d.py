@@ -64,7 +64,7 @@ def main():
     wall = time.perf_counter() - t0
     rows[f"vmap {args.batch} configs ({args.vmap_integrator})"] = {
         "compile_s": comp, "wall_s": wall, "per_config_step_ms": wall / args.batch / args.steps * 1e3,
-        "max_tracer_v_mm": float(jnp.max(jnp.abs(tv))) * 1e3}
+        "max_tracer_v_um": float(jnp.max(jnp.abs(tv))) * 1e6}
     print(rows, flush=True)
     write(f"gpu_2d_{args.tag}", {"device": str(jax.devices()[0]), "scene": args.scene, "steps": args.steps, "rows": rows})
 

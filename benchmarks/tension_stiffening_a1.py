@@ -40,9 +40,9 @@ def main():
         k_norm = float(jnp.sqrt(jnp.sum(m_off.K_diag ** 2) + jnp.sum(m_off.K_lower ** 2)))
         scale = max(np.max(np.abs(u_off)), np.max(np.abs(v_off)), 1e-30)
         row = {"scene": name, "K_sigma_over_K": k_sigma / k_norm,
-               "max_du_mm": float(np.max(np.abs(u_on - u_off))) * 1e3,
-               "max_dv_mm": float(np.max(np.abs(v_on - v_off))) * 1e3,
-               "max_tracer_displacement_mm": scale * 1e3, "wall_s": time.perf_counter() - t0}
+               "max_du_um": float(np.max(np.abs(u_on - u_off))) * 1e6,
+               "max_dv_um": float(np.max(np.abs(v_on - v_off))) * 1e6,
+               "max_tracer_displacement_um": scale * 1e6, "wall_s": time.perf_counter() - t0}
         rows.append(row)
         print(row, flush=True)
     write("tension_stiffening_a1", {"rows": rows})
