@@ -16,7 +16,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..infra.programs import stored_jit
-from ..integrators import AbstractIntegrator
 from ..misalignment import TO_SI, ParameterSpace, aligned, apply, dof_directions, parameter_space
 from ..model import BeltModel
 from ..state import BeltState, prolongate
@@ -88,22 +87,6 @@ class Study(eqx.Module):
         self.steered = self.model.control is not None  # steering loops: metrics read the window closed-loop
         # the unit of the metric values: the first limit's with several (on_limit_scale), else the metric's
         self.unit = METRICS[self.limit_names[0] if self.limit_names else self.metric].unit
-
-    @property
-    def solver(self) -> AbstractIntegrator:
-        """``options.solver``: the integrator of every run (read-only; the settings live in ``options``)."""
-        return self.options.solver
-
-    @property
-    def dt(self) -> jax.Array:
-        """``options.dt``: the time step, s (read-only; the settings live in ``options``)."""
-        return self.options.dt
-
-    @property
-    def n_steps(self) -> int:
-        """``options.n_steps``: the run length, the evaluation step (read-only; the settings live in
-        ``options``)."""
-        return self.options.n_steps
 
     @property
     def limits(self) -> tuple:
