@@ -43,7 +43,7 @@ import time
 import numpy as np
 
 from ..accuracy import Grid
-from ..infra.results import Result, in_metric_unit, json_key, to_json, unit_key
+from ..infra.results import Result, in_metric_unit, json_fields, to_json, unit_key
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearDeviation, LinearResponse, rss_stackup
@@ -159,15 +159,11 @@ class SweepResult(Result):
         """The result as JSON-able data (``jaxbelt sweep --json``): ``yield_`` as ``"yield"``, the
         fields that are ``None`` left out, ``metric_values`` only with ``values``, metric values
         keyed by ``unit``."""
-        out = {}
-        last = ("wall_s", "configs_per_s")  # the timings close the record
-        fields = [f for f in dataclasses.fields(self) if f.name not in last]
-        for f in fields + [f for f in dataclasses.fields(self) if f.name in last]:
-            v = getattr(self, f.name)
-            if v is None or (f.name == "metric_values" and not values):
-                continue
-            out["yield" if f.name == "yield_" else json_key(self, f)] = v.to_dict() if f.name == "rom" else v
-        return to_json(out)
+        fields = json_fields(self)
+        for k in ("wall_s", "configs_per_s"):  # the timings close the record
+            fields[k] = fields.pop(k)
+        return to_json({("yield" if k == "yield_" else k): v.to_dict() if k == "rom" else v
+                        for k, v in fields.items() if v is not None and (values or k != "metric_values")})
 
 
 def sweep_identity(study: Study, dist: Distribution, n: int, limit_um: float, seed: int, scene: str = "") -> dict:

@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..accuracy import Grid
-from ..infra.results import Result, in_metric_unit, json_fields, json_key, to_json, unit_field
+from ..infra.results import Result, in_metric_unit, json_fields, to_json, unit_field
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..timeloop import RunOptions
 from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
@@ -154,10 +154,9 @@ class ToleranceBox(Result):
         """The box as JSON-able data (``jaxbelt tolerance --json``): the scalar and table fields
         (metric values keyed by ``unit``) and ``half_widths`` as ``[{"component", "half_width",
         "unit", "share"}]``."""
-        fields = {f.name: f for f in dataclasses.fields(self)}
-        out = {json_key(self, fields[k]): getattr(self, k)
-               for k in ("metric", "limit_um", "t_eval_s", "box", "worst_case_um", "predicted_worst_um", "verified",
-                         "binding", "unconstrained", "iterations", "rss_um", "limits", "binding_limit", "unit")}
+        out = json_fields(self, ("metric", "limit_um", "t_eval_s", "box", "worst_case_um", "predicted_worst_um",
+                                 "verified", "binding", "unconstrained", "iterations", "rss_um", "limits",
+                                 "binding_limit", "unit"))
         out["verification"] = [row.to_dict() for row in self.verification]
         out["half_widths"] = [{"component": lab, "half_width": float(h), "unit": u, "share": float(s)}
                               for lab, h, u, s in zip(self.labels, self.half_widths, self.units, self.share)]

@@ -58,12 +58,13 @@ def json_key(record, field: dataclasses.Field) -> str:
     return unit_key(field.name, record.unit) if field.metadata.get("in_metric_unit") else field.name
 
 
-def json_fields(record) -> dict:
+def json_fields(record, names=None) -> dict:
     """The fields of the dataclass ``record`` that its JSON holds, ``{json key: value}`` (values as
     they are): every field but a nested record's :func:`unit_field`, metric values keyed by the
-    unit (:func:`json_key`). The start of a ``to_dict`` that leaves some out."""
-    return {json_key(record, f): getattr(record, f.name) for f in dataclasses.fields(record)
-            if f.metadata.get("in_json", True)}
+    unit (:func:`json_key`); with ``names`` those fields only, in that order. The start of a
+    ``to_dict`` that leaves some out or renames some."""
+    fields = {f.name: f for f in dataclasses.fields(record) if f.metadata.get("in_json", True)}
+    return {json_key(record, fields[n]): getattr(record, n) for n in (fields if names is None else names)}
 
 
 def to_json(x):

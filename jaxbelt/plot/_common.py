@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 
-from ..infra.results import json_key, to_json
+from ..infra.results import json_fields, to_json
 
 
 def pyplot():
@@ -42,6 +42,5 @@ def result_record(result) -> Mapping:
     if isinstance(result, Mapping):
         return result
     if dataclasses.is_dataclass(result):  # nested records as JSON-able data, as in their to_dict()
-        return {("yield" if f.name == "yield_" else json_key(result, f)): to_json(getattr(result, f.name))
-                for f in dataclasses.fields(result)}
+        return {("yield" if k == "yield_" else k): to_json(v) for k, v in json_fields(result).items()}
     raise TypeError(f"expected a result of jaxbelt.design or a mapping, got {type(result).__name__}")
