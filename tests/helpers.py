@@ -62,6 +62,18 @@ roller_elements = [6, 6]
 free_elements = [8, 8]
 """
 
+# A coarse 1D string on the two-roller machine (22 elements, 20 steps of 10 ms), as TOML text: a
+# model that builds quickly for the command-line tests; a module may add its own sections.
+COARSE_1D_TWO_ROLLER = """\
+extends = "two-roller-1d"
+[mesh]
+roller_elements = [5, 5]
+free_elements = [6, 6]
+[time]
+dt_s = 0.01
+t_end_s = 0.2
+"""
+
 
 def builtin_dict(name="two-roller-1d") -> dict:
     return tomllib.loads((resources.files("jaxbelt") / "scenes" / f"{name}.toml").read_text())

@@ -11,20 +11,11 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
+from helpers import COARSE_1D_TWO_ROLLER
 from jaxbelt.cli import SimulationError, UsageError, main
 from jaxbelt.cli._common import (check_at_least, emit, finite_or_none, fmt, load_run, output_file, print_json, rebuild,
                                  scene_from_args)
 
-# a coarse copy of the two-roller machine (22 elements), so that a model of it builds quickly
-COARSE = """\
-extends = "two-roller-1d"
-[mesh]
-roller_elements = [5, 5]
-free_elements = [6, 6]
-[time]
-dt_s = 0.01
-t_end_s = 0.2
-"""
 
 
 def test_without_overrides_the_scene_is_the_loaded_one(capsys):
@@ -67,7 +58,7 @@ def test_solver_overrides_replace_only_the_names_given():
 
 def test_load_run_and_rebuild_give_the_scene_its_grid_model_and_run_settings(tmp_path):
     path = tmp_path / "coarse.toml"
-    path.write_text(COARSE)
+    path.write_text(COARSE_1D_TWO_ROLLER)
     scene, mesh, model, options = load_run(str(path), t_end=0.1, dt=0.02, linear_solver="reuse")
     assert len(mesh.ell) == model.n_xi == 22
     assert model.n_unknowns == 22 + 4  # one unknown a node, two DOFs per roller

@@ -13,20 +13,14 @@ import numpy as np
 import pytest
 
 import jaxbelt as jb
-from helpers import scene_with
+from helpers import COARSE_1D_TWO_ROLLER, scene_with
 from jaxbelt.cli import info
 from jaxbelt.cli.info import automatic_choices, bandwidth, load_run, loop_info, model_info
 
-COARSE = """\
-extends = "two-roller-1d"
+# the coarse two-roller string, pre-tensioned (a belt shorter than its path) and its idle roller moved
+COARSE = COARSE_1D_TWO_ROLLER + """\
 [belt]
 length_mm = 863.0
-[mesh]
-roller_elements = [5, 5]
-free_elements = [6, 6]
-[time]
-dt_s = 0.01
-t_end_s = 0.2
 [variant."idle"]
 translation_mm = [0.5, 0.0, 0.0]
 """

@@ -10,14 +10,9 @@ import jaxbelt as jb
 from jaxbelt.integrators.direct import DirectBackwardEuler
 from jaxbelt.linalg import join
 from jaxbelt.registry import LINEAR_SOLVERS
-from helpers import dense_backward_euler, perturbed_state, pretensioned_idle_translated_machine, solve_step
+from helpers import dense_backward_euler, perturbed_state, solve_step
 
 DT = 0.004
-
-
-@pytest.fixture(scope="module")
-def model():
-    return pretensioned_idle_translated_machine()
 
 
 @pytest.fixture(scope="module")

@@ -11,14 +11,9 @@ import pytest
 from jaxbelt.assembly import dae_matrices, dae_rhs
 from jaxbelt.integrators.eliminated import EliminatedBackwardEuler, eliminated_system, recover_state
 from jaxbelt.linalg import join
-from helpers import perturbed_state, pretensioned_idle_translated_machine, solve_step
+from helpers import perturbed_state, solve_step
 
 DT = 0.004
-
-
-@pytest.fixture(scope="module")
-def model():
-    return pretensioned_idle_translated_machine()
 
 
 @pytest.fixture(scope="module")

@@ -9,15 +9,10 @@ import pytest
 import jaxbelt as jb
 from jaxbelt.integrators.naive import NaiveBackwardEuler
 from jaxbelt.linalg import join
-from helpers import (dense_backward_euler, load, perturbed_state, pretensioned_idle_translated_machine, scene_with,
+from helpers import (dense_backward_euler, load, perturbed_state, scene_with,
                      solve_step)
 
 DT = 0.004
-
-
-@pytest.fixture(scope="module")
-def model():
-    return pretensioned_idle_translated_machine()
 
 
 @pytest.mark.parametrize("seed", [2, 3])
