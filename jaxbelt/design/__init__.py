@@ -52,6 +52,8 @@ from .study import linearise as linearise
 from .study import make_study as make_study
 from .study import make_study_at as make_study_at
 from .configurations import at_configurations as at_configurations
+from .configurations import evaluate_configs as evaluate_configs
+from .configurations import evaluate_metric as evaluate_metric
 from .study import metric_value as metric_value
 from .study import response as response
 from .study import run_deviation as run_deviation
@@ -64,12 +66,11 @@ from .sampling import ImportanceSamplingResult as ImportanceSamplingResult
 from .sampling import MonteCarloResult as MonteCarloResult
 from .sampling import SampleOutputs as SampleOutputs
 from .sampling import distribution_from_dict as distribution_from_dict
-from .sampling import evaluate_configs as evaluate_configs
-from .sampling import evaluate_metric as evaluate_metric
 from .sampling import form as form
 from .sampling import importance_sampling as importance_sampling
 from .sampling import monte_carlo as monte_carlo
 from .sampling import wilson_interval as wilson_interval
+from .sampling import yield_estimate as yield_estimate
 from .sensitivity import SensitivityReport as SensitivityReport
 from .sensitivity import response_jacobian as response_jacobian
 from .sensitivity import sensitivity_report as sensitivity_report

@@ -1,4 +1,8 @@
-"""A study's question at many configurations at once: :func:`at_configurations`.
+"""A study's question at many configurations at once: :func:`at_configurations` (any function of
+a configuration's deviations) and :func:`evaluate_configs` (everything a sweep stores per
+configuration, :func:`jaxbelt.design.study.evaluate`), the one way every design command — a sweep's
+samples, a surrogate's training and validation runs, a tolerance box's verification — evaluates
+a study at a batch of configurations.
 
 A time-stepped study's runs are one ``vmap`` batch. A steady study's solves are not batched inside
 a program: each configuration is one call of the single steady solve's compiled program
@@ -7,16 +11,25 @@ a program: each configuration is one call of the single steady solve's compiled 
 deviations and whatever is read from them after. So the Newton–GMRES program of a scene is
 compiled once, whichever command and whichever question asks for solves (the aligned machine,
 a box's corners, a sweep's samples), instead of once more inside every batch that holds it.
+
+:func:`evaluate_configs` pads the rows to a whole number of ``chunk``-row blocks
+(:func:`padded_rows`), so every block of one chunk size reuses one compilation; a time-stepped
+study's blocks are ``vmap`` batches sharded over the local devices
+(:func:`jaxbelt.infra.sharding.batched_map`), a steady study's at most :data:`STEADY_CHUNK` solves.
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..infra.programs import stored_jit
+from ..infra.sharding import batched_map
 from ..steady import steady_states
-from .study import Study, run_deviation, steady_deviation, steady_start
+from .study import Study, evaluate, evaluate_deviation, run_deviation, steady_deviation, steady_start
+
+STEADY_CHUNK = 4  # steady solves per block (they run in sequence: a block only bounds the padding)
 
 
 @stored_jit
@@ -47,3 +60,56 @@ def at_configurations(study: Study, thetas, from_deviation):
     states = steady_states(study.model, study.options.solver, dt=study.options.dt, chis=chis, y0s=starts,
                            period_steps=study.period_steps)
     return _from_steady(study, states, from_deviation)
+
+
+def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=None):
+    """Full-model :func:`jaxbelt.design.study.evaluate` for every row of ``thetas`` (n, P),
+    batched with ``vmap`` and sharded over the local devices, ``chunk`` configurations at a
+    time; ``progress(done, chunk_result)`` is called after each chunk.
+
+    **Returns:** dict of numpy arrays with leading axis n."""
+    return _map(study, thetas, chunk, progress)
+
+
+def padded_rows(rows, chunk: int) -> np.ndarray:
+    """``rows`` (n, …) with the last row repeated up to a whole number of ``chunk``-row blocks, so
+    that every block of a batched evaluation has one shape: one compilation (no rows: none)."""
+    rows = np.asarray(rows)
+    return np.concatenate([rows, np.repeat(rows[-1:], -len(rows) % chunk, axis=0)]) if len(rows) else rows
+
+
+def _map(study, thetas, chunk, progress=None):
+    """:func:`~jaxbelt.infra.sharding.batched_map` with the rows padded to a whole number of
+    chunks, so that every call with the same ``chunk`` reuses one compilation. Steady solves run
+    one after another, one compiled solve per row (:func:`_steady_chunks`), where a padded row
+    costs a whole solve: their chunk is at most :data:`STEADY_CHUNK`."""
+    thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
+    if study.steady:
+        chunk = min(chunk or STEADY_CHUNK, STEADY_CHUNK)
+    n = thetas.shape[0]
+    if chunk is not None:
+        thetas = padded_rows(thetas, chunk)
+    if study.steady:
+        out = _steady_chunks(study, thetas, chunk or len(thetas), progress)
+    else:
+        out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=study)
+    return jax.tree.map(lambda a: a[:n], out)
+
+
+def _steady_chunks(study, thetas, chunk, progress=None):
+    """A steady study's :func:`jaxbelt.design.study.evaluate` at the rows of ``thetas``, ``chunk``
+    rows at a time (:func:`jaxbelt.design.configurations.at_configurations`: one compiled solve
+    per row), ``progress(done, chunk_result)`` after each chunk."""
+    parts = []
+    for start in range(0, max(len(thetas), 1), chunk):  # (no configuration: one empty part)
+        part = jax.tree.map(np.asarray, at_configurations(study, thetas[start:start + chunk], evaluate_deviation))
+        parts.append(part)
+        if progress is not None:
+            progress(start + len(thetas[start:start + chunk]), part)
+    return jax.tree.map(lambda *a: np.concatenate(a), *parts)
+
+
+
+def evaluate_metric(study: Study, thetas, chunk: int | None = None):
+    """The metric (n,) at every row of ``thetas`` (n, P) (full model, batched)."""
+    return np.asarray(_map(study, thetas, chunk)["metric"])

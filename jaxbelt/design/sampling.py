@@ -9,9 +9,9 @@ $$ g(u) = \\text{limit} - \\text{metric}(θ(u)), \\qquad \\text{pass} \\iff g \\
 
 and the *yield* is ``P(g ≥ 0)``.
 
-- **Monte Carlo** (:func:`monte_carlo`): ``n`` samples, evaluated in ``vmap`` batches (sharded
-  over the local devices, :mod:`jaxbelt.infra.sharding`), chunk by chunk; the yield with a
-  Wilson score 95 % interval.
+- **Monte Carlo** (:func:`monte_carlo`): ``n`` samples, evaluated in batches
+  (:func:`jaxbelt.design.configurations.evaluate_configs`); the yield with a Wilson score 95 %
+  interval (:func:`yield_estimate`, the one estimate of every Monte-Carlo yield, a sweep's too).
 - **FORM** (:func:`form`): the design point ``u*`` (the most probable failing configuration)
   by Hasofer–Lind–Rackwitz–Fiessler iterations with the gradient of the metric through the
   whole run, started from the linearised response; ``β = ‖u*‖``, yield ``Φ(β)``. For a
@@ -34,15 +34,13 @@ from jax.scipy.stats import norm
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
 from ..infra.programs import stored_jit
 from .linear_box import LinearDeviation
-from .configurations import at_configurations
-from .study import Study, evaluate, evaluate_deviation, metric_value
+from .configurations import evaluate_configs, evaluate_metric
+from .study import Study, metric_value
 from .sensitivity import response_jacobian
 from ..infra.results import Result
-from ..infra.sharding import batched_map
 
 DISTRIBUTIONS = ("normal", "uniform")
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: every 95 % interval here
-STEADY_CHUNK = 4  # steady solves per block (they run in sequence: a block only bounds the padding)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,55 +152,6 @@ def check_distribution(dist: Distribution, study: Study):
         raise ValueError(f"the study varies {study.space.labels()}, the distribution {list(dist.labels)}")
 
 
-# ----------------------------------------------------------------------------- evaluation
-
-def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=None):
-    """Full-model :func:`jaxbelt.design.study.evaluate` for every row of ``thetas`` (n, P),
-    batched with ``vmap`` and sharded over the local devices, ``chunk`` configurations at a
-    time; ``progress(done, chunk_result)`` is called after each chunk.
-
-    **Returns:** dict of numpy arrays with leading axis n."""
-    return _map(study, thetas, chunk, progress)
-
-
-def padded_rows(rows, chunk: int) -> np.ndarray:
-    """``rows`` (n, …) with the last row repeated up to a whole number of ``chunk``-row blocks, so
-    that every block of a batched evaluation has one shape: one compilation (no rows: none)."""
-    rows = np.asarray(rows)
-    return np.concatenate([rows, np.repeat(rows[-1:], -len(rows) % chunk, axis=0)]) if len(rows) else rows
-
-
-def _map(study, thetas, chunk, progress=None):
-    """:func:`~jaxbelt.infra.sharding.batched_map` with the rows padded to a whole number of
-    chunks, so that every call with the same ``chunk`` reuses one compilation. Steady solves run
-    one after another, one compiled solve per row (:func:`_steady_chunks`), where a padded row
-    costs a whole solve: their chunk is at most :data:`STEADY_CHUNK`."""
-    thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
-    if study.steady:
-        chunk = min(chunk or STEADY_CHUNK, STEADY_CHUNK)
-    n = thetas.shape[0]
-    if chunk is not None:
-        thetas = padded_rows(thetas, chunk)
-    if study.steady:
-        out = _steady_chunks(study, thetas, chunk or len(thetas), progress)
-    else:
-        out = batched_map(evaluate, thetas, chunk=chunk, progress=progress, operand=study)
-    return jax.tree.map(lambda a: a[:n], out)
-
-
-def _steady_chunks(study, thetas, chunk, progress=None):
-    """A steady study's :func:`jaxbelt.design.study.evaluate` at the rows of ``thetas``, ``chunk``
-    rows at a time (:func:`jaxbelt.design.configurations.at_configurations`: one compiled solve
-    per row), ``progress(done, chunk_result)`` after each chunk."""
-    parts = []
-    for start in range(0, max(len(thetas), 1), chunk):  # (no configuration: one empty part)
-        part = jax.tree.map(np.asarray, at_configurations(study, thetas[start:start + chunk], evaluate_deviation))
-        parts.append(part)
-        if progress is not None:
-            progress(start + len(thetas[start:start + chunk]), part)
-    return jax.tree.map(lambda *a: np.concatenate(a), *parts)
-
-
 def passes(metric, limit_um: float, saturated=None) -> np.ndarray:
     """The one pass rule of every yield (Monte Carlo here, :func:`jaxbelt.design.run_sweep`):
     the metric within the limit **and**, on a steered machine, the actuator not saturated — a loop
@@ -212,12 +161,15 @@ def passes(metric, limit_um: float, saturated=None) -> np.ndarray:
     return ok if saturated is None else ok & ~np.asarray(saturated, bool)
 
 
-def evaluate_metric(study: Study, thetas, chunk: int | None = None):
-    """The metric (n,) at every row of ``thetas`` (n, P) (full model, batched)."""
-    return np.asarray(_map(study, thetas, chunk)["metric"])
-
-
 # ----------------------------------------------------------------------------- statistics
+
+
+def yield_estimate(metric, limit_um: float, saturated=None) -> tuple[int, tuple[float, float]]:
+    """A Monte-Carlo yield from every sample's ``metric`` (n,) (and, on a steered machine, whether
+    its actuator ``saturated``): ``(passed, ci95)``, the samples that pass (:func:`passes`) and the
+    Wilson 95 % interval of their fraction (:func:`wilson_interval`); the yield is ``passed / n``."""
+    passed = int(np.sum(passes(metric, limit_um, saturated)))
+    return passed, wilson_interval(passed, len(np.asarray(metric)))
 
 
 def wilson_interval(passed: int, n: int, z: float = Z95) -> tuple[float, float]:
@@ -278,8 +230,8 @@ def monte_carlo(study: Study, dist: Distribution, n: int, limit_um: float, seed:
     thetas = sample_configurations(dist, n, seed)
     out = evaluate_configs(study, thetas, chunk, progress)
     metric = np.asarray(out["metric"])
-    passed = int(np.sum(passes(metric, limit_um, out.get("saturated"))))
-    return MonteCarloResult(yield_=passed / n, ci95=wilson_interval(passed, n), samples=n, passed=passed,
+    passed, ci95 = yield_estimate(metric, limit_um, out.get("saturated"))
+    return MonteCarloResult(yield_=passed / n, ci95=ci95, samples=n, passed=passed,
                             theta=thetas, metric=metric,
                             outputs=SampleOutputs(**{k: np.asarray(v) for k, v in out.items()}))
 

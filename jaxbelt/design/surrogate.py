@@ -106,8 +106,8 @@ from .metrics import METRICS
 from .linear_box import LinearDeviation
 from .study import Study, deviation, evaluate_deviation, linearise
 from .records import SurrogateValidation
-from .sampling import (STEADY_CHUNK, Distribution, check_distribution, evaluate_configs, padded_rows,
-                       sample_configurations)
+from .configurations import STEADY_CHUNK, evaluate_configs, padded_rows
+from .sampling import Distribution, check_distribution, sample_configurations
 
 ROUNDOFF_UM = 1e-9
 METHODS = ("response", "pod")

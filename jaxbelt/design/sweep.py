@@ -48,8 +48,9 @@ from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearDeviation, LinearResponse, rss_stackup
 from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale
-from .sampling import (Distribution, check_distribution, evaluate_configs, form, importance_sampling, passes,
-                       sample_configurations, wilson_interval)
+from .configurations import evaluate_configs
+from .sampling import (Distribution, check_distribution, form, importance_sampling, sample_configurations,
+                       yield_estimate)
 from .sensitivity import response_jacobian
 from .records import MetricLimit, RollerMisalignment, SurrogateValidation, misalignment_per_roller
 from .study import Study, study_on
@@ -355,8 +356,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     elif rom == "auto" and done < n:
         surrogate, rom_use = _surrogate(study, dist, limit_um, seed, rom_method, linear)
     metric, code, steering = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
-    passed = int(np.sum(passes(metric, limit_um, None if steering is None else steering[1])))
-    ci95 = list(wilson_interval(passed, n))
+    passed, ci95 = yield_estimate(metric, limit_um, None if steering is None else steering[1])
     extra = {}
     if steering is not None:
         extra.update(saturated=int(np.sum(steering[1])), range_mrad=study.range_mrad,
@@ -371,7 +371,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     wall = time.perf_counter() - t0
     return SweepResult(
         metric=study.metric, limit_um=float(limit_um), samples=int(n), seed=int(seed),
-        yield_=passed / n, ci95=ci95, passed=passed,
+        yield_=passed / n, ci95=list(ci95), passed=passed,
         # the surrogate's training and validation runs are full runs too, used or not
         full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_use.validation_runs,
         reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_use, metric_values=metric,

@@ -35,9 +35,8 @@ from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rs
 from .metrics import (METRICS, aggregate, aligned_values, limit_values_from_deviation, metric_unit, on_limit_scale,
                       response_sizes)
 from .records import RollerMisalignment, misalignment_per_roller
-from .configurations import at_configurations
+from .configurations import at_configurations, evaluate_metric
 from .study import Study, study_on, with_limits
-from .sampling import evaluate_metric
 from .sensitivity import response_jacobian
 
 CAP_FRACTION = 0.999  # a half-width at this fraction of h_max or above counts as capped (not felt)

@@ -38,7 +38,7 @@ def test_batch_equals_each_configuration_alone(machine, steady):
 def test_no_configuration_gives_empty_outputs(machine):
     """An empty batch (e.g. a sweep chunk whose surrogate leaves nothing to run in full) gives
     outputs with no rows, and no solve."""
-    from jaxbelt.design.sampling import evaluate_configs
+    from jaxbelt.design.configurations import evaluate_configs
 
     model, opts = machine
     study = make_study(model, "lateral_max", opts, components=COMPONENTS, steady=True)

@@ -12,7 +12,7 @@ from helpers import load, scene_with
 
 import jaxbelt as jb
 from jaxbelt import design
-from jaxbelt.design import sampling
+from jaxbelt.design import configurations, sampling
 from jaxbelt.design.surrogate import ResponseSurface, fit_surrogate, training_configurations
 
 LIMIT = 20.0  # µm
@@ -70,7 +70,7 @@ def test_metric_within_its_bound_of_the_full_metric_on_fresh_samples(study, dist
     sur = request.getfixturevalue(which)
     u = sampling.standard_normal_samples(12, study.space.size, seed=101)
     thetas = np.asarray(dist.transform(jnp.asarray(u)))
-    full = sampling.evaluate_configs(study, thetas, 64)
+    full = configurations.evaluate_configs(study, thetas, 64)
     pred = sur.evaluate(thetas)
     assert set(pred) == {"metric", "bound", "longitudinal_um", "lateral_um"}
     assert pred["lateral_um"].shape == full["lateral_um"].shape
@@ -81,7 +81,7 @@ def test_metric_within_its_bound_of_the_full_metric_on_fresh_samples(study, dist
 
 def test_response_surface_reproduces_its_training_runs(study, dist, surrogate):
     train = training_configurations(dist)
-    full = sampling.evaluate_configs(study, train, 64)
+    full = configurations.evaluate_configs(study, train, 64)
     pred = surrogate.predict(train)
     scale = np.max(np.abs(full["lateral_um"]))
     np.testing.assert_allclose(pred["lateral_um"], full["lateral_um"], rtol=0, atol=1e-9 * scale)

@@ -55,3 +55,12 @@ def test_a_distribution_samples_its_laws():
     assert dist.uniform == (False, True)
     np.testing.assert_allclose(dist.sigma, (0.02, 0.3 / np.sqrt(3.0)), rtol=1e-15)
     assert np.all(np.abs(th[:, 1]) <= 0.3)
+
+
+def test_yield_estimate_is_the_pass_count_and_its_wilson_interval():
+    metric = np.array([1.0, 19.9, 20.0, 25.0, np.nan, 3.0])
+    sat = np.array([False, True, False, False, False, False])
+    passed, ci95 = sampling.yield_estimate(metric, 20.0, sat)
+    assert passed == 3 and ci95 == sampling.wilson_interval(3, 6)
+    lo, hi = ci95
+    assert lo < 0.5 < hi
