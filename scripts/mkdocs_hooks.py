@@ -278,8 +278,10 @@ BENCHMARKS = {
     "call_path": ("How a sweep's study travels through the design package", "The module stops of "
                   "`jaxbelt sweep` on a small scene: every Python call into a `jaxbelt.design` module recorded "
                   "(tracing included), consecutive calls in one module one stop, a stop in a module the path "
-                  "had already left a return; each stop with the functions it entered and whether it was traced "
-                  "(part of building a compiled program), and the counts of the path outside tracing."),
+                  "had already left a return, a stop whose first call comes from outside its module an entry; "
+                  "each stop with the functions it entered, whether it entered and whether it was traced (part of "
+                  "building a compiled program); the counts for the whole command and for the sweep itself, "
+                  "each with and without the stops under tracing."),
     "design_steady": ("The main job's answer", "`jaxbelt tolerance --json` on the default scene (steady operation, "
                       "error bars on) and on the source's variant `three-roller-tolerance`, as a user runs them; the "
                       "README's table and figures are written from this file (`scripts/readme_results.py`)."),

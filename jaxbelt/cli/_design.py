@@ -96,6 +96,14 @@ def check_limit(v):
         raise UsageError(f"--limit-um = {v}: must be a positive number")
 
 
+def check_limit_arguments(args):
+    """The checks of a command that judges limits (``tolerance``, ``sweep``) before any file is
+    read: ``--limit-um``, ``--steering-limit-mrad`` and ``--plot``."""
+    check_limit(args.limit_um)
+    check_steering_limit(args)
+    check_plot(args.plot)
+
+
 def check_plot(path):
     output_file("--plot", path)
 
@@ -155,7 +163,7 @@ def metric_quantities(metric: str, scene) -> tuple[str, ...]:
     """The tracer quantities whose discretisation error a design metric carries: the lateral
     deviation, the longitudinal one, or (the steering angle, which answers the lateral walk, and a
     steered machine's several limits) both."""
-    own = METRICS[metric].quantities()
+    own = METRICS[metric].quantities
     if scene.kind == "1d" or own == ("longitudinal",):
         return ("longitudinal",)
     return ("longitudinal", "lateral") if scene.control else own

@@ -10,7 +10,7 @@ from ..infra.results import unit_key
 from ..infra.store import open_sweep
 from ..design.sweep import sweep_identity, yield_discretisation
 from ._common import UsageError
-from ._design import (add_design_arguments, add_steering_limit_argument, check_limit, check_plot, check_steering_limit,
+from ._design import (add_design_arguments, add_steering_limit_argument, check_limit_arguments, check_steering_limit,
                       finer_model, finish, judges_steady_operation, limits_of, load_design_model, make_design_study,
                       read_toml, stage)
 
@@ -36,9 +36,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    check_limit(args.limit_um)
-    check_steering_limit(args)
-    check_plot(args.plot)
+    check_limit_arguments(args)
     if args.samples < 1:
         raise UsageError(f"--samples = {args.samples}: must be at least 1")
     if args.chunk < 1:
@@ -73,7 +71,7 @@ def run(args):
     if not args.no_error_bars:
         stage(args, "error bar: the samples nearest the limit on the grid one level finer")
         fine, fine_options, grid, grid_fine = finer_model(args)
-        out["discretisation"] = yield_discretisation(res, study, fine, dist, fine_options, grid=grid,
+        out["discretisation"] = yield_discretisation(res, study, fine, fine_options, grid=grid,
                                                      grid_fine=grid_fine).to_dict()
     return finish(args, out, _print, "plot_yield", res.metric_values, limit, res)
 

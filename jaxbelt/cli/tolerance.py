@@ -7,7 +7,7 @@ from ..design import parameter_space, tolerance_box
 from ..design.tolerance import box_discretisation, weights_from_dict
 from ..infra.results import unit_key
 from ._common import UsageError
-from ._design import (add_design_arguments, add_steering_limit_argument, check_limit, check_plot, check_steering_limit,
+from ._design import (add_design_arguments, add_steering_limit_argument, check_limit_arguments, check_steering_limit,
                       finer_model, finish, limits_of, load_design_model, make_design_study, read_toml, stage)
 
 
@@ -26,9 +26,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    check_limit(args.limit_um)
-    check_steering_limit(args)
-    check_plot(args.plot)
+    check_limit_arguments(args)
     weights_data = read_toml(args.weights, "--weights") if args.weights else None
     model, options = load_design_model(args)
     check_steering_limit(args, model)  # before any computation

@@ -71,6 +71,8 @@ from .sampling import importance_sampling as importance_sampling
 from .sampling import monte_carlo as monte_carlo
 from .sampling import wilson_interval as wilson_interval
 from .sampling import yield_estimate as yield_estimate
+from .sampling import YieldStatistics as YieldStatistics
+from .sampling import yield_statistics as yield_statistics
 from .sensitivity import SensitivityReport as SensitivityReport
 from .sensitivity import response_jacobian as response_jacobian
 from .sensitivity import sensitivity_report as sensitivity_report

@@ -79,8 +79,9 @@ class Metric(abc.ABC):
     (``aggregate``: ``"max"`` max-abs, ``"rms"``), the ``unit`` of its value, whether it needs a
     2D scene (``needs_2d``) and a steering loop (``needs_loop``), a one-line ``description``;
     :meth:`response` reads it from a run's deviations and :meth:`steps_read` says how many of a
-    run's last steps that reads and :meth:`quantities` which tracer deviations its discretisation
-    error follows; ``other_direction`` the same measure in the other direction (``lateral_max`` ↔
+    run's last steps that reads; ``quantities`` the tracer deviations (``"longitudinal"``,
+    ``"lateral"``) whose discretisation error the metric carries — both by default (an actuator
+    angle answers the lateral walk and the longitudinal registration alike); ``other_direction`` the same measure in the other direction (``lateral_max`` ↔
     ``longitudinal_max``: a 1D scene's default, and the further limit a steered machine holds),
     ``None`` where there is none; ``soft_maximum`` (class attribute) whether a gradient-based
     search (FORM's limit state) takes its maximum as the soft one of :func:`aggregate` — a maximum
@@ -96,6 +97,7 @@ class Metric(abc.ABC):
     needs_loop: bool
     description: str
     other_direction: str | None = None
+    quantities: tuple[str, ...] = ("longitudinal", "lateral")
 
     @abc.abstractmethod
     def response(self, study, du, dv, angle):
@@ -105,12 +107,6 @@ class Metric(abc.ABC):
     def steps_read(self, study) -> int:
         """How many of the last steps of a run :meth:`response` reads."""
         return study.window
-
-    def quantities(self) -> tuple[str, ...]:
-        """The tracer deviations (``"longitudinal"``, ``"lateral"``) whose discretisation error the
-        metric carries: both by default (an actuator angle answers the lateral walk and the
-        longitudinal registration alike)."""
-        return ("longitudinal", "lateral")
 
 
 def _window(study) -> slice:
@@ -125,6 +121,9 @@ class TracerDeviation(Metric):
 
     direction: str = "lateral"
 
+    def __post_init__(self):
+        object.__setattr__(self, "quantities", (self.direction,))  # its own direction only
+
     def response(self, study, du, dv, angle):
         d = dv if self.direction == "lateral" else du
         return d[_window(study)].reshape(-1) if study.steered else d[study.options.n_steps - 1]
@@ -132,21 +131,16 @@ class TracerDeviation(Metric):
     def steps_read(self, study):
         return study.window if study.steered else 1
 
-    def quantities(self):
-        return (self.direction,)
-
 
 @dataclasses.dataclass(frozen=True)
 class LateralPeak(Metric):
     """``lateral_peak``: the lateral deviation over the window, every step of it."""
 
     soft_maximum: ClassVar[bool] = True
+    quantities: tuple[str, ...] = ("lateral",)
 
     def response(self, study, du, dv, angle):
         return dv[_window(study)].reshape(-1)
-
-    def quantities(self):
-        return ("lateral",)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,15 +148,14 @@ class WalkRate(Metric):
     """``walk_rate``: the least-squares slope of the mean lateral deviation over the second half
     of the run (:func:`jaxbelt.control.walk_rate`), µm/s."""
 
+    quantities: tuple[str, ...] = ("lateral",)
+
     def response(self, study, du, dv, angle):
         t = (jnp.arange(study.options.n_steps) + 1.0) * study.options.dt
         return walk_rate(t, jnp.mean(dv, axis=1), (t[study.options.n_steps // 2], t[-1]))[None]
 
     def steps_read(self, study):
         return study.options.n_steps - study.options.n_steps // 2
-
-    def quantities(self):
-        return ("lateral",)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -182,16 +175,16 @@ _STEERED = "(steered: over tracers and the window)"
 METRICS = {m.name: m for m in (
     TracerDeviation("lateral_rms", "rms", "µm", True, False,
                     f"RMS over the tracers of the lateral deviation at t_eval {_STEERED}, µm", "longitudinal_rms",
-                    "lateral"),
+                    direction="lateral"),
     TracerDeviation("lateral_max", "max", "µm", True, False,
                     f"largest |lateral deviation| over the tracers at t_eval {_STEERED}, µm", "longitudinal_max",
-                    "lateral"),
+                    direction="lateral"),
     TracerDeviation("longitudinal_rms", "rms", "µm", False, False,
                     f"RMS over the tracers of the longitudinal deviation at t_eval {_STEERED}, µm", "lateral_rms",
-                    "longitudinal"),
+                    direction="longitudinal"),
     TracerDeviation("longitudinal_max", "max", "µm", False, False,
                     f"largest |longitudinal deviation| over the tracers at t_eval {_STEERED}: registration, µm",
-                    "lateral_max", "longitudinal"),
+                    "lateral_max", direction="longitudinal"),
     LateralPeak("lateral_peak", "max", "µm", True, False, "largest |lateral deviation| over tracers and the window, µm",
                 "longitudinal_max"),
     WalkRate("walk_rate", "max", "µm/s", True, False,

@@ -19,6 +19,10 @@ and the *yield* is ``P(g ≥ 0)``.
   probable member only (an upper bound on the yield when several compete).
 - **Importance sampling** (:func:`importance_sampling`) around ``u*`` for yields near 1:
   ``u ~ N(u*, I)``, weights ``φ(u)/φ(u - u*)``.
+
+:func:`yield_statistics` is everything a yield study (:func:`jaxbelt.design.run_sweep`) reads
+from its evaluated samples in one call: the Monte-Carlo estimate, and with the linear response FORM
+and — where the samples saw few failures, :func:`few_failures` — importance sampling.
 """
 
 from __future__ import annotations
@@ -361,3 +365,47 @@ def importance_sampling(study: Study, dist: Distribution, limit_um: float, u_sta
     se = float(np.std(fail * w, ddof=1) / math.sqrt(n)) if n > 1 else float("inf")
     return ImportanceSamplingResult(yield_=1.0 - pf, ci95=(max(0.0, 1.0 - pf - Z95 * se), min(1.0, 1.0 - pf + Z95 * se)),
                                     failure_probability=pf, std_error=se, samples=n)
+
+
+def few_failures(failed: int, n: int) -> bool:
+    """Whether ``n`` Monte-Carlo samples with ``failed`` failures leave the yield's tail to
+    importance sampling: at most 5 failures, or 0.1 % of the samples — a yield so near 1 that the
+    samples' own count says little about it."""
+    return failed <= max(5, int(0.001 * n))
+
+
+@dataclasses.dataclass(frozen=True)
+class YieldStatistics(Result):
+    """A yield from evaluated samples (:func:`yield_statistics`). **Fields:** ``passed`` and
+    ``samples``, the Monte-Carlo count (:func:`yield_estimate`), ``ci95`` the Wilson 95 % interval of
+    ``passed / samples``; ``form`` (:class:`FormResult`) with a linear response, else ``None``;
+    ``importance`` (:class:`ImportanceSamplingResult`) where FORM ran and the samples saw few
+    failures (:func:`few_failures`) with the nominal configuration passing, else ``None``."""
+
+    passed: int
+    samples: int
+    ci95: tuple
+    form: FormResult | None = None
+    importance: ImportanceSamplingResult | None = None
+
+
+def yield_statistics(study: Study, dist: Distribution, limit_um: float, metric, saturated=None, *,
+                     response=None, importance_samples: int = 200, seed: int = 1, chunk: int | None = None,
+                     metric_of=None) -> YieldStatistics:
+    """The statistics of a yield from every sample's ``metric`` (n,) (and, on a steered machine,
+    whether its actuator ``saturated``): the Monte-Carlo estimate (:func:`yield_estimate`); with
+    ``response`` ``(r0, J)`` (:func:`~jaxbelt.design.sensitivity.response_jacobian`) also FORM
+    (:func:`form`) and, where the samples saw few failures (:func:`few_failures`) and the nominal
+    configuration passes (``β > 0``), importance sampling around FORM's design point
+    (:func:`importance_sampling`: ``importance_samples`` of ``seed``, ``chunk`` per batch,
+    evaluated by ``metric_of`` or the full model). **Returns:** a :class:`YieldStatistics`."""
+    metric = np.asarray(metric)
+    passed, ci95 = yield_estimate(metric, limit_um, saturated)
+    if response is None:
+        return YieldStatistics(passed, len(metric), ci95)
+    f = form(study, dist, limit_um, response=response)
+    importance = None
+    if few_failures(len(metric) - passed, len(metric)) and f.beta > 0:
+        importance = importance_sampling(study, dist, limit_um, f.u_star, n=importance_samples, seed=seed,
+                                         chunk=chunk, metric_of=metric_of)
+    return YieldStatistics(passed, len(metric), ci95, f, importance)

@@ -43,14 +43,13 @@ import time
 import numpy as np
 
 from ..accuracy import Grid
-from ..infra.results import Result, in_metric_unit, json_fields, to_json, unit_key
+from ..infra.results import Result, in_metric_unit, json_fields, not_in_json, to_json, unit_key
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
 from .linear_box import LinearDeviation, LinearResponse, rss_stackup
 from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale
 from .configurations import evaluate_configs
-from .sampling import (Distribution, check_distribution, form, importance_sampling, sample_configurations,
-                       yield_estimate)
+from .sampling import Distribution, YieldStatistics, check_distribution, sample_configurations, yield_statistics
 from .sensitivity import response_jacobian
 from .records import MetricLimit, RollerMisalignment, SurrogateValidation, misalignment_per_roller
 from .study import Study, study_on
@@ -115,7 +114,9 @@ class SweepResult(Result):
     - ``unit``: the unit of ``limit_um``, ``metric_values`` and ``rss_3sigma_um`` (the metric's: µm,
       mrad or µm/s; the first limit's with several limits); the JSON keys of the first and last name
       it (:func:`jaxbelt.infra.results.unit_key`).
-    - ``metric_values`` (samples,): the metric of every configuration.
+    - ``metric_values`` (samples,): the metric of every configuration; ``configurations`` (samples,
+      P) the configurations themselves (the seed's draw, mm / mrad, the columns those of the study's
+      components), which the JSON leaves out (it names the seed and the distribution, which draw them).
     - ``speedup_estimate``: with a reduced model, the full model's time per configuration in the
       validation runs (compilation included) times the configurations run, over the wall time —
       indicative (``benchmarks/yield_rom.py`` measures it side by side); else ``None``.
@@ -155,11 +156,12 @@ class SweepResult(Result):
     is_samples: int | None = None
     limits: tuple[MetricLimit, ...] | None = None
     unit: str = "µm"
+    configurations: np.ndarray | None = not_in_json()
 
     def to_dict(self, values: bool = False) -> dict:
         """The result as JSON-able data (``jaxbelt sweep --json``): ``yield_`` as ``"yield"``, the
         fields that are ``None`` left out, ``metric_values`` only with ``values``, metric values
-        keyed by ``unit``."""
+        keyed by ``unit``; the ``configurations`` are not written."""
         fields = json_fields(self)
         for k in ("wall_s", "configs_per_s"):  # the timings close the record
             fields[k] = fields.pop(k)
@@ -253,22 +255,14 @@ def _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate,
     return metric, (np.concatenate(codes) if codes else np.zeros(0, np.int8)), steering
 
 
-def _reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate=None,
-                 linear=None) -> dict:
-    """The RSS stack-up, FORM and (yield near 1) importance sampling: :class:`SweepResult` fields.
-    With a ``surrogate``, the importance samples are evaluated as the Monte Carlo's are (the
-    surrogate, and in full where it cannot decide)."""
-    r0, J = response_jacobian(study, linear=linear)
-    sigma = dist.sigma
-    f = form(study, dist, limit_um, linear=linear, response=(r0, J))
+def _reliability_fields(study, sigma, stats: YieldStatistics, response) -> dict:
+    """The :class:`SweepResult` fields of FORM, importance sampling (from ``stats``) and the RSS
+    stack-up of the linear response ``(r0, J)`` under the laws' standard deviations ``sigma``."""
+    f, i = stats.form, stats.importance
     out = dict(form_yield=f.yield_, form_beta=f.beta, form_converged=f.converged)
-    if n - passed <= max(5, int(0.001 * n)) and f.beta > 0:  # yield near 1: MC sees few failures
-        metric_of = None if surrogate is None else \
-            (lambda th: _chunk_outputs(study, surrogate, th, limit_um, chunk)[0]["metric"])
-        i = importance_sampling(study, dist, limit_um, f.u_star, n=importance_samples, seed=seed + 1, chunk=chunk,
-                                metric_of=metric_of)
+    if i is not None:
         out.update(is_yield=i.yield_, is_ci95=list(i.ci95), is_samples=i.samples)
-    out.update(rss_3sigma_um=rss_stackup(LinearResponse(r0, J, study.aggregate), sigma).three_sigma_um,
+    out.update(rss_3sigma_um=rss_stackup(LinearResponse(*response, study.aggregate), sigma).three_sigma_um,
                design_point=misalignment_per_roller(study.space, f.theta_star))
     return out
 
@@ -293,7 +287,7 @@ class YieldDiscretisation(Result):
 
 
 
-def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distribution, fine_options: RunOptions,
+def yield_discretisation(res: SweepResult, study: Study, fine_model, fine_options: RunOptions,
                          k: int = 16, *, grid: Grid | None = None,
                          grid_fine: Grid | None = None) -> YieldDiscretisation:
     """Re-evaluate the samples of ``res`` whose metric is nearest the limit on
@@ -303,12 +297,11 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, dist: Distr
     are those within :data:`FLIP_BAND` of the limit — a grid one level finer moves a design
     scene's metric by a few per cent of the limit at most (``benchmarks/design_error_bars.py``), so
     no sample farther out can change its verdict — at most ``k`` of them and at least the
-    :data:`MIN_RECHECKED` nearest, which measure the metric's relative change. Samples are those
-    of :func:`run_sweep` (the same seed and distribution); a steered machine's saturation verdicts
-    are kept. The finer grid's aligned reference runs in the same ``vmap`` batch as the samples
+    :data:`MIN_RECHECKED` nearest, which measure the metric's relative change. The samples are the
+    sweep's own (``res.configurations``); a steered machine's saturation verdicts are kept. The finer grid's aligned reference runs in the same ``vmap`` batch as the samples
     (:func:`jaxbelt.design.study.make_study_at`)."""
     n = res.samples
-    thetas = sample_configurations(dist, n, res.seed)
+    thetas = np.asarray(res.configurations)
     values = np.asarray(res.metric_values)
     order = np.argsort(np.abs(values - res.limit_um))
     within = int(np.sum(np.abs(values - res.limit_um) <= FLIP_BAND * res.limit_um))
@@ -342,9 +335,9 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     **Returns:** a :class:`SweepResult`."""
     t0 = time.perf_counter()
     _check(n, limit_um, rom, rom_method)
-    limits, t_eval = study.limits, study.t_eval
+    limits, t_eval, range_mrad = study.limits, study.t_eval, study.range_mrad
     check_distribution(dist, study)
-    thetas, distribution = sample_configurations(dist, n, seed), dist.to_dict()
+    thetas, distribution, sigma = sample_configurations(dist, n, seed), dist.to_dict(), dist.sigma
     if limits and not math.isclose(float(limit_um), limits[0][1]):
         raise ValueError(f"limit_um = {limit_um}: a study with several limits is judged on the scale of its first "
                          f"limit ({limits[0][0]} ≤ {limits[0][1]:g}); pass that")
@@ -356,24 +349,32 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     elif rom == "auto" and done < n:
         surrogate, rom_use = _surrogate(study, dist, limit_um, seed, rom_method, linear)
     metric, code, steering = _monte_carlo(study, thetas, done, limit_um, chunk, out, identity, surrogate, progress)
-    passed, ci95 = yield_estimate(metric, limit_um, None if steering is None else steering[1])
     extra = {}
     if steering is not None:
-        extra.update(saturated=int(np.sum(steering[1])), range_mrad=study.range_mrad,
+        extra.update(saturated=int(np.sum(steering[1])), range_mrad=range_mrad,
                      steering_max_mrad=float(np.max(steering[0])) if len(steering[0]) else 0.0)
     if rom_use.used and rom_use.validation.n_validation:
         # indicative: the validation's full runs (their compilation included) per configuration
         per_full = rom_use.validation.validation_s / rom_use.validation.n_validation
         extra["speedup_estimate"] = (n - done) * per_full / max(time.perf_counter() - t0, 1e-9)
+    # FORM and the RSS stack-up read the linear response; importance samples are evaluated as the
+    # Monte Carlo's are (the surrogate, and in full where it cannot decide)
+    response = response_jacobian(study, linear=linear) if with_form else None
+    metric_of = None if surrogate is None else \
+        (lambda th: _chunk_outputs(study, surrogate, th, limit_um, chunk)[0]["metric"])
+    stats = yield_statistics(study, dist, limit_um, metric, None if steering is None else steering[1],
+                             response=response, importance_samples=importance_samples, seed=seed + 1, chunk=chunk,
+                             metric_of=metric_of)
+    passed = stats.passed
     if with_form:
-        extra.update(_reliability(study, dist, limit_um, n, passed, seed, chunk, importance_samples, surrogate,
-                                  linear))
+        extra.update(_reliability_fields(study, sigma, stats, response))
     wall = time.perf_counter() - t0
     return SweepResult(
         metric=study.metric, limit_um=float(limit_um), samples=int(n), seed=int(seed),
-        yield_=passed / n, ci95=list(ci95), passed=passed,
+        yield_=passed / n, ci95=list(stats.ci95), passed=passed,
         # the surrogate's training and validation runs are full runs too, used or not
         full_runs=int(np.sum(code == MODEL_CODES["full"])) + rom_use.validation_runs,
         reduced_runs=int(np.sum(code == MODEL_CODES["reduced"])), rom=rom_use, metric_values=metric,
         wall_s=wall, configs_per_s=(n - done) / wall,
-        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in limits) or None, unit=study.unit, **extra)
+        limits=tuple(MetricLimit(k, v, metric_unit(k)) for k, v in limits) or None, unit=study.unit,
+        configurations=thetas, **extra)

@@ -37,6 +37,12 @@ def in_metric_unit(**kwargs):
 def unit_field(default: str = "µm"):
     """The ``unit`` field of a record nested in another that names the unit (a verification run
     of a tolerance box, a roller's sensitivities): left out of the JSON, whose keys name it."""
+    return not_in_json(default)
+
+
+def not_in_json(default=None):
+    """A dataclass field the record's JSON leaves out (the inputs a record keeps for the code that
+    reads it further, which the JSON names another way: a sweep's configurations, by its seed)."""
     return dataclasses.field(default=default, metadata={"in_json": False})
 
 

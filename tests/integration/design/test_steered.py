@@ -125,7 +125,7 @@ def test_sweep_counts_saturation_as_failure(study):
     # one batch meet the sweep's runs, no verdict changes
     from jaxbelt.design.sweep import yield_discretisation
 
-    same = yield_discretisation(res, st, st.model, dist, st.options)
+    same = yield_discretisation(res, st, st.model, st.options)
     # no sample lies within 10 % of the 1e4 µm limit: the two nearest measure the metric's change
     assert same.samples == 2 and same.flipped == 0 and same.bias == 0.0
     assert same.metric_relative_change < 1e-9

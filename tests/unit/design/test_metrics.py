@@ -23,7 +23,7 @@ def test_the_other_direction_is_a_metric_of_the_same_kind_in_the_other_direction
                                              ("lateral_peak", ("lateral",)), ("walk_rate", ("lateral",)),
                                              ("steering_max", ("longitudinal", "lateral"))])
 def test_each_metric_names_the_deviations_it_reads(name, quantities):
-    assert METRICS[name].quantities() == quantities
+    assert METRICS[name].quantities == quantities
 
 
 def test_only_the_peak_over_a_window_is_smoothed():

@@ -163,3 +163,13 @@ def test_a_metric_in_mrad_or_um_per_s_is_keyed_by_its_unit_never_as_um():
     assert set(d) >= {"worst_case_mrad", "worst_case_fine_mrad", "floor_mrad", "floor_fine_mrad"}
     for r in (b, s, y, d):
         assert not [k for k in json.dumps(r).split('"') if k.endswith("_um") or "_um_per_m" in k]
+
+
+def test_sweep_keeps_its_configurations_out_of_the_json():
+    """The sweep keeps its samples for what reads them further (the yield's error bar); the JSON
+    names the seed and the distribution that draw them instead."""
+    thetas = np.arange(8.0).reshape(4, 2)
+    sweep = _sweep(ReducedModelUse(used=False), configurations=thetas)
+    assert sweep.configurations is thetas
+    assert "configurations" not in _round_trip(sweep) and "configurations" not in sweep.to_dict(values=True)
+    assert _round_trip(sweep) == _round_trip(_sweep(ReducedModelUse(used=False)))

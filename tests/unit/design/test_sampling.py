@@ -64,3 +64,42 @@ def test_yield_estimate_is_the_pass_count_and_its_wilson_interval():
     assert passed == 3 and ci95 == sampling.wilson_interval(3, 6)
     lo, hi = ci95
     assert lo < 0.5 < hi
+
+
+def test_few_failures_leave_the_tail_to_importance_sampling():
+    assert sampling.few_failures(5, 100) and not sampling.few_failures(6, 100)
+    assert sampling.few_failures(10, 10_000) and not sampling.few_failures(11, 10_000)  # 0.1 %
+
+
+def test_yield_statistics_without_a_linear_response_is_the_monte_carlo_estimate():
+    """No linear response: no FORM, no importance sampling, nothing evaluated (the study is not
+    read)."""
+    metric = np.array([1.0, 19.9, 20.0, 25.0, np.nan, 3.0])
+    sat = np.array([False, True, False, False, False, False])
+    stats = sampling.yield_statistics(None, None, 20.0, metric, sat)
+    assert (stats.passed, stats.samples, stats.ci95) == (3, 6, sampling.yield_estimate(metric, 20.0, sat)[1])
+    assert stats.form is None and stats.importance is None
+
+
+def test_yield_statistics_runs_importance_sampling_only_for_a_yield_near_one(monkeypatch):
+    """With the linear response, FORM runs; importance sampling follows where the samples saw few
+    failures and the nominal configuration passes (β > 0), around FORM's design point, with the
+    caller's sample count, seed, chunk and evaluation."""
+    calls = []
+    beta = [2.0]
+    monkeypatch.setattr(sampling, "form", lambda study, dist, limit, response: SimpleNamespace(
+        beta=beta[0], u_star=np.array([beta[0]])))
+    monkeypatch.setattr(sampling, "importance_sampling", lambda *a, **k: calls.append((a, k)) or "IS")
+    metric_of = object()
+    few = np.r_[np.zeros(995), np.full(5, 30.0)]  # 5 failures in 1000
+    stats = sampling.yield_statistics("study", "dist", 20.0, few, response=("r0", "J"), importance_samples=7,
+                                      seed=3, chunk=2, metric_of=metric_of)
+    assert stats.passed == 995 and stats.form.beta == 2.0 and stats.importance == "IS"
+    (args, kwargs), = calls
+    assert args[:3] == ("study", "dist", 20.0) and args[3][0] == 2.0
+    assert kwargs == {"n": 7, "seed": 3, "chunk": 2, "metric_of": metric_of}
+    many = np.r_[np.zeros(990), np.full(10, 30.0)]
+    assert sampling.yield_statistics("study", "dist", 20.0, many, response=("r0", "J")).importance is None
+    beta[0] = -1.0  # the nominal configuration fails: no design point to sample around
+    assert sampling.yield_statistics("study", "dist", 20.0, few, response=("r0", "J")).importance is None
+    assert len(calls) == 1
