@@ -32,11 +32,9 @@ from pathlib import Path
 
 from _common import write
 
-os.environ["JAXBELT_PROGRAM_STORE"] = "0"  # trace every program (module docstring)
+from jax._src.core import trace_state_clean  # whether JAX is tracing (no public name)
 
-from jax._src.core import trace_state_clean  # noqa: E402  (whether JAX is tracing: no public name)
-
-from jaxbelt.cli import main as cli  # noqa: E402
+from jaxbelt.cli import main as cli
 
 SMALL = """extends = "three-roller-tolerance"
 [mesh]
@@ -51,6 +49,7 @@ PACKAGE = "jaxbelt.design"
 
 
 def main():
+    os.environ["JAXBELT_PROGRAM_STORE"] = "0"  # trace every program (module docstring)
     events = []  # every call into the package: {"module", "function", "traced", "entered", "sweep"}
     edges = collections.Counter()
     in_sweep = [False]
