@@ -32,7 +32,7 @@ gains) is :mod:`jaxbelt.steering`.
 from ..misalignment import COMPONENTS as COMPONENTS
 from ..misalignment import ParameterSpace as ParameterSpace
 from ..misalignment import parameter_space as parameter_space
-from .linear_box import LinearDeviation as LinearDeviation
+from .linearisation import LinearDeviation as LinearDeviation
 from .linear_box import LinearResponse as LinearResponse
 from .linear_box import Stackup as Stackup
 from .linear_box import optimise_box as optimise_box

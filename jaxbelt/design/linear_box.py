@@ -25,9 +25,8 @@ result is then scaled onto the limit exactly. Components the metric does not fee
 (5 mm / 5 mrad by default: the range in which the linear model is trusted) and reported as
 *unconstrained*.
 
-The linear model of a study's runs themselves, their tracer deviations and actuator angles at
-``θ = 0`` with their derivatives, is :class:`LinearDeviation`: every linear response of the same
-study is read from it.
+The linear model of a study's runs themselves, from which every linear response of the same study
+is read, is :class:`jaxbelt.design.linearisation.LinearDeviation`.
 """
 
 from __future__ import annotations
@@ -36,7 +35,6 @@ import dataclasses
 import functools
 import itertools
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -272,45 +270,3 @@ def rss_stackup(lin: LinearResponse, sigma) -> Stackup:
     sigma = np.asarray(sigma, float)
     s_r = np.sqrt((lin.J**2) @ sigma**2)
     return Stackup(sigma_um=s_r, three_sigma_um=float(aggregate(lin.kind, jnp.asarray(np.abs(lin.r0) + 3 * s_r))))
-
-
-class LinearDeviation(eqx.Module):
-    """The deviations of a study's runs (:func:`~jaxbelt.design.study.run_deviation`) at ``θ = 0`` and their derivatives
-    with respect to every component of ``θ``: ``d(θ) ≈ d(0) + ∂d θ``, what
-    :func:`jaxbelt.design.response_jacobian` reads at ``θ = 0`` instead of running again (from
-    :func:`~jaxbelt.design.study.make_study` with ``jacobian=True`` or :func:`~jaxbelt.design.study.linearise`). It is a function of the
-    deviations alone, so it serves every metric and every set of limits of the same study
-    (:func:`~jaxbelt.design.study.with_limits`).
-
-    **Fields:** ``d_u_um``, ``d_v_um`` (n_steps, n_tr) the tracer deviations at ``θ = 0``, µm
-    (``d_v_um`` ``None`` in 1D); ``angle_mrad`` (n_steps, n_c) the actuator angles there, mrad
-    (``None`` without a loop); ``d_u_um_per_theta``, ``d_v_um_per_theta``,
-    ``angle_mrad_per_theta`` their derivatives, the same shapes with a trailing axis P, per mm
-    (translations) or mrad (rotations).
-    """
-
-    d_u_um: jax.Array
-    d_v_um: jax.Array | None
-    angle_mrad: jax.Array | None
-    d_u_um_per_theta: jax.Array
-    d_v_um_per_theta: jax.Array | None
-    angle_mrad_per_theta: jax.Array | None
-
-    @property
-    def at_zero(self) -> tuple:
-        """``(d_u, d_v, angle)`` at ``θ = 0`` (µm, µm, mrad), as :func:`~jaxbelt.design.study.run_deviation` returns them."""
-        return self.d_u_um, self.d_v_um, self.angle_mrad
-
-    @property
-    def derivatives(self) -> tuple:
-        """``(∂d_u, ∂d_v, ∂angle)``, each with a trailing axis P."""
-        return self.d_u_um_per_theta, self.d_v_um_per_theta, self.angle_mrad_per_theta
-
-    def deviation(self, theta) -> tuple:
-        """``(d_u, d_v, angle)`` of the linear model at ``theta`` (P,), mm / mrad."""
-        return tuple(None if a is None else a + b @ theta for a, b in zip(self.at_zero, self.derivatives))
-
-
-def linear_deviation(at_zero, derivatives) -> LinearDeviation:
-    """:class:`LinearDeviation` from ``(d_u, d_v, angle)`` and their derivatives."""
-    return LinearDeviation(*at_zero, *derivatives)

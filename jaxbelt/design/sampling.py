@@ -37,7 +37,7 @@ from jax.scipy.stats import norm
 
 from ..misalignment import COMPONENTS, TRANSLATIONS, parameter_space
 from ..infra.programs import stored_jit
-from .linear_box import LinearDeviation
+from .linearisation import LinearDeviation
 from .configurations import evaluate_configs, evaluate_metric
 from .study import Study, metric_value
 from .sensitivity import response_jacobian
@@ -273,7 +273,7 @@ def form(study: Study, dist: Distribution, limit_um: float, u0=None, max_iter: i
 
     The start point ``u0`` defaults to the design point of the linearised response's most
     critical row (see :func:`linear_design_point`); the linear response is read from ``linear``
-    (the study's :class:`~jaxbelt.design.linear_box.LinearDeviation`) where given, else from a run;
+    (the study's :class:`~jaxbelt.design.linearisation.LinearDeviation`) where given, else from a run;
     ``response`` ``(r0, J)`` (:func:`~jaxbelt.design.sensitivity.response_jacobian`) where the caller
     already holds it.
 

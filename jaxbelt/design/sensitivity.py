@@ -21,7 +21,7 @@ import numpy as np
 
 from .metrics import response_from_deviation
 from .records import ComponentGradient, RollerSensitivity, StructuralZero, sensitivity_per_roller
-from .linear_box import LinearDeviation
+from .linearisation import LinearDeviation
 from .study import Study, metric_value, response
 from ..infra.programs import stored_jit
 from ..infra.results import Result, in_metric_unit
@@ -85,7 +85,7 @@ def value_and_gradient(study: Study, theta=None):
 def response_jacobian(study: Study, theta=None, mode: str = "auto", linear: LinearDeviation | None = None):
     """``(r0, J)``: the response ``r`` (n_r,) at ``theta`` and ``J = ∂r/∂θ`` (n_r, P), µm per
     mm / mrad. ``mode``: ``"forward"``, ``"reverse"`` or ``"auto"`` (forward when P ≤ n_r).
-    ``linear``: the study's :class:`~jaxbelt.design.linear_box.LinearDeviation` (from
+    ``linear``: the study's :class:`~jaxbelt.design.linearisation.LinearDeviation` (from
     ``make_study(..., jacobian=True)``), read instead of a run; it holds ``θ = 0`` only, so
     ``theta`` is then not given."""
     if mode not in ("auto", "forward", "reverse"):

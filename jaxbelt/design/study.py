@@ -4,7 +4,7 @@ the aligned reference — and the runs that answer it at a design vector (:func:
 :func:`response`, :func:`metric_value`, :func:`evaluate`). Built by :func:`make_study` (one model),
 :func:`make_study_at` (a model and its batch of configurations at once) or :func:`study_on` (the
 same question on another grid of the scene). The linear response of the runs at ``θ = 0`` is a
-:class:`~jaxbelt.design.linear_box.LinearDeviation` beside the study (:func:`make_study` with ``jacobian=True``,
+:class:`~jaxbelt.design.linearisation.LinearDeviation` beside the study (:func:`make_study` with ``jacobian=True``,
 :func:`linearise`), passed to what reads it."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from ..steady import (NoSteadyStateError, actuator_jitter, check_steady, forward
                       period_steps, steady_states, steady_state, steady_with_tangents, walks)
 from ..run_checks import check_finite
 from ..timeloop import RunOptions, simulate
-from .linear_box import LinearDeviation, linear_deviation
+from .linearisation import LinearDeviation, linear_deviation
 from .metrics import (CLOSED_LOOP_WINDOW, METRICS, M_TO_UM, OPEN_LOOP_WINDOW, RAD_TO_MRAD, limit_values_from_deviation,
                       metric_from_deviation, response_from_deviation, saturation)
 
@@ -54,7 +54,7 @@ class Study(eqx.Module):
     ``jacobian=True``): every steady solve of the study starts at the linear prediction
     :func:`jaxbelt.steady.linear_start`, or without them at the aligned steady state. Both are
     where the study's runs start, so they belong to the study; the linear response of the
-    deviations, which no run reads, is a :class:`~jaxbelt.design.linear_box.LinearDeviation` beside it.
+    deviations, which no run reads, is a :class:`~jaxbelt.design.linearisation.LinearDeviation` beside it.
     Set from those: ``aggregate`` how the response is aggregated (``"max"`` with several limits,
     else the metric's), ``steered`` whether the machine has steering loops (then its metrics
     read the window in closed loop) and ``unit`` the unit of the metric values (µm, mrad or µm/s:
@@ -139,7 +139,7 @@ def make_study(model: BeltModel, metric: str, options: RunOptions, *, t_eval: fl
     reference once. **Returns:** the :class:`Study`; with ``jacobian``, ``(study, linear)``.
 
     With ``jacobian``, also the run's derivatives with respect to every component at the scene's
-    own misalignment (``linear``, a :class:`~jaxbelt.design.linear_box.LinearDeviation`), for the linear response at
+    own misalignment (``linear``, a :class:`~jaxbelt.design.linearisation.LinearDeviation`), for the linear response at
     ``θ = 0``. On an aligned scene that run is the reference itself: one forward-mode program
     gives both (the reference is the primal the tangents ride on), where a study and then its
     Jacobian (:func:`linearise`) would run the reference twice and compile two programs. The study
@@ -250,7 +250,7 @@ def _deviation_tangents(study: Study):
 
 
 def linearise(study: Study) -> LinearDeviation:
-    """The study's deviations at ``θ = 0`` and their derivatives (:class:`~jaxbelt.design.linear_box.LinearDeviation`), from
+    """The study's deviations at ``θ = 0`` and their derivatives (:class:`~jaxbelt.design.linearisation.LinearDeviation`), from
     one forward-mode run (implicit tangents of the steady state in steady operation)."""
     return linear_deviation(*_deviation_tangents(study))
 

@@ -103,7 +103,7 @@ from ..rom.pod_step import reduced_operators
 from ..state import initial_state
 from ..timeloop import simulate
 from .metrics import METRICS
-from .linear_box import LinearDeviation
+from .linearisation import LinearDeviation
 from .study import Study, deviation, evaluate_deviation, linearise
 from .records import SurrogateValidation
 from .configurations import STEADY_CHUNK, evaluate_configs, padded_rows
@@ -399,7 +399,7 @@ def fit_surrogate(study: Study, dist: Distribution, limit_um: float, seed: int =
     (normal laws); ``batch`` rows per compiled evaluation; ``method`` the reduced model:
     ``"response"`` (:class:`ResponseSurface`, default) or ``"pod"`` (the fully reduced POD
     step, with ``sv_tol`` / ``max_modes`` its mode rule); ``linear`` a steady study's
-    :class:`~jaxbelt.design.linear_box.LinearDeviation`, its surrogate (computed where not given).
+    :class:`~jaxbelt.design.linearisation.LinearDeviation`, its surrogate (computed where not given).
 
     **Returns:** a :class:`Surrogate`, its ``validation`` a :class:`SurrogateValidation`.
     """

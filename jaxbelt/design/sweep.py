@@ -46,7 +46,8 @@ from ..accuracy import Grid
 from ..infra.results import Result, in_metric_unit, json_fields, not_in_json, to_json, unit_key
 from ..infra.store import MODEL_CODES, append_chunk, load_sweep, open_sweep
 from ..timeloop import RunOptions
-from .linear_box import LinearDeviation, LinearResponse, rss_stackup
+from .linear_box import LinearResponse, rss_stackup
+from .linearisation import LinearDeviation
 from .metrics import SATURATION_FRACTION, metric_unit, on_limit_scale
 from .configurations import evaluate_configs
 from .sampling import Distribution, YieldStatistics, check_distribution, sample_configurations, yield_statistics
@@ -328,7 +329,7 @@ def run_sweep(study: Study, dist: Distribution, n: int, limit_um: float = 20.0, 
     ``rom="auto"`` (:func:`~jaxbelt.design.surrogate.fit_surrogate`'s ``method``: ``"response"``
     or ``"pod"``); ``with_form`` also the RSS stack-up, FORM and importance sampling
     (``importance_samples``); ``progress`` a progress bar; ``scene`` the scene's name, part of
-    the store's identity; ``linear`` the study's :class:`~jaxbelt.design.linear_box.LinearDeviation`
+    the store's identity; ``linear`` the study's :class:`~jaxbelt.design.linearisation.LinearDeviation`
     (``make_study(..., jacobian=True)``): FORM, the RSS stack-up and a steady study's surrogate
     read the linear response from it instead of a run.
 

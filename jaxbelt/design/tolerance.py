@@ -31,7 +31,8 @@ from ..accuracy import Grid
 from ..infra.results import Result, in_metric_unit, json_fields, to_json, unit_field
 from ..misalignment import ROTATIONS, TRANSLATIONS, ParameterSpace
 from ..timeloop import RunOptions
-from .linear_box import H_MAX, LinearDeviation, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
+from .linear_box import H_MAX, LinearResponse, optimise_box, rss_stackup, worst_case, worst_corners
+from .linearisation import LinearDeviation
 from .metrics import (METRICS, aggregate, aligned_values, limit_values_from_deviation, metric_unit, on_limit_scale,
                       response_sizes)
 from .records import RollerMisalignment, misalignment_per_roller
@@ -229,7 +230,7 @@ def tolerance_box(study: Study, limit_um: float = 20.0, weights=None, h_max: flo
     ``vmap`` of :func:`jaxbelt.design.study.metric_value`; with ``limits``, each limit's value
     (m, n_limits)); ``limits`` further limits held at the same time, ``{metric: limit}`` in each
     metric's unit (max-type metrics; the study's metric must be one too); ``linear`` the study's
-    :class:`~jaxbelt.design.linear_box.LinearDeviation` (``make_study(..., jacobian=True)``), the
+    :class:`~jaxbelt.design.linearisation.LinearDeviation` (``make_study(..., jacobian=True)``), the
     linear response read from it instead of a run.
 
     **Returns:** a :class:`ToleranceBox`.
