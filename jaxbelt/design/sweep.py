@@ -302,6 +302,9 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, fine_option
     sweep's own (``res.configurations``); a steered machine's saturation verdicts are kept. The finer grid's aligned reference runs in the same ``vmap`` batch as the samples
     (:func:`jaxbelt.design.study.make_study_at`)."""
     n = res.samples
+    if res.configurations is None:
+        raise ValueError("yield_discretisation: the sweep's configurations are needed (SweepResult.configurations, "
+                         "as run_sweep returns it)")
     thetas = np.asarray(res.configurations)
     values = np.asarray(res.metric_values)
     order = np.argsort(np.abs(values - res.limit_um))

@@ -5,6 +5,7 @@ out says so, and the per-roller tables keep their ``{roller: {...}}`` shape."""
 import json
 
 import numpy as np
+import pytest
 
 from jaxbelt.accuracy import Grid
 from jaxbelt.design import (ComponentGradient, MetricLimit, ReducedModelUse, RollerMisalignment, SensitivityReport,
@@ -173,3 +174,10 @@ def test_sweep_keeps_its_configurations_out_of_the_json():
     assert sweep.configurations is thetas
     assert "configurations" not in _round_trip(sweep) and "configurations" not in sweep.to_dict(values=True)
     assert _round_trip(sweep) == _round_trip(_sweep(ReducedModelUse(used=False)))
+
+
+def test_the_yield_error_bar_needs_the_sweeps_configurations():
+    from jaxbelt.design.sweep import yield_discretisation
+
+    with pytest.raises(ValueError, match="configurations"):
+        yield_discretisation(_sweep(ReducedModelUse(used=False)), None, None, None)
