@@ -18,8 +18,9 @@ import jax
 
 
 class LinearDeviation(eqx.Module):
-    """The deviations of a study's runs (:func:`~jaxbelt.design.study.run_deviation`) at ``θ = 0`` and their derivatives
-    with respect to every component of ``θ``: ``d(θ) ≈ d(0) + ∂d θ`` (module docstring).
+    """The deviations of a study's runs (:func:`~jaxbelt.design.study.run_deviation`) at ``θ = 0``
+    and their derivatives with respect to every component of ``θ``: ``d(θ) ≈ d(0) + ∂d θ`` (module
+    docstring).
 
     **Fields:** ``d_u_um``, ``d_v_um`` (n_steps, n_tr) the tracer deviations at ``θ = 0``, µm
     (``d_v_um`` ``None`` in 1D); ``angle_mrad`` (n_steps, n_c) the actuator angles there, mrad
@@ -37,7 +38,8 @@ class LinearDeviation(eqx.Module):
 
     @property
     def at_zero(self) -> tuple:
-        """``(d_u, d_v, angle)`` at ``θ = 0`` (µm, µm, mrad), as :func:`~jaxbelt.design.study.run_deviation` returns them."""
+        """``(d_u, d_v, angle)`` at ``θ = 0`` (µm, µm, mrad), as
+        :func:`~jaxbelt.design.study.run_deviation` returns them."""
         return self.d_u_um, self.d_v_um, self.angle_mrad
 
     @property

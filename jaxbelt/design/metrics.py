@@ -81,8 +81,9 @@ class Metric(abc.ABC):
     :meth:`response` reads it from a run's deviations and :meth:`steps_read` says how many of a
     run's last steps that reads; ``quantities`` the tracer deviations (``"longitudinal"``,
     ``"lateral"``) whose discretisation error the metric carries — both by default (an actuator
-    angle answers the lateral walk and the longitudinal registration alike); ``other_direction`` the same measure in the other direction (``lateral_max`` ↔
-    ``longitudinal_max``: a 1D scene's default, and the further limit a steered machine holds),
+    angle answers the lateral walk and the longitudinal registration alike); ``other_direction``
+    the same measure in the other direction (``lateral_max`` ↔ ``longitudinal_max``: a 1D scene's
+    default, and the further limit a steered machine holds),
     ``None`` where there is none; ``soft_maximum`` (class attribute) whether a gradient-based
     search (FORM's limit state) takes its maximum as the soft one of :func:`aggregate` — a maximum
     over every step of a window, whose peak jumps from step to step. A new metric is one subclass

@@ -299,7 +299,8 @@ def yield_discretisation(res: SweepResult, study: Study, fine_model, fine_option
     scene's metric by a few per cent of the limit at most (``benchmarks/design_error_bars.py``), so
     no sample farther out can change its verdict — at most ``k`` of them and at least the
     :data:`MIN_RECHECKED` nearest, which measure the metric's relative change. The samples are the
-    sweep's own (``res.configurations``); a steered machine's saturation verdicts are kept. The finer grid's aligned reference runs in the same ``vmap`` batch as the samples
+    sweep's own (``res.configurations``); a steered machine's saturation verdicts are kept. The
+    finer grid's aligned reference runs in the same ``vmap`` batch as the samples
     (:func:`jaxbelt.design.study.make_study_at`)."""
     n = res.samples
     if res.configurations is None:
