@@ -46,6 +46,7 @@ DIST = """[roller."roller 2"]
 rotation_mrad = {dist = "normal", sigma = [0.05, 0.05, 0.0]}
 """
 PACKAGE = "jaxbelt.design"
+SWEEP = ("jaxbelt.design.sweep", "run_sweep")  # where the sweep itself starts
 
 
 def main():
@@ -100,9 +101,6 @@ def main():
         print(f"{name}: {c['stops']} stops in {c['modules']} modules, {c['returns_to_a_module_left']} returns; "
               f"entries per module at most {c['most_entries']} ({c['entries_per_module']})")
     print(f"{len(edges)} caller-callee module pairs, cycle: {_has_cycle(edges)}")
-
-
-SWEEP = ("jaxbelt.design.sweep", "run_sweep")  # where the sweep itself starts
 
 
 def _on_stack(frame, module: str) -> bool:

@@ -11,11 +11,6 @@ a program: each configuration is one call of the single steady solve's compiled 
 deviations and whatever is read from them after. So the Newton–GMRES program of a scene is
 compiled once, whichever command and whichever question asks for solves (the aligned machine,
 a box's corners, a sweep's samples), instead of once more inside every batch that holds it.
-
-:func:`evaluate_configs` pads the rows to a whole number of ``chunk``-row blocks
-(:func:`padded_rows`), so every block of one chunk size reuses one compilation; a time-stepped
-study's blocks are ``vmap`` batches sharded over the local devices
-(:func:`jaxbelt.infra.sharding.batched_map`), a steady study's at most :data:`STEADY_CHUNK` solves.
 """
 
 from __future__ import annotations
@@ -64,25 +59,14 @@ def at_configurations(study: Study, thetas, from_deviation):
 
 def evaluate_configs(study: Study, thetas, chunk: int | None = None, progress=None):
     """Full-model :func:`jaxbelt.design.study.evaluate` for every row of ``thetas`` (n, P),
-    batched with ``vmap`` and sharded over the local devices, ``chunk`` configurations at a
-    time; ``progress(done, chunk_result)`` is called after each chunk.
+    ``chunk`` configurations at a time, ``progress(done, chunk_result)`` called after each chunk.
+    The rows are padded to a whole number of chunks (:func:`padded_rows`), so every call with the
+    same ``chunk`` reuses one compilation: a time-stepped study's chunks are ``vmap`` batches
+    sharded over the local devices (:func:`~jaxbelt.infra.sharding.batched_map`); a steady study's
+    solves run one after another, one compiled solve per row (:func:`_steady_chunks`), where a
+    padded row costs a whole solve, so its chunk is at most :data:`STEADY_CHUNK`.
 
     **Returns:** dict of numpy arrays with leading axis n."""
-    return _map(study, thetas, chunk, progress)
-
-
-def padded_rows(rows, chunk: int) -> np.ndarray:
-    """``rows`` (n, …) with the last row repeated up to a whole number of ``chunk``-row blocks, so
-    that every block of a batched evaluation has one shape: one compilation (no rows: none)."""
-    rows = np.asarray(rows)
-    return np.concatenate([rows, np.repeat(rows[-1:], -len(rows) % chunk, axis=0)]) if len(rows) else rows
-
-
-def _map(study, thetas, chunk, progress=None):
-    """:func:`~jaxbelt.infra.sharding.batched_map` with the rows padded to a whole number of
-    chunks, so that every call with the same ``chunk`` reuses one compilation. Steady solves run
-    one after another, one compiled solve per row (:func:`_steady_chunks`), where a padded row
-    costs a whole solve: their chunk is at most :data:`STEADY_CHUNK`."""
     thetas = np.asarray(thetas, float).reshape(-1, study.space.size)
     if study.steady:
         chunk = min(chunk or STEADY_CHUNK, STEADY_CHUNK)
@@ -96,10 +80,17 @@ def _map(study, thetas, chunk, progress=None):
     return jax.tree.map(lambda a: a[:n], out)
 
 
+def padded_rows(rows, chunk: int) -> np.ndarray:
+    """``rows`` (n, …) with the last row repeated up to a whole number of ``chunk``-row blocks, so
+    that every block of a batched evaluation has one shape: one compilation (no rows: none)."""
+    rows = np.asarray(rows)
+    return np.concatenate([rows, np.repeat(rows[-1:], -len(rows) % chunk, axis=0)]) if len(rows) else rows
+
+
 def _steady_chunks(study, thetas, chunk, progress=None):
     """A steady study's :func:`jaxbelt.design.study.evaluate` at the rows of ``thetas``, ``chunk``
-    rows at a time (:func:`jaxbelt.design.configurations.at_configurations`: one compiled solve
-    per row), ``progress(done, chunk_result)`` after each chunk."""
+    rows at a time (:func:`at_configurations`: one compiled solve per row),
+    ``progress(done, chunk_result)`` after each chunk."""
     parts = []
     for start in range(0, max(len(thetas), 1), chunk):  # (no configuration: one empty part)
         part = jax.tree.map(np.asarray, at_configurations(study, thetas[start:start + chunk], evaluate_deviation))
@@ -109,7 +100,6 @@ def _steady_chunks(study, thetas, chunk, progress=None):
     return jax.tree.map(lambda *a: np.concatenate(a), *parts)
 
 
-
 def evaluate_metric(study: Study, thetas, chunk: int | None = None):
-    """The metric (n,) at every row of ``thetas`` (n, P) (full model, batched)."""
-    return np.asarray(_map(study, thetas, chunk)["metric"])
+    """The metric (n,) at every row of ``thetas`` (n, P) (full model, batched: :func:`evaluate_configs`)."""
+    return np.asarray(evaluate_configs(study, thetas, chunk)["metric"])
